@@ -1,0 +1,10 @@
+//! Surface reconstruction from scanned points (thesis §5).
+//!
+//! This crate will hold the reconstruction pipeline: confidence of samples (eq. 5.39–5.40),
+//! a Boykov–Kolmogorov max-flow graph cut on the sphere intersection graph and on the
+//! tetrahedral mesh, diffusion of local functions with fitting terms, normal estimation for
+//! unoriented input, and polygonisation by surface nets visited only near the zero set.
+//!
+//! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`. Nothing is implemented
+//! yet, so it exposes no API.
+#![deny(missing_docs)]
