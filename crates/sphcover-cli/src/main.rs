@@ -1,1 +1,63 @@
-fn main() {}
+//! The `sphcover` command: processing of scanned geometry with spherically supported functions.
+
+mod args;
+mod commands;
+mod exit;
+mod report;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use crate::args::{Cli, Command};
+use crate::report::Reporter;
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // clap prints help/version to stdout with success, usage errors to stderr.
+            let code = if e.use_stderr() {
+                exit::USAGE
+            } else {
+                exit::SUCCESS
+            };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    let reporter = Reporter::new(cli.global.verbose, cli.global.quiet);
+    if let Err(e) = configure_threads(cli.global.threads) {
+        reporter.error(&e);
+        return ExitCode::from(exit::USAGE);
+    }
+    let result = match &cli.command {
+        Command::Info(a) => commands::info::run(a, &reporter),
+        Command::Recon(a) => commands::unavailable::run("recon", a, &reporter),
+        Command::Skeleton(a) => commands::unavailable::run("skeleton", a, &reporter),
+        Command::Cover(a) => commands::unavailable::run("cover", a, &reporter),
+        Command::Tetra(a) => commands::unavailable::run("tetra", a, &reporter),
+    };
+    match result {
+        Ok(()) => ExitCode::from(exit::SUCCESS),
+        Err(e) => {
+            reporter.error(&e);
+            ExitCode::from(exit::code_for(&e))
+        }
+    }
+}
+
+/// Sizes rayon's global pool. Results never depend on the thread count (every parallel loop
+/// in the libraries is deterministic), so this only trades speed for CPU share.
+fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        if n == 0 {
+            anyhow::bail!("--threads must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| anyhow::anyhow!("cannot start {n} threads: {e}"))?;
+    }
+    Ok(())
+}

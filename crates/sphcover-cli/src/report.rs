@@ -1,0 +1,94 @@
+//! What the command tells a person while it runs: progress bars, stage timings, warnings and
+//! errors, all on stderr so that stdout carries only results.
+
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Where progress, timings and messages go, and how much of them.
+#[derive(Debug)]
+pub struct Reporter {
+    verbose: u8,
+    quiet: bool,
+    bars: bool,
+}
+
+impl Reporter {
+    /// A reporter for the given `-v` count and `--quiet`. Progress bars are drawn only when
+    /// stderr is a terminal and `--quiet` is off.
+    pub fn new(verbose: u8, quiet: bool) -> Reporter {
+        Reporter {
+            verbose,
+            quiet,
+            bars: !quiet && std::io::stderr().is_terminal(),
+        }
+    }
+
+    /// A progress bar over `len` steps, hidden when bars are off.
+    pub fn progress(&self, len: u64, message: &str) -> ProgressBar {
+        if !self.bars {
+            return ProgressBar::hidden();
+        }
+        let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template("{msg:>12} [{bar:40}] {percent:>3}% {elapsed_precise}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
+        );
+        bar.set_message(message.to_owned());
+        bar
+    }
+
+    /// Starts timing a stage; its time is printed with `-v` when the guard is finished.
+    pub fn stage(&self, name: &str) -> Stage<'_> {
+        Stage {
+            reporter: self,
+            name: name.to_owned(),
+            start: Instant::now(),
+        }
+    }
+
+    /// A note printed with `-v`.
+    pub fn detail(&self, message: &str) {
+        if self.verbose > 0 {
+            eprintln!("{message}");
+        }
+    }
+
+    /// A warning, printed unless `--quiet`.
+    pub fn warn(&self, message: &str) {
+        if !self.quiet {
+            eprintln!("warning: {message}");
+        }
+    }
+
+    /// The error that ended the run, with its chain of causes; always printed.
+    pub fn error(&self, err: &anyhow::Error) {
+        eprintln!("error: {err}");
+        for cause in err.chain().skip(1) {
+            eprintln!("  caused by: {cause}");
+        }
+    }
+}
+
+/// A timed stage of a command.
+#[derive(Debug)]
+pub struct Stage<'a> {
+    reporter: &'a Reporter,
+    name: String,
+    start: Instant,
+}
+
+impl Stage<'_> {
+    /// Ends the stage, prints its time with `-v`, and returns it.
+    pub fn finish(self) -> Duration {
+        let elapsed = self.start.elapsed();
+        self.reporter.detail(&format!(
+            "  {:<24} {:>9.3} s",
+            self.name,
+            elapsed.as_secs_f64()
+        ));
+        elapsed
+    }
+}
