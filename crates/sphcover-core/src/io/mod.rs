@@ -33,7 +33,9 @@
 //! * Writers print decimal numbers as the shortest text that reads back bit-exactly, and
 //!   [`Precision::F64`] (the default) makes every round trip through a file lossless;
 //!   [`Precision::F32`] halves binary files and rounds every value to `f32`. STL always
-//!   stores `f32`.
+//!   stores `f32`. Text formats without declared types (OBJ, OFF, column text) store an `f32`
+//!   as the shortest digits that identify it; they read back as an `f64` that rounds to the
+//!   same `f32`.
 //! * A writer given data its format cannot hold (faces to XYZ, per-vertex values to OBJ,
 //!   a point cloud to STL, …) returns [`IoError::Unsupported`] instead of dropping data.
 //! * Every writer goes through [`write_atomic`]: the output appears complete or not at all.

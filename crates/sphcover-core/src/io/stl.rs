@@ -105,16 +105,11 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
             ),
         )
     };
-    if bytes.trim_ascii_start().starts_with(b"solid") {
-        return read_ascii(bytes).map_err(|failure| {
-            // A binary file whose header starts with "solid" but whose size is wrong is a
-            // truncated binary file, not bad text.
-            if declared.is_some() && bytes.contains(&0) {
-                size_mismatch()
-            } else {
-                failure
-            }
-        });
+    // Ascii STL never holds a NUL byte: with one, a "solid" header is a binary file's whose
+    // size is wrong (truncated or padded), not text.
+    let binary_looking = declared.is_some() && bytes.contains(&0);
+    if bytes.trim_ascii_start().starts_with(b"solid") && !binary_looking {
+        return read_ascii(bytes);
     }
     if declared.is_some() {
         return Err(size_mismatch());
