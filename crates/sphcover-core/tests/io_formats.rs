@@ -253,7 +253,7 @@ element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 nan
     let err = parse(text, "nan.ply").unwrap_err();
     assert_eq!(
         err.to_string(),
-        "nan.ply: line 11: vertex 1 is not finite (2 non-finite coordinates in 2 vertices; drop them or keep them with the non-finite policy)"
+        "nan.ply: line 11: vertex 1 is not finite (2 vertices with 2 NaN or infinite values; the non-finite policy can drop or keep them)"
     );
     let g = parse_with(text, "nan.ply", NonFinitePolicy::Drop).unwrap();
     assert_eq!(g.points.positions, vec![v(0.0, 0.0, 0.0), v(1.0, 1.0, 0.0)]);

@@ -56,7 +56,10 @@ pub enum Problem {
         expected: &'static str,
     },
     /// The file ends inside, or before, a record the header declares.
-    #[error("{element} {index} truncated (the file declares {declared} {element} records)")]
+    #[error(
+        "{element} {index} truncated (the file declares {declared} {element} record{})",
+        plural(.declared)
+    )]
     Truncated {
         /// Element name.
         element: String,
@@ -113,8 +116,10 @@ pub enum IoError {
     },
     /// Vertices with NaN or infinite coordinates were found and the policy refuses them.
     #[error(
-        "{}: {at}: vertex {index} is not finite ({coordinates} non-finite coordinates in {vertices} vertices; drop them or keep them with the non-finite policy)",
-        path.display()
+        "{}: {at}: vertex {index} is not finite ({vertices} vert{} with {coordinates} NaN or infinite value{}; the non-finite policy can drop or keep them)",
+        path.display(),
+        if *.vertices == 1 { "ex" } else { "ices" },
+        plural(.coordinates)
     )]
     NonFinite {
         /// The file.
@@ -171,6 +176,11 @@ pub enum IoError {
         /// What is inconsistent.
         message: String,
     },
+}
+
+/// The plural ending of a count.
+fn plural(n: &u64) -> &'static str {
+    if *n == 1 { "" } else { "s" }
 }
 
 /// A problem and its place, before the reader's caller attaches the file name.
