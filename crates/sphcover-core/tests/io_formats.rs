@@ -12,7 +12,12 @@ use sphcover_core::{DVec3, PointCloud, TriMesh};
 
 fn parse(bytes: &[u8], name: &str) -> Result<sphcover_core::io::Geometry, IoError> {
     let path = Path::new(name);
-    parse_geometry(bytes, Format::from_path(path)?, path, &ReadOptions::default())
+    parse_geometry(
+        bytes,
+        Format::from_path(path)?,
+        path,
+        &ReadOptions::default(),
+    )
 }
 
 fn parse_with(
@@ -49,7 +54,10 @@ element edge 1\r\nproperty int vertex1\r\nproperty int vertex2\r\nend_header\r\n
     let g = parse(text, "hand.ply").unwrap();
     assert_eq!(g.info.variant, "PLY ascii");
     assert_eq!(g.info.comments, vec!["made by hand", "scanner 7"]);
-    assert_eq!(g.points.positions, vec![v(0.0, 0.0, 0.1), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)]);
+    assert_eq!(
+        g.points.positions,
+        vec![v(0.0, 0.0, 0.1), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)]
+    );
     // `float` fields hold f32 values, `double` fields f64 values.
     assert_eq!(g.points.positions[0].z, 0.1);
     assert_eq!(
@@ -63,12 +71,19 @@ element edge 1\r\nproperty int vertex1\r\nproperty int vertex2\r\nend_header\r\n
     let names: Vec<&str> = g.info.elements.iter().map(|e| e.name.as_str()).collect();
     assert_eq!(names, ["material", "vertex", "face", "edge"]);
     let seg = &g.info.elements[1].properties[4];
-    assert_eq!((seg.name.as_str(), seg.type_name.as_str()), ("segment_index", "list int int"));
+    assert_eq!(
+        (seg.name.as_str(), seg.type_name.as_str()),
+        ("segment_index", "list int int")
+    );
 }
 
 /// Encodes a binary PLY with a vertex list property and odd scalar types.
 fn binary_ply(big: bool) -> Vec<u8> {
-    let format = if big { "binary_big_endian" } else { "binary_little_endian" };
+    let format = if big {
+        "binary_big_endian"
+    } else {
+        "binary_little_endian"
+    };
     let mut b = format!(
         "ply\nformat {format} 1.0\nelement vertex 2\nproperty int16 x\nproperty uint8 y\n\
 property float64 z\nproperty list uint16 int8 labels\nproperty float32 radius\n\
@@ -82,7 +97,10 @@ element face 1\nproperty list int uint32 vertex_index\nend_header\n"
         }
         b.extend_from_slice(&bytes);
     };
-    for (x, y, z, labels, r) in [(-3i16, 200u8, 0.25f64, vec![1i8, -2], 0.5f32), (7, 1, -1.0, vec![], 2.0)] {
+    for (x, y, z, labels, r) in [
+        (-3i16, 200u8, 0.25f64, vec![1i8, -2], 0.5f32),
+        (7, 1, -1.0, vec![], 2.0),
+    ] {
         put(&x.to_le_bytes());
         put(&y.to_le_bytes());
         put(&z.to_le_bytes());
@@ -103,11 +121,18 @@ element face 1\nproperty list int uint32 vertex_index\nend_header\n"
 fn ply_binary_both_endians_any_scalar_type_and_vertex_lists() {
     for big in [false, true] {
         let g = parse(&binary_ply(big), "typed.ply").unwrap();
-        assert_eq!(g.points.positions, vec![v(-3.0, 200.0, 0.25), v(7.0, 1.0, -1.0)]);
+        assert_eq!(
+            g.points.positions,
+            vec![v(-3.0, 200.0, 0.25), v(7.0, 1.0, -1.0)]
+        );
         assert_eq!(g.radii.as_deref(), Some(&[0.5, 2.0][..]));
         assert_eq!(g.triangles, vec![[0, 1, 0], [0, 0, 1]]);
         assert_eq!(g.info.polygons, 1);
-        let expected = if big { "PLY binary big-endian" } else { "PLY binary little-endian" };
+        let expected = if big {
+            "PLY binary big-endian"
+        } else {
+            "PLY binary little-endian"
+        };
         assert_eq!(g.info.variant, expected);
     }
 }
@@ -116,7 +141,10 @@ fn ply_binary_both_endians_any_scalar_type_and_vertex_lists() {
 fn ply_errors_name_line_or_byte_and_record() {
     let text = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n4 5\n";
     let err = parse(text, "bunny.ply").unwrap_err();
-    assert_eq!(err.to_string(), "bunny.ply: line 9: vertex 1: expected 3 numbers, found 2");
+    assert_eq!(
+        err.to_string(),
+        "bunny.ply: line 9: vertex 1: expected 3 numbers, found 2"
+    );
 
     let mut bin = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
     let header = bin.len();
@@ -124,7 +152,10 @@ fn ply_errors_name_line_or_byte_and_record() {
     let err = parse(&bin, "scan.ply").unwrap_err();
     assert_eq!(
         err.to_string(),
-        format!("scan.ply: byte {}: vertex 2 truncated (the file declares 3 vertex records)", header + 24)
+        format!(
+            "scan.ply: byte {}: vertex 2 truncated (the file declares 3 vertex records)",
+            header + 24
+        )
     );
 
     let absurd = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
@@ -135,7 +166,14 @@ fn ply_errors_name_line_or_byte_and_record() {
     match parse(faces, "f.ply").unwrap_err() {
         IoError::Malformed { at, problem, .. } => {
             assert_eq!(at, Location::Line(13));
-            assert_eq!(problem, Problem::FaceIndexOutOfRange { face: 0, index: 3, vertices: 3 });
+            assert_eq!(
+                problem,
+                Problem::FaceIndexOutOfRange {
+                    face: 0,
+                    index: 3,
+                    vertices: 3
+                }
+            );
         }
         other => panic!("{other}"),
     }
@@ -152,11 +190,15 @@ vt 0 0\nvn 0 0 1\nvn 0 0 -1\ng group\nusemtl m\ns off\nf 1/1/1 2/1/1 3/1/1 4/1/1
     // Every corner names normal 1 for every vertex: consistent pairing.
     assert_eq!(g.points.normals, Some(vec![v(0.0, 0.0, 1.0); 4]));
 
-    let inconsistent = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 1 0 0\nf 1//1 2//1 3//1\nf 1//2 2//1 3//1\n";
+    let inconsistent =
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 1 0 0\nf 1//1 2//1 3//1\nf 1//2 2//1 3//1\n";
     assert_eq!(parse(inconsistent, "a.obj").unwrap().points.normals, None);
     let cloud = b"v 0 0 0\nvn 1 0 0\nv 1 1 1\nvn 0 1 0\n";
     let g = parse(cloud, "cloud.obj").unwrap();
-    assert_eq!(g.points.normals, Some(vec![v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)]));
+    assert_eq!(
+        g.points.normals,
+        Some(vec![v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)])
+    );
 
     let err = parse(b"v 0 0 0\nv 1 0 0\nf 1 2 3\n", "bad.obj").unwrap_err();
     assert_eq!(
@@ -164,7 +206,10 @@ vt 0 0\nvn 0 0 1\nvn 0 0 -1\ng group\nusemtl m\ns off\nf 1/1/1 2/1/1 3/1/1 4/1/1
         "bad.obj: line 3: face 0: vertex index 3 out of range (the file has 2 vertices)"
     );
     let err = parse(b"v 0 0 0\nv 1 0 x\n", "bad.obj").unwrap_err();
-    assert_eq!(err.to_string(), "bad.obj: line 2: vertex 1: bad number \"x\"");
+    assert_eq!(
+        err.to_string(),
+        "bad.obj: line 2: vertex 1: bad number \"x\""
+    );
 }
 
 #[test]
@@ -183,7 +228,10 @@ fn off_variants_comments_and_colours() {
     assert_eq!(g.triangles, vec![[0, 1, 2]]);
 
     let err = parse(b"OFF\n3 1 0\n0 0 0\n1 0 0\n", "t.off").unwrap_err();
-    assert_eq!(err.to_string(), "t.off: line 5: vertex 2 truncated (the file declares 3 vertex records)");
+    assert_eq!(
+        err.to_string(),
+        "t.off: line 5: vertex 2 truncated (the file declares 3 vertex records)"
+    );
 }
 
 fn binary_stl(header: &[u8], triangles: &[[[f32; 3]; 3]]) -> Vec<u8> {
@@ -211,7 +259,15 @@ fn stl_binary_starting_with_solid_and_vertex_merging() {
     let bytes = binary_stl(b"solid but binary", &[[a, b, c], [a, c, d], [b, c, d]]);
     let g = parse(&bytes, "s.stl").unwrap();
     assert_eq!(g.info.variant, "STL binary");
-    assert_eq!(g.points.positions, vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, 0.0, 1.0)]);
+    assert_eq!(
+        g.points.positions,
+        vec![
+            v(0.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(0.0, 1.0, 0.0),
+            v(0.0, 0.0, 1.0)
+        ]
+    );
     assert_eq!(g.triangles, vec![[0, 1, 2], [0, 2, 3], [1, 2, 3]]);
 
     let ascii = b"solid cube\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1 0\n  endloop\n endfacet\n facet normal 0 0 1\n  outer loop\n   vertex 1 0 0\n   vertex 1 1 0\n   vertex 0 1 0\n  endloop\n endfacet\nendsolid cube\n";
@@ -223,7 +279,11 @@ fn stl_binary_starting_with_solid_and_vertex_merging() {
     let mut truncated = bytes.clone();
     truncated.truncate(bytes.len() - 7);
     let err = parse(&truncated, "cut.stl").unwrap_err();
-    assert!(err.to_string().starts_with("cut.stl: byte 80: binary STL declares 3 triangles"), "{err}");
+    assert!(
+        err.to_string()
+            .starts_with("cut.stl: byte 80: binary STL declares 3 triangles"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -231,7 +291,10 @@ fn column_text_separators_comments_and_sphere_rule() {
     let text = b"# scan\n1,2,3, 0,0,1\n\n  4 5 6 0 1 0  # two\n";
     let g = parse(text, "p.xyz").unwrap();
     assert_eq!(g.points.positions, vec![v(1.0, 2.0, 3.0), v(4.0, 5.0, 6.0)]);
-    assert_eq!(g.points.normals, Some(vec![v(0.0, 0.0, 1.0), v(0.0, 1.0, 0.0)]));
+    assert_eq!(
+        g.points.normals,
+        Some(vec![v(0.0, 0.0, 1.0), v(0.0, 1.0, 0.0)])
+    );
     assert!(parse(text, "p.pwn").is_ok());
 
     let four = b"0 0 0 0.5\n1 1 1 0.25\n";
@@ -241,9 +304,15 @@ fn column_text_separators_comments_and_sphere_rule() {
     assert_eq!((g.radii, g.points.values), (None, Some(vec![0.5, 0.25])));
 
     let err = parse(b"0 0 0\n1 1\n", "p.xyz").unwrap_err();
-    assert_eq!(err.to_string(), "p.xyz: line 2: point 1: expected 3 numbers, found 2");
+    assert_eq!(
+        err.to_string(),
+        "p.xyz: line 2: point 1: expected 3 numbers, found 2"
+    );
     let err = parse(b"0 0 0\n", "s.sph").unwrap_err();
-    assert_eq!(err.to_string(), "s.sph: line 1: sphere 0: expected 4 numbers, found 3");
+    assert_eq!(
+        err.to_string(),
+        "s.sph: line 1: sphere 0: expected 4 numbers, found 3"
+    );
 }
 
 #[test]
@@ -268,17 +337,33 @@ element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 nan
 
     let xyz = b"0 0 0\n1 1 1\nNaN 2 2\n3 3 3\n";
     let g = parse_with(xyz, "p.xyz", NonFinitePolicy::Drop).unwrap();
-    assert_eq!(g.points.positions, vec![v(0.0, 0.0, 0.0), v(1.0, 1.0, 1.0), v(3.0, 3.0, 3.0)]);
+    assert_eq!(
+        g.points.positions,
+        vec![v(0.0, 0.0, 0.0), v(1.0, 1.0, 1.0), v(3.0, 3.0, 3.0)]
+    );
     let err = parse(xyz, "p.xyz").unwrap_err();
-    assert!(err.to_string().starts_with("p.xyz: line 3: vertex 2 is not finite"), "{err}");
+    assert!(
+        err.to_string()
+            .starts_with("p.xyz: line 3: vertex 2 is not finite"),
+        "{err}"
+    );
 }
 
 #[test]
 fn format_detection_is_case_insensitive_and_names_unknown_files() {
-    assert_eq!(Format::from_path(Path::new("a/B.PLY")).unwrap(), Format::Ply);
-    assert_eq!(Format::from_path(Path::new("x.Spheres")).unwrap(), Format::Sph);
+    assert_eq!(
+        Format::from_path(Path::new("a/B.PLY")).unwrap(),
+        Format::Ply
+    );
+    assert_eq!(
+        Format::from_path(Path::new("x.Spheres")).unwrap(),
+        Format::Sph
+    );
     let err = Format::from_path(Path::new("scan.las")).unwrap_err();
-    assert!(err.to_string().starts_with("scan.las: unknown file format"), "{err}");
+    assert!(
+        err.to_string().starts_with("scan.las: unknown file format"),
+        "{err}"
+    );
     let err = Format::from_path(Path::new("noext")).unwrap_err();
     assert!(err.to_string().starts_with("noext:"), "{err}");
     let err = parse(b"", "empty.obj").unwrap_err();
@@ -287,7 +372,12 @@ fn format_detection_is_case_insensitive_and_names_unknown_files() {
 
 fn tetra() -> TriMesh {
     let mut m = TriMesh::new(
-        vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, 0.0, 1.0)],
+        vec![
+            v(0.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(0.0, 1.0, 0.0),
+            v(0.0, 0.0, 1.0),
+        ],
         vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
     );
     m.values = Some(vec![1.0, 2.0, 3.0, 4.0]);
@@ -309,7 +399,10 @@ fn writers_refuse_data_their_format_cannot_hold() {
     let cloud = PointCloud::from_positions(vec![v(0.0, 0.0, 0.0)]);
     let err = write_point_cloud(&dir.path().join("c.stl"), &cloud, &options).unwrap_err();
     assert!(matches!(err, IoError::Unsupported { .. }), "{err}");
-    let spheres = SphereSet { centers: vec![v(0.0, 0.0, 0.0)], radii: vec![1.0] };
+    let spheres = SphereSet {
+        centers: vec![v(0.0, 0.0, 0.0)],
+        radii: vec![1.0],
+    };
     let err = write_spheres(&dir.path().join("s.obj"), &spheres, &options).unwrap_err();
     assert!(matches!(err, IoError::Unsupported { .. }), "{err}");
     let mut bad = cloud.clone();
@@ -322,15 +415,26 @@ fn writers_refuse_data_their_format_cannot_hold() {
 fn read_spheres_needs_radii_and_read_mesh_keeps_attributes() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("m.ply");
-    let options = WriteOptions { ply_encoding: PlyEncoding::Ascii, ..WriteOptions::default() };
+    let options = WriteOptions {
+        ply_encoding: PlyEncoding::Ascii,
+        ..WriteOptions::default()
+    };
     write_mesh(&path, &tetra(), &options).unwrap();
     assert_eq!(read_mesh(&path, &ReadOptions::default()).unwrap(), tetra());
-    assert_eq!(read_point_cloud(&path, &ReadOptions::default()).unwrap().len(), 4);
+    assert_eq!(
+        read_point_cloud(&path, &ReadOptions::default())
+            .unwrap()
+            .len(),
+        4
+    );
     let err = read_spheres(&path, &ReadOptions::default()).unwrap_err();
     assert!(matches!(err, IoError::NoRadius { .. }), "{err}");
     let missing = dir.path().join("missing.ply");
     let err = read_geometry(&missing, &ReadOptions::default()).unwrap_err();
-    assert!(matches!(err, IoError::Read { .. }) && err.to_string().contains("missing.ply"), "{err}");
+    assert!(
+        matches!(err, IoError::Read { .. }) && err.to_string().contains("missing.ply"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -362,7 +466,10 @@ fn atomic_output_refuses_inputs_and_leaves_old_files_on_error() {
         Err(std::io::Error::other("disk full"))
     })
     .unwrap_err();
-    assert!(matches!(err, IoError::Write { .. }) && err.to_string().contains("in.ply"), "{err}");
+    assert!(
+        matches!(err, IoError::Write { .. }) && err.to_string().contains("in.ply"),
+        "{err}"
+    );
     assert_eq!(std::fs::read(&input).unwrap(), before);
     let leftovers: Vec<PathBuf> = std::fs::read_dir(dir.path())
         .unwrap()

@@ -42,11 +42,18 @@ fn has_location(message: &str) -> bool {
 #[test]
 fn every_malformed_file_fails_with_file_name_and_location() {
     let files = corpus();
-    assert!(files.len() >= 25, "only {} files in the corpus", files.len());
+    assert!(
+        files.len() >= 25,
+        "only {} files in the corpus",
+        files.len()
+    );
     let readme = std::fs::read_to_string(corpus_dir().join("README.md")).unwrap();
     for path in files {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        assert!(readme.contains(&format!("`{name}`")), "{name} is not described in README.md");
+        assert!(
+            readme.contains(&format!("`{name}`")),
+            "{name} is not described in README.md"
+        );
         let result = std::panic::catch_unwind(|| read_geometry(&path, &ReadOptions::default()));
         let Ok(result) = result else {
             panic!("{name}: the reader panicked");
@@ -55,8 +62,14 @@ fn every_malformed_file_fails_with_file_name_and_location() {
             panic!("{name}: read without error");
         };
         let message = err.to_string();
-        assert!(message.contains(&name), "{name}: message without the file name: {message}");
-        assert!(has_location(&message), "{name}: message without a location: {message}");
+        assert!(
+            message.contains(&name),
+            "{name}: message without the file name: {message}"
+        );
+        assert!(
+            has_location(&message),
+            "{name}: message without a location: {message}"
+        );
     }
 }
 
@@ -68,23 +81,44 @@ fn corpus_errors_name_the_right_place() {
             .to_string()
     };
     let tail = |name: &str| read(name).split_once(": ").unwrap().1.to_string();
-    assert_eq!(tail("ply_missing_field.ply"), "line 13: vertex 2: expected 6 numbers, found 5");
-    assert!(tail("ply_truncated_binary.ply").contains("vertex 5 truncated (the file declares 10 vertex records)"));
+    assert_eq!(
+        tail("ply_missing_field.ply"),
+        "line 13: vertex 2: expected 6 numbers, found 5"
+    );
+    assert!(
+        tail("ply_truncated_binary.ply")
+            .contains("vertex 5 truncated (the file declares 10 vertex records)")
+    );
     assert_eq!(
         tail("ply_face_index_out_of_range.ply"),
         "line 14: face 1: vertex index 3 out of range (the file has 3 vertices)"
     );
-    assert!(tail("ply_nan_binary.ply").contains(": vertex 1 is not finite (1 vertex with 1 NaN or infinite value;"));
-    assert_eq!(tail("obj_face_zero_index.obj"), "line 4: face 0: vertex index 0 out of range (the file has 3 vertices)");
+    assert!(
+        tail("ply_nan_binary.ply")
+            .contains(": vertex 1 is not finite (1 vertex with 1 NaN or infinite value;")
+    );
+    assert_eq!(
+        tail("obj_face_zero_index.obj"),
+        "line 4: face 0: vertex index 0 out of range (the file has 3 vertices)"
+    );
     assert!(tail("stl_binary_nan.stl").starts_with("byte 108: vertex 1 is not finite"));
-    assert_eq!(tail("sph_three_columns.sph"), "line 2: sphere 1: expected 4 numbers, found 3");
+    assert_eq!(
+        tail("sph_three_columns.sph"),
+        "line 2: sphere 1: expected 4 numbers, found 3"
+    );
 }
 
 #[test]
 fn absurd_counts_fail_fast_without_allocating() {
     // 10^18 vertex records of 12 bytes would be 12 EB: the size check must come first.
     let start = std::time::Instant::now();
-    for name in ["ply_absurd_vertex_count.ply", "ply_absurd_face_count.ply", "off_absurd_counts.off", "stl_count_too_large.stl", "ply_huge_list_length.ply"] {
+    for name in [
+        "ply_absurd_vertex_count.ply",
+        "ply_absurd_face_count.ply",
+        "off_absurd_counts.off",
+        "stl_count_too_large.stl",
+        "ply_huge_list_length.ply",
+    ] {
         assert!(read_geometry(&corpus_dir().join(name), &ReadOptions::default()).is_err());
     }
     assert!(start.elapsed().as_secs_f64() < 1.0);
@@ -171,7 +205,11 @@ const FORMATS: [Format; 8] = [
     Format::Sph,
 ];
 
-const POLICIES: [NonFinitePolicy; 3] = [NonFinitePolicy::Refuse, NonFinitePolicy::Drop, NonFinitePolicy::Keep];
+const POLICIES: [NonFinitePolicy; 3] = [
+    NonFinitePolicy::Refuse,
+    NonFinitePolicy::Drop,
+    NonFinitePolicy::Keep,
+];
 
 /// Parses with every policy; only a panic fails the test (errors are expected).
 fn parse_all_ways(bytes: &[u8], format: Format) {
@@ -200,7 +238,10 @@ enum Mutation {
 fn mutation() -> impl Strategy<Value = Mutation> {
     prop_oneof![
         (any::<usize>(), any::<u8>()).prop_map(|(i, b)| Mutation::Set(i, b)),
-        (any::<usize>(), prop_oneof![any::<u8>(), Just(b' '), Just(b'\n'), Just(b'-'), Just(b'9')])
+        (
+            any::<usize>(),
+            prop_oneof![any::<u8>(), Just(b' '), Just(b'\n'), Just(b'-'), Just(b'9')]
+        )
             .prop_map(|(i, b)| Mutation::Insert(i, b)),
         any::<usize>().prop_map(Mutation::Remove),
         any::<usize>().prop_map(Mutation::Truncate),

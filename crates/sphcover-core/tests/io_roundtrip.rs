@@ -30,7 +30,9 @@ fn coord64() -> impl Strategy<Value = f64> + Clone {
 /// A finite value that stays finite once rounded to `f32`.
 fn coord32() -> impl Strategy<Value = f64> + Clone {
     prop_oneof![
-        any::<f32>().prop_filter("finite", |v| v.is_finite()).prop_map(f64::from),
+        any::<f32>()
+            .prop_filter("finite", |v| v.is_finite())
+            .prop_map(f64::from),
         -1e30f64..1e30,
         -1.0f64..1.0,
         (-1000i32..1000).prop_map(f64::from),
@@ -82,8 +84,14 @@ fn round_cloud(pc: &PointCloud) -> PointCloud {
     PointCloud {
         positions: pc.positions.iter().map(r3).collect(),
         normals: pc.normals.as_ref().map(|n| n.iter().map(r3).collect()),
-        confidence: pc.confidence.as_ref().map(|c| c.iter().copied().map(round).collect()),
-        values: pc.values.as_ref().map(|c| c.iter().copied().map(round).collect()),
+        confidence: pc
+            .confidence
+            .as_ref()
+            .map(|c| c.iter().copied().map(round).collect()),
+        values: pc
+            .values
+            .as_ref()
+            .map(|c| c.iter().copied().map(round).collect()),
     }
 }
 

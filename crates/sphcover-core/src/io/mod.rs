@@ -308,14 +308,40 @@ pub(crate) fn push_polygon(corners: &[u32], triangles: &mut Vec<[u32; 3]>) -> bo
     true
 }
 
+/// Files at least this large are memory-mapped instead of copied into memory: the copy's
+/// page faults cost as much as decoding a binary PLY.
+const MAP_THRESHOLD: u64 = 64 << 20;
+
 /// Reads any supported file (format from the extension).
+///
+/// Large files are memory-mapped; like every program that maps files, the reader assumes
+/// that no other process truncates the file while it is being read.
 pub fn read_geometry(path: &Path, options: &ReadOptions) -> Result<Geometry, IoError> {
     let format = Format::from_path(path)?;
-    let bytes = std::fs::read(path).map_err(|source| IoError::Read {
+    let read_error = |source| IoError::Read {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    let file = std::fs::File::open(path).map_err(read_error)?;
+    let size = file.metadata().map_err(read_error)?.len();
+    if size >= MAP_THRESHOLD
+        && let Some(map) = map_file(&file)
+    {
+        return parse_geometry(&map, format, path, options);
+    }
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut &file, &mut bytes).map_err(read_error)?;
     parse_geometry(&bytes, format, path, options)
+}
+
+/// Maps a file read-only; `None` where mapping is not possible (the caller reads instead).
+#[allow(unsafe_code)]
+fn map_file(file: &std::fs::File) -> Option<memmap2::Mmap> {
+    // SAFETY: the map is read-only and private to this call; its contents change only if
+    // another process writes the file meanwhile, which readers of any kind cannot guard
+    // against (the bytes are then simply different, or the process gets SIGBUS when the
+    // file is truncated under it).
+    unsafe { memmap2::Mmap::map(file) }.ok()
 }
 
 /// Parses the bytes of a file held in memory (standard input, an archive member…); `path`

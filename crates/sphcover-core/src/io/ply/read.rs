@@ -347,33 +347,48 @@ fn decode_fixed_vertices(
     }
     let stride = offset;
     let field = |k: usize| (offsets[k], types[k]);
-    let vec3 = |[a, b, c]: [usize; 3]| -> Vec<DVec3> {
+    let decode3 = |[a, b, c]: [usize; 3]| {
         let ((oa, ta), (ob, tb), (oc, tc)) = (field(a), field(b), field(c));
-        let mut out = Vec::new();
+        move |r: &[u8]| {
+            DVec3::new(
+                ta.read(&r[oa..], big),
+                tb.read(&r[ob..], big),
+                tc.read(&r[oc..], big),
+            )
+        }
+    };
+    let records = || {
         data.par_chunks_exact(stride)
             .with_min_len(MIN_RECORDS_PER_TASK)
-            .map(|r| {
-                DVec3::new(
-                    ta.read(&r[oa..], big),
-                    tb.read(&r[ob..], big),
-                    tc.read(&r[oc..], big),
-                )
-            })
-            .collect_into_vec(&mut out);
-        out
+    };
+    let position = decode3(roles.xyz);
+    let mut positions = Vec::new();
+    let normals = match roles.normal {
+        // One pass for both: the records are read from memory once.
+        Some(n) => {
+            let normal = decode3(n);
+            let mut normals = Vec::new();
+            records()
+                .map(|r| (position(r), normal(r)))
+                .unzip_into_vecs(&mut positions, &mut normals);
+            Some(normals)
+        }
+        None => {
+            records().map(position).collect_into_vec(&mut positions);
+            None
+        }
     };
     let scalar = |k: usize| -> Vec<f64> {
         let (o, t): (usize, Scalar) = field(k);
         let mut out = Vec::new();
-        data.par_chunks_exact(stride)
-            .with_min_len(MIN_RECORDS_PER_TASK)
+        records()
             .map(|r| t.read(&r[o..], big))
             .collect_into_vec(&mut out);
         out
     };
     Vertices {
-        positions: vec3(roles.xyz),
-        normals: roles.normal.map(vec3),
+        positions,
+        normals,
         confidence: roles.confidence.map(scalar),
         values: roles.value.map(scalar),
         radii: roles.radius.map(scalar),
