@@ -501,3 +501,12 @@ fn atomic_output_keeps_permissions_of_a_replaced_file() {
     let mode = std::fs::metadata(&fresh).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode & 0o600, 0o600, "the owner can read and write");
 }
+
+#[test]
+fn ply_elements_without_properties_take_no_space() {
+    let text = b"ply\nformat ascii 1.0\nelement marker 5\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+    let g = parse(text, "m.ply").unwrap();
+    assert_eq!(g.points.positions, vec![v(1.0, 2.0, 3.0)]);
+    let binary = b"ply\nformat binary_little_endian 1.0\nelement marker 1000000000000000000\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    assert!(parse(binary, "m.ply").unwrap().points.is_empty());
+}

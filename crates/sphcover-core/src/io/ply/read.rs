@@ -408,6 +408,10 @@ fn read_ascii(
     let mut cursor = LineCursor::new(bytes, header.body_start, header.end_line + 1);
     let mut lines = Vec::new();
     for (e, element) in header.elements.iter().enumerate() {
+        if element.properties.is_empty() {
+            // Records without properties occupy no text at all.
+            continue;
+        }
         // A record takes at least one digit and one separator per property.
         let min_record = 2 * element.properties.len().max(1);
         let capacity = (element.count as usize).min(cursor.remaining() / min_record);
