@@ -9,6 +9,7 @@
 
 pub mod ball_index;
 pub mod geometry;
+pub mod io;
 pub mod mesh;
 pub mod point_cloud;
 

@@ -1,0 +1,224 @@
+//! Errors of the readers and writers: every one names the file, and every complaint about
+//! the content of a file names where in it (a line for text, a byte offset for binary data).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Where in a file a problem was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Location {
+    /// A 1-based line number (text formats and PLY headers).
+    Line(u64),
+    /// A 0-based byte offset from the start of the file (binary data).
+    Byte(u64),
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(n) => write!(f, "line {n}"),
+            Location::Byte(n) => write!(f, "byte {n}"),
+        }
+    }
+}
+
+/// What is wrong with the content of a file (see [`IoError::Malformed`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Problem {
+    /// The file has no byte at all.
+    #[error("empty file")]
+    EmptyFile,
+    /// The header (PLY, OFF, STL) is not what the format requires.
+    #[error("{0}")]
+    Header(String),
+    /// A record has the wrong number of fields.
+    #[error("{element} {index}: expected {expected} numbers, found {found}")]
+    WrongFieldCount {
+        /// Element name (`vertex`, `face`, …).
+        element: String,
+        /// 0-based index of the record within its element.
+        index: u64,
+        /// Number of fields the layout requires.
+        expected: usize,
+        /// Number of fields on the line.
+        found: usize,
+    },
+    /// A field is not a number of the required kind.
+    #[error("{element} {index}: bad number {token:?}{expected}")]
+    BadNumber {
+        /// Element name.
+        element: String,
+        /// 0-based index of the record within its element.
+        index: u64,
+        /// The offending text (cut to 40 characters).
+        token: String,
+        /// What was expected, with a leading separator (`""` or `" (expected an integer)"`).
+        expected: &'static str,
+    },
+    /// The file ends inside, or before, a record the header declares.
+    #[error(
+        "{element} {index} truncated (the file declares {declared} {element} record{})",
+        plural(.declared)
+    )]
+    Truncated {
+        /// Element name.
+        element: String,
+        /// 0-based index of the first record that is missing or incomplete.
+        index: u64,
+        /// Number of records the header declares.
+        declared: u64,
+    },
+    /// A face refers to a vertex that does not exist.
+    #[error("face {face}: vertex index {index} out of range (the file has {vertices} vertices)")]
+    FaceIndexOutOfRange {
+        /// 0-based face index in the file.
+        face: u64,
+        /// The index as written in the file (1-based for OBJ, relative when negative).
+        index: i64,
+        /// Number of vertices.
+        vertices: u64,
+    },
+    /// Anything else that breaks the format's grammar.
+    #[error("{0}")]
+    Syntax(String),
+}
+
+/// The error of every reader and writer in [`crate::io`].
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// The file could not be opened or read.
+    #[error("{}: cannot read: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The extension names no supported format.
+    #[error(
+        "{}: unknown file format (extension must be one of .ply .obj .off .stl .xyz .pwn .txt .sph .spheres)",
+        path.display()
+    )]
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The content breaks the format.
+    #[error("{}: {at}: {problem}", path.display())]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// Where the problem was found.
+        at: Location,
+        /// What the problem is.
+        problem: Problem,
+    },
+    /// Vertices with NaN or infinite coordinates were found and the policy refuses them.
+    #[error(
+        "{}: {at}: vertex {index} is not finite ({vertices} vert{} with {coordinates} NaN or infinite value{}; the non-finite policy can drop or keep them)",
+        path.display(),
+        if *.vertices == 1 { "ex" } else { "ices" },
+        plural(.coordinates)
+    )]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// Where the first offending vertex is.
+        at: Location,
+        /// 0-based index of the first offending vertex.
+        index: u64,
+        /// Number of offending vertices.
+        vertices: u64,
+        /// Number of non-finite values among their positions, normals and radii.
+        coordinates: u64,
+    },
+    /// A sphere set was asked for but the file has no radius per vertex.
+    #[error(
+        "{}: the file holds no sphere radii (a PLY `radius` vertex property or 4 columns x y z r)",
+        path.display()
+    )]
+    NoRadius {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The output format cannot hold the data it was given.
+    #[error("{}: {format} cannot hold {what}", path.display())]
+    Unsupported {
+        /// The output file.
+        path: PathBuf,
+        /// The format's name.
+        format: &'static str,
+        /// What it cannot hold, with a hint of what to do.
+        what: String,
+    },
+    /// The output path is one of the inputs.
+    #[error("{}: refusing to overwrite an input file", path.display())]
+    OutputIsInput {
+        /// The output file.
+        path: PathBuf,
+    },
+    /// Creating, writing or renaming the output failed (unwritable directory, full disk…).
+    #[error("{}: cannot write: {source}", path.display())]
+    Write {
+        /// The output file.
+        path: PathBuf,
+        /// What the operating system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The data handed to a writer is inconsistent (attribute arrays of the wrong length,
+    /// triangle indices out of range, more vertices than `u32` indices reach).
+    #[error("{}: {message}", path.display())]
+    InvalidData {
+        /// The output file.
+        path: PathBuf,
+        /// What is inconsistent.
+        message: String,
+    },
+}
+
+/// The plural ending of a count.
+fn plural(n: &u64) -> &'static str {
+    if *n == 1 { "" } else { "s" }
+}
+
+/// A problem and its place, before the reader's caller attaches the file name.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Failure {
+    pub at: Location,
+    pub problem: Problem,
+}
+
+impl Failure {
+    pub(crate) fn new(at: Location, problem: Problem) -> Failure {
+        Failure { at, problem }
+    }
+
+    pub(crate) fn syntax(at: Location, message: impl Into<String>) -> Failure {
+        Failure::new(at, Problem::Syntax(message.into()))
+    }
+
+    pub(crate) fn header(at: Location, message: impl Into<String>) -> Failure {
+        Failure::new(at, Problem::Header(message.into()))
+    }
+
+    pub(crate) fn into_io(self, path: &Path) -> IoError {
+        IoError::Malformed {
+            path: path.to_path_buf(),
+            at: self.at,
+            problem: self.problem,
+        }
+    }
+}
+
+/// Cuts a token for an error message so a megabyte of garbage does not end up in it.
+pub(crate) fn token_for_message(token: &[u8]) -> String {
+    const MAX: usize = 40;
+    let text = String::from_utf8_lossy(&token[..token.len().min(MAX)]).into_owned();
+    if token.len() > MAX {
+        format!("{text}…")
+    } else {
+        text
+    }
+}

@@ -1,0 +1,585 @@
+//! Scan file formats: PLY, OBJ, OFF, STL, XYZ text and sphere sets.
+//!
+//! Every reader parses the whole file from memory, checks every count the file declares
+//! against the bytes actually present before allocating, and reports every problem as an
+//! [`IoError`] naming the file and the line (text) or byte offset (binary) where it is. No
+//! byte sequence makes a reader panic or allocate more than a small multiple of the file
+//! size.
+//!
+//! # Formats and the rules chosen where formats are loose
+//!
+//! | extension | reads | writes |
+//! |---|---|---|
+//! | `.ply` | ascii, binary little/big endian; any scalar type; `vertex` (x y z, nx ny nz, `confidence`/`quality`, `value`/`scalar`/`intensity`/`scalar_*`, `radius`) and `face` (`vertex_indices`/`vertex_index` lists); other elements and properties skipped | binary little endian (default), big endian or ascii; `float` or `double` |
+//! | `.obj` | `v`, `vn`, `f` (all corner forms, negative indices); other statements ignored | `v`, `vn`, `f` |
+//! | `.off` | `OFF` with `N`, `C`, `ST` prefixes (extra per-vertex columns), `#` comments | `OFF` / `NOFF` |
+//! | `.stl` | binary and ascii; identical vertices merged | binary |
+//! | `.xyz` `.pwn` | `x y z`, `x y z v`, `x y z nx ny nz`, `x y z nx ny nz v` per line | same |
+//! | `.txt` | as `.xyz`, except that 4 columns mean a sphere set `x y z r` | same |
+//! | `.sph` `.spheres` | sphere sets, `x y z r` per line | same |
+//!
+//! * Text records are one per line (every PLY, OFF and XYZ writer does that), so a record
+//!   with a missing or extra number is reported on its own line instead of shifting every
+//!   following record.
+//! * In the column formats the first data line fixes the column count for the whole file.
+//!   A first comment line naming the columns exactly as this crate writes them
+//!   (`# x y z r`, `# x y z nx ny nz`, …) fixes it too, which matters only for files with no
+//!   data line (an empty sphere set stays a sphere set).
+//! * Polygons are fan-triangulated; faces with fewer than 3 corners are skipped and counted
+//!   in [`FileInfo::skipped_polygons`].
+//! * ASCII PLY `float` fields are parsed as `f32`, the value the header declares.
+//! * Non-finite vertices (NaN or infinite position, normal or radius) are handled by
+//!   [`NonFinitePolicy`].
+//! * Writers print decimal numbers as the shortest text that reads back bit-exactly, and
+//!   [`Precision::F64`] (the default) makes every round trip through a file lossless;
+//!   [`Precision::F32`] halves binary files and rounds every value to `f32`. STL always
+//!   stores `f32`. Text formats without declared types (OBJ, OFF, column text) store an `f32`
+//!   as the shortest digits that identify it; they read back as an `f64` that rounds to the
+//!   same `f32`.
+//! * A writer given data its format cannot hold (faces to XYZ, per-vertex values to OBJ,
+//!   a point cloud to STL, …) returns [`IoError::Unsupported`] instead of dropping data.
+//! * Every writer goes through [`write_atomic`]: the output appears complete or not at all.
+
+mod atomic;
+mod encode;
+mod error;
+mod non_finite;
+mod obj;
+mod off;
+mod ply;
+mod stl;
+mod text;
+mod xyz;
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use crate::mesh::TriMesh;
+use crate::point_cloud::PointCloud;
+
+pub use atomic::write_atomic;
+pub use error::{IoError, Location, Problem};
+
+/// A file format, named by the file's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// Stanford polygon file (`.ply`).
+    Ply,
+    /// Wavefront OBJ (`.obj`).
+    Obj,
+    /// Object File Format (`.off`).
+    Off,
+    /// Stereolithography (`.stl`).
+    Stl,
+    /// Points, optionally with normals, one per line (`.xyz`).
+    Xyz,
+    /// Points with normals, one per line (`.pwn`; read like `.xyz`).
+    Pwn,
+    /// Columns of numbers (`.txt`): a point cloud like `.xyz`, or a sphere set with 4 columns.
+    Txt,
+    /// Sphere sets `x y z r`, one per line (`.sph`, `.spheres`).
+    Sph,
+}
+
+impl Format {
+    /// The format named by the extension of `path` (case-insensitive).
+    pub fn from_path(path: &Path) -> Result<Format, IoError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("ply") => Ok(Format::Ply),
+            Some("obj") => Ok(Format::Obj),
+            Some("off") => Ok(Format::Off),
+            Some("stl") => Ok(Format::Stl),
+            Some("xyz") => Ok(Format::Xyz),
+            Some("pwn") => Ok(Format::Pwn),
+            Some("txt") => Ok(Format::Txt),
+            Some("sph" | "spheres") => Ok(Format::Sph),
+            _ => Err(IoError::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    /// Short name for messages (`"PLY"`, `"OBJ"`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Ply => "PLY",
+            Format::Obj => "OBJ",
+            Format::Off => "OFF",
+            Format::Stl => "STL",
+            Format::Xyz => "XYZ",
+            Format::Pwn => "PWN",
+            Format::Txt => "TXT",
+            Format::Sph => "sphere set",
+        }
+    }
+}
+
+/// What readers do with vertices whose position, normal or radius holds a NaN or an
+/// infinity.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum NonFinitePolicy {
+    /// Fail with [`IoError::NonFinite`], naming the first such vertex and counting them all.
+    #[default]
+    Refuse,
+    /// Remove those vertices (and the triangles using them, reindexing the rest); the counts
+    /// are in [`FileInfo::non_finite`].
+    Drop,
+    /// Keep them as they are (for inspection); the counts are in [`FileInfo::non_finite`].
+    Keep,
+}
+
+/// Options of the readers.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// What to do with non-finite vertices.
+    pub non_finite: NonFinitePolicy,
+}
+
+/// Encoding of PLY output.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PlyEncoding {
+    /// `binary_little_endian`: compact, fast, what most tools write.
+    #[default]
+    BinaryLittleEndian,
+    /// `binary_big_endian`.
+    BinaryBigEndian,
+    /// `ascii`, human-readable.
+    Ascii,
+}
+
+/// Precision of written real numbers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// `f32` (PLY `float`): half the size; every value is rounded to `f32`.
+    F32,
+    /// `f64` (PLY `double`): lossless round trips. The default, because `sphcover` computes
+    /// in `f64` and a read–write cycle should never change a file's data.
+    #[default]
+    F64,
+}
+
+/// Options of the writers.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// PLY encoding (ignored by other formats).
+    pub ply_encoding: PlyEncoding,
+    /// Precision of real numbers (STL always stores `f32`).
+    pub precision: Precision,
+    /// Files the output must not overwrite (the inputs of the command).
+    pub inputs: Vec<PathBuf>,
+}
+
+/// A set of balls.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SphereSet {
+    /// Ball centres.
+    pub centers: Vec<DVec3>,
+    /// Ball radii, one per centre.
+    pub radii: Vec<f64>,
+}
+
+/// One element (group of records) a file declares, as `sphcover info` shows it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ElementInfo {
+    /// Element name (`vertex`, `face`, or the PLY file's own names).
+    pub name: String,
+    /// Number of records.
+    pub count: u64,
+    /// Properties of each record, in file order.
+    pub properties: Vec<PropertyInfo>,
+}
+
+/// One property of an element.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PropertyInfo {
+    /// Property name (`x`, `nx`, `vertex_indices`, …).
+    pub name: String,
+    /// Type as the file declares it (`float`, `list uchar int`, …; `text` for text formats).
+    pub type_name: String,
+}
+
+/// Non-finite vertices found in a file, and what was done with them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NonFiniteReport {
+    /// Vertices with at least one non-finite position, normal or radius value.
+    pub vertices: u64,
+    /// Non-finite values among those positions, normals and radii.
+    pub coordinates: u64,
+    /// Vertices removed ([`NonFinitePolicy::Drop`]).
+    pub dropped_vertices: u64,
+    /// Triangles removed because they used a removed vertex.
+    pub dropped_triangles: u64,
+}
+
+/// What a file declares and what reading it found.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileInfo {
+    /// The format.
+    pub format: Format,
+    /// The format with its variant, e.g. `"PLY binary little-endian"`, `"STL ascii"`.
+    pub variant: String,
+    /// Declared elements and their properties (PLY); what was found (other formats).
+    pub elements: Vec<ElementInfo>,
+    /// Header comments (PLY `comment` and `obj_info` lines, STL header text).
+    pub comments: Vec<String>,
+    /// Polygons read, before triangulation.
+    pub polygons: u64,
+    /// Polygons skipped for having fewer than 3 corners.
+    pub skipped_polygons: u64,
+    /// Non-finite vertices.
+    pub non_finite: NonFiniteReport,
+    /// Size of the file in bytes.
+    pub file_size: u64,
+}
+
+/// Everything a reader returns: the vertices with their attributes, triangles, radii and a
+/// description of the file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Geometry {
+    /// Vertices and their per-vertex attributes.
+    pub points: PointCloud,
+    /// Triangles (polygons fan-triangulated) as indices into `points`.
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex radii, when the file is a sphere set.
+    pub radii: Option<Vec<f64>>,
+    /// What the file declares.
+    pub info: FileInfo,
+}
+
+/// A reader's product before the non-finite policy: the geometry and where each vertex came
+/// from in the file, so that the first non-finite one can be located.
+#[derive(Debug)]
+pub(crate) struct Parsed {
+    pub points: PointCloud,
+    pub triangles: Vec<[u32; 3]>,
+    pub radii: Option<Vec<f64>>,
+    pub info: FileInfo,
+    pub origins: VertexOrigins,
+}
+
+/// Where the vertices of a parsed file are.
+#[derive(Debug)]
+pub(crate) enum VertexOrigins {
+    /// Fixed-size binary records: vertex `i` starts at `start + i·stride`.
+    Stride { start: u64, stride: u64 },
+    /// The line of each vertex.
+    Lines(Vec<u64>),
+    /// The byte offset of each vertex.
+    Bytes(Vec<u64>),
+}
+
+impl VertexOrigins {
+    fn locate(&self, i: usize) -> Location {
+        match self {
+            VertexOrigins::Stride { start, stride } => Location::Byte(start + stride * i as u64),
+            VertexOrigins::Lines(lines) => Location::Line(lines.get(i).copied().unwrap_or(0)),
+            VertexOrigins::Bytes(bytes) => Location::Byte(bytes.get(i).copied().unwrap_or(0)),
+        }
+    }
+}
+
+impl FileInfo {
+    pub(crate) fn new(format: Format, variant: impl Into<String>, file_size: usize) -> FileInfo {
+        FileInfo {
+            format,
+            variant: variant.into(),
+            elements: Vec::new(),
+            comments: Vec::new(),
+            polygons: 0,
+            skipped_polygons: 0,
+            non_finite: NonFiniteReport::default(),
+            file_size: file_size as u64,
+        }
+    }
+}
+
+/// Appends the fan triangulation of a polygon; false (nothing appended) for a polygon of
+/// fewer than 3 corners.
+pub(crate) fn push_polygon(corners: &[u32], triangles: &mut Vec<[u32; 3]>) -> bool {
+    if corners.len() < 3 {
+        return false;
+    }
+    triangles.extend(corners[1..].windows(2).map(|w| [corners[0], w[0], w[1]]));
+    true
+}
+
+/// Files at least this large are memory-mapped instead of copied into memory: the copy's
+/// page faults cost as much as decoding a binary PLY.
+const MAP_THRESHOLD: u64 = 64 << 20;
+
+/// Reads any supported file (format from the extension).
+///
+/// Large files are memory-mapped; like every program that maps files, the reader assumes
+/// that no other process truncates the file while it is being read.
+pub fn read_geometry(path: &Path, options: &ReadOptions) -> Result<Geometry, IoError> {
+    let format = Format::from_path(path)?;
+    let read_error = |source| IoError::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(read_error)?;
+    let size = file.metadata().map_err(read_error)?.len();
+    if size >= MAP_THRESHOLD
+        && let Some(map) = map_file(&file)
+    {
+        return parse_geometry(&map, format, path, options);
+    }
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut &file, &mut bytes).map_err(read_error)?;
+    parse_geometry(&bytes, format, path, options)
+}
+
+/// Maps a file read-only; `None` where mapping is not possible (the caller reads instead).
+#[allow(unsafe_code)]
+fn map_file(file: &std::fs::File) -> Option<memmap2::Mmap> {
+    // SAFETY: the map is read-only and private to this call; its contents change only if
+    // another process writes the file meanwhile, which readers of any kind cannot guard
+    // against (the bytes are then simply different, or the process gets SIGBUS when the
+    // file is truncated under it).
+    unsafe { memmap2::Mmap::map(file) }.ok()
+}
+
+/// Parses the bytes of a file held in memory (standard input, an archive member…); `path`
+/// only names the file in errors.
+pub fn parse_geometry(
+    bytes: &[u8],
+    format: Format,
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<Geometry, IoError> {
+    if bytes.is_empty() {
+        return Err(error::Failure::new(Location::Byte(0), Problem::EmptyFile).into_io(path));
+    }
+    let parsed = match format {
+        Format::Ply => ply::read(bytes),
+        Format::Obj => obj::read(bytes),
+        Format::Off => off::read(bytes),
+        Format::Stl => stl::read(bytes),
+        Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::read(bytes, format),
+    }
+    .map_err(|failure| failure.into_io(path))?;
+    non_finite::apply(parsed, options.non_finite, path)
+}
+
+/// Reads the vertices of any supported file as a point cloud (faces are ignored).
+pub fn read_point_cloud(path: &Path, options: &ReadOptions) -> Result<PointCloud, IoError> {
+    Ok(read_geometry(path, options)?.points)
+}
+
+/// Reads a triangle mesh (a file without faces gives a mesh without triangles).
+pub fn read_mesh(path: &Path, options: &ReadOptions) -> Result<TriMesh, IoError> {
+    let g = read_geometry(path, options)?;
+    Ok(TriMesh {
+        vertices: g.points.positions,
+        triangles: g.triangles,
+        normals: g.points.normals,
+        values: g.points.values,
+    })
+}
+
+/// Reads a sphere set; fails with [`IoError::NoRadius`] when the file has no radii.
+pub fn read_spheres(path: &Path, options: &ReadOptions) -> Result<SphereSet, IoError> {
+    let g = read_geometry(path, options)?;
+    match g.radii {
+        Some(radii) => Ok(SphereSet {
+            centers: g.points.positions,
+            radii,
+        }),
+        None => Err(IoError::NoRadius {
+            path: path.to_path_buf(),
+        }),
+    }
+}
+
+/// What a writer is asked to store: borrowed arrays, all of one length except `triangles`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Export<'a> {
+    pub positions: &'a [DVec3],
+    pub normals: Option<&'a [DVec3]>,
+    pub confidence: Option<&'a [f64]>,
+    pub values: Option<&'a [f64]>,
+    pub radii: Option<&'a [f64]>,
+    pub triangles: &'a [[u32; 3]],
+}
+
+impl Export<'_> {
+    fn check(&self, path: &Path) -> Result<(), IoError> {
+        let n = self.positions.len();
+        let invalid = |message: String| IoError::InvalidData {
+            path: path.to_path_buf(),
+            message,
+        };
+        for (name, len) in [
+            ("normals", self.normals.map(<[_]>::len)),
+            ("confidence", self.confidence.map(<[_]>::len)),
+            ("values", self.values.map(<[_]>::len)),
+            ("radii", self.radii.map(<[_]>::len)),
+        ] {
+            if let Some(len) = len
+                && len != n
+            {
+                return Err(invalid(format!(
+                    "{name} has {len} entries for {n} vertices"
+                )));
+            }
+        }
+        if !self.triangles.is_empty() && n > u32::MAX as usize {
+            return Err(invalid(format!(
+                "{n} vertices are more than 32-bit indices reach"
+            )));
+        }
+        if let Some((t, tri)) = self
+            .triangles
+            .iter()
+            .enumerate()
+            .find(|(_, tri)| tri.iter().any(|&v| v as usize >= n))
+        {
+            return Err(invalid(format!(
+                "triangle {t} refers to vertex {tri:?} but there are {n} vertices"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Fails when `format` cannot hold part of the data.
+    fn check_supported(&self, path: &Path, format: Format) -> Result<(), IoError> {
+        let unsupported = |what: &str| IoError::Unsupported {
+            path: path.to_path_buf(),
+            format: format.name(),
+            what: what.to_string(),
+        };
+        let has_faces = !self.triangles.is_empty();
+        let problem = match format {
+            Format::Ply => None,
+            Format::Obj | Format::Off => {
+                if self.confidence.is_some() {
+                    Some("per-vertex confidence (write PLY, or clear the attribute)")
+                } else if self.values.is_some() {
+                    Some("per-vertex values (write PLY, or clear the attribute)")
+                } else if self.radii.is_some() {
+                    Some("sphere radii (write PLY, .sph or .txt)")
+                } else {
+                    None
+                }
+            }
+            Format::Stl => {
+                if self.radii.is_some() {
+                    Some("sphere radii (write PLY, .sph or .txt)")
+                } else if !has_faces && !self.positions.is_empty() {
+                    Some("points without triangles (write PLY, OBJ, OFF or XYZ)")
+                } else if self.normals.is_some() {
+                    Some("per-vertex normals (write PLY, OBJ or OFF, or clear the normals)")
+                } else if self.confidence.is_some() || self.values.is_some() {
+                    Some("per-vertex attributes (write PLY, or clear them)")
+                } else if stl::has_unreferenced_vertex(self.positions.len(), self.triangles) {
+                    Some("vertices used by no triangle (write PLY, OBJ or OFF)")
+                } else {
+                    None
+                }
+            }
+            _ if has_faces => Some("faces (write PLY, OBJ, OFF or STL)"),
+            Format::Sph => {
+                if self.radii.is_none() {
+                    Some("points without radii (a sphere set needs a radius per point)")
+                } else if self.normals.is_some()
+                    || self.confidence.is_some()
+                    || self.values.is_some()
+                {
+                    Some("per-vertex attributes besides radii (write PLY)")
+                } else {
+                    None
+                }
+            }
+            _ => {
+                if self.confidence.is_some() {
+                    Some("per-vertex confidence (write PLY, or clear the attribute)")
+                } else if self.radii.is_some() && format != Format::Txt {
+                    Some("sphere radii (write PLY, .sph or .txt)")
+                } else if self.radii.is_some() && (self.normals.is_some() || self.values.is_some())
+                {
+                    Some("per-vertex attributes besides radii (write PLY)")
+                } else if format == Format::Txt
+                    && self.radii.is_none()
+                    && self.values.is_some()
+                    && self.normals.is_none()
+                {
+                    Some(
+                        "points with values alone: 4 columns in .txt mean spheres (write .xyz or PLY)",
+                    )
+                } else {
+                    None
+                }
+            }
+        };
+        match problem {
+            Some(what) => Err(unsupported(what)),
+            None => Ok(()),
+        }
+    }
+}
+
+fn write_export(path: &Path, export: Export<'_>, options: &WriteOptions) -> Result<(), IoError> {
+    let format = Format::from_path(path)?;
+    export.check(path)?;
+    export.check_supported(path, format)?;
+    let double = options.precision == Precision::F64;
+    write_atomic(path, &options.inputs, |w| match format {
+        Format::Ply => ply::write(w, &export, options.ply_encoding, double),
+        Format::Obj => obj::write(w, &export, double),
+        Format::Off => off::write(w, &export, double),
+        Format::Stl => stl::write(w, &export),
+        Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::write(w, &export, double),
+    })
+}
+
+/// Writes a point cloud in the format named by the extension of `path`.
+pub fn write_point_cloud(
+    path: &Path,
+    cloud: &PointCloud,
+    options: &WriteOptions,
+) -> Result<(), IoError> {
+    let export = Export {
+        positions: &cloud.positions,
+        normals: cloud.normals.as_deref(),
+        confidence: cloud.confidence.as_deref(),
+        values: cloud.values.as_deref(),
+        radii: None,
+        triangles: &[],
+    };
+    write_export(path, export, options)
+}
+
+/// Writes a triangle mesh in the format named by the extension of `path`.
+pub fn write_mesh(path: &Path, mesh: &TriMesh, options: &WriteOptions) -> Result<(), IoError> {
+    let export = Export {
+        positions: &mesh.vertices,
+        normals: mesh.normals.as_deref(),
+        confidence: None,
+        values: mesh.values.as_deref(),
+        radii: None,
+        triangles: &mesh.triangles,
+    };
+    write_export(path, export, options)
+}
+
+/// Writes a sphere set: `.ply` (vertex property `radius`), `.sph`, `.spheres` or `.txt`.
+pub fn write_spheres(
+    path: &Path,
+    spheres: &SphereSet,
+    options: &WriteOptions,
+) -> Result<(), IoError> {
+    let export = Export {
+        positions: &spheres.centers,
+        normals: None,
+        confidence: None,
+        values: None,
+        radii: Some(&spheres.radii),
+        triangles: &[],
+    };
+    write_export(path, export, options)
+}
