@@ -10,7 +10,6 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 #[derive(Debug)]
 pub struct Reporter {
     verbose: u8,
-    quiet: bool,
     bars: bool,
 }
 
@@ -20,23 +19,29 @@ impl Reporter {
     pub fn new(verbose: u8, quiet: bool) -> Reporter {
         Reporter {
             verbose,
-            quiet,
             bars: !quiet && std::io::stderr().is_terminal(),
         }
     }
 
-    /// A progress bar over `len` steps, hidden when bars are off.
-    pub fn progress(&self, len: u64, message: &str) -> ProgressBar {
+    /// A progress bar over `len` steps, or a spinner when the length is unknown; hidden when
+    /// bars are off. The caller finishes it with `finish_and_clear`.
+    pub fn progress(&self, len: Option<u64>, message: &str) -> ProgressBar {
         if !self.bars {
             return ProgressBar::hidden();
         }
-        let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template("{msg:>12} [{bar:40}] {percent:>3}% {elapsed_precise}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> "),
-        );
+        let bar = ProgressBar::with_draw_target(len, ProgressDrawTarget::stderr());
+        let style = match len {
+            Some(_) => ProgressStyle::with_template(
+                "{msg:>12} [{bar:40}] {percent:>3}% {elapsed_precise}",
+            )
+            .map(|s| s.progress_chars("=> ")),
+            None => ProgressStyle::with_template("{spinner} {msg} {elapsed_precise}"),
+        };
+        bar.set_style(style.unwrap_or_else(|_| ProgressStyle::default_bar()));
         bar.set_message(message.to_owned());
+        if len.is_none() {
+            bar.enable_steady_tick(Duration::from_millis(100));
+        }
         bar
     }
 
@@ -53,13 +58,6 @@ impl Reporter {
     pub fn detail(&self, message: &str) {
         if self.verbose > 0 {
             eprintln!("{message}");
-        }
-    }
-
-    /// A warning, printed unless `--quiet`.
-    pub fn warn(&self, message: &str) {
-        if !self.quiet {
-            eprintln!("warning: {message}");
         }
     }
 

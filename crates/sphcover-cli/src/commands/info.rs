@@ -3,7 +3,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::Context;
 use serde::Serialize;
 use sphcover_core::io::{self, FileInfo, NonFinitePolicy, ReadOptions};
 use sphcover_core::{Aabb, DVec3};
@@ -86,7 +85,9 @@ pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut out = String::new();
     for path in &args.files {
         let stage = reporter.stage(&format!("read {}", path.display()));
+        let bar = reporter.progress(None, &format!("reading {}", path.display()));
         let result = summarise(path);
+        bar.finish_and_clear();
         stage.finish();
         match result {
             Ok(summary) => {
@@ -114,7 +115,7 @@ fn summarise(path: &Path) -> anyhow::Result<Summary> {
     let options = ReadOptions {
         non_finite: NonFinitePolicy::Keep,
     };
-    let geometry = io::read_geometry(path, &options).context("cannot report on the file")?;
+    let geometry = io::read_geometry(path, &options)?;
     let points = &geometry.points;
     let bbox = Aabb::from_points(&points.positions);
     let info: &FileInfo = &geometry.info;

@@ -183,6 +183,25 @@ fn plural(n: &u64) -> &'static str {
     if *n == 1 { "" } else { "s" }
 }
 
+impl IoError {
+    /// True when the error lies with what the caller asked for (a missing, unreadable or
+    /// malformed input, an unknown format, an output the format cannot hold, an output that
+    /// would overwrite an input) rather than with the machine (a failed write) or with the
+    /// caller's data structures. Command-line tools map it to their "bad input" exit code.
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            IoError::Read { .. }
+            | IoError::UnknownFormat { .. }
+            | IoError::Malformed { .. }
+            | IoError::NonFinite { .. }
+            | IoError::NoRadius { .. }
+            | IoError::Unsupported { .. }
+            | IoError::OutputIsInput { .. } => true,
+            IoError::Write { .. } | IoError::InvalidData { .. } => false,
+        }
+    }
+}
+
 /// A problem and its place, before the reader's caller attaches the file name.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Failure {
