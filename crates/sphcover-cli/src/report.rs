@@ -31,10 +31,10 @@ impl Reporter {
         }
         let bar = ProgressBar::with_draw_target(len, ProgressDrawTarget::stderr());
         let style = match len {
-            Some(_) => ProgressStyle::with_template(
-                "{msg:>12} [{bar:40}] {percent:>3}% {elapsed_precise}",
-            )
-            .map(|s| s.progress_chars("=> ")),
+            Some(_) => {
+                ProgressStyle::with_template("{msg:>12} [{bar:40}] {percent:>3}% {elapsed_precise}")
+                    .map(|s| s.progress_chars("=> "))
+            }
             None => ProgressStyle::with_template("{spinner} {msg} {elapsed_precise}"),
         };
         bar.set_style(style.unwrap_or_else(|_| ProgressStyle::default_bar()));

@@ -27,7 +27,10 @@ fn info_reports_a_scan_with_normals() {
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     let stdout = text(&out.stdout);
     assert!(stdout.contains("points        5210"), "{stdout}");
-    assert!(stdout.contains("normals       yes: all unit length"), "{stdout}");
+    assert!(
+        stdout.contains("normals       yes: all unit length"),
+        "{stdout}"
+    );
     assert!(stdout.contains("non-finite    none"), "{stdout}");
 }
 
@@ -96,7 +99,10 @@ fn pending_subcommands_say_so_and_exit_1() {
 
 #[test]
 fn bad_usage_exits_2() {
-    assert_eq!(sphcover(&["--threads", "0", "info", "x.ply"]).status.code(), Some(2));
+    assert_eq!(
+        sphcover(&["--threads", "0", "info", "x.ply"]).status.code(),
+        Some(2)
+    );
     assert_eq!(sphcover(&["frobnicate"]).status.code(), Some(2));
     assert_eq!(sphcover(&["info"]).status.code(), Some(2));
     assert_eq!(sphcover(&["--help"]).status.code(), Some(0));

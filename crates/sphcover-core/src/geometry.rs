@@ -176,6 +176,8 @@ mod tests {
         assert_eq!(one.scale, 1.0);
         assert_eq!(one.to_unit(DVec3::ONE), DVec3::ZERO);
         assert!(Normalisation::of_points(&[DVec3::ZERO, DVec3::splat(f64::MAX)]).is_some());
-        assert!(Normalisation::of_points(&[DVec3::splat(-f64::MAX), DVec3::splat(f64::MAX)]).is_none());
+        assert!(
+            Normalisation::of_points(&[DVec3::splat(-f64::MAX), DVec3::splat(f64::MAX)]).is_none()
+        );
     }
 }
