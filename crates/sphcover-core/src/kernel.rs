@@ -137,17 +137,9 @@ impl Kernel {
     ) -> (f64, DVec3, DMat3) {
         let inv_r = 1.0 / radius;
         let u = (x - center) * inv_r;
-        let (w, grad_u, hess_u) = self.derivatives_in_u(u);
-        (w, grad_u * inv_r, hess_u * (inv_r * inv_r))
-    }
-
-    /// Weight, gradient and Hessian with respect to the scaled offset `u = (x − c) / r`.
-    #[inline]
-    pub(crate) fn derivatives_in_u(self, u: DVec3) -> (f64, DVec3, DMat3) {
-        let s = u.length_squared();
-        let (w, a, b) = self.value_slope_curvature_sq(s);
-        let hess = DMat3::from_diagonal(DVec3::splat(a)) + outer(u * b, u);
-        (w, u * a, hess)
+        let (w, a, b) = self.value_slope_curvature_sq(u.length_squared());
+        let (grad, hess) = gradient_hessian(u, inv_r, a, b);
+        (w, grad, hess)
     }
 
     /// `ψ` as a function of `s = t²`.
@@ -240,6 +232,16 @@ impl Kernel {
             }
         }
     }
+}
+
+/// Gradient `A u / r` and Hessian `(A I + B u uᵀ) / r²` of a radial weight from the terms
+/// `(A, B)` of [`Kernel::value_slope_curvature_sq`], the scaled offset `u` and `1/r`. The
+/// Hessian is exactly symmetric (`u uᵀ` is formed before scaling by `B`), and the gradient is
+/// the same expression as in [`Kernel::weight_gradient`], so both agree bitwise.
+#[inline]
+pub(crate) fn gradient_hessian(u: DVec3, inv_r: f64, a: f64, b: f64) -> (DVec3, DMat3) {
+    let hess = (DMat3::from_diagonal(DVec3::splat(a)) + outer(u, u) * b) * (inv_r * inv_r);
+    (u * (a * inv_r), hess)
 }
 
 /// `a bᵀ` as a matrix (glam has no outer product for `DVec3`).

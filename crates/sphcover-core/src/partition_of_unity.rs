@@ -23,7 +23,7 @@
 
 use crate::ball_index::BallIndex;
 use crate::cover::{Cover, CoverError};
-use crate::kernel::{Kernel, outer};
+use crate::kernel::{Kernel, gradient_hessian};
 use crate::local_function::{
     LinearArrays, LocalFunctionArrays, LocalFunctions, QuadraticArrays, sym_outer,
 };
@@ -295,6 +295,7 @@ impl<'a> PuEvaluator<'a> {
                 continue;
             }
             let (w, a) = K::KERNEL.value_slope_sq(s);
+            // The expression of `gradient_hessian`, so all paths agree bitwise on ∇f.
             let grad_w = u * (a * inv_r);
             let (g, grad_g) = funcs.value_gradient(i, d);
             w_sum += w;
@@ -338,10 +339,7 @@ impl<'a> PuEvaluator<'a> {
                 continue;
             }
             let (w, a, b) = K::KERNEL.value_slope_curvature_sq(s);
-            // Same expression as in `value_gradient_sum`, so both paths agree bitwise on ∇f.
-            let grad_w = u * (a * inv_r);
-            let hess_w =
-                (DMat3::from_diagonal(DVec3::splat(a)) + outer(u * b, u)) * (inv_r * inv_r);
+            let (grad_w, hess_w) = gradient_hessian(u, inv_r, a, b);
             let (g, grad_g, hess_g) = funcs.value_gradient_hessian(i, d);
             w_sum += w;
             n_sum += w * g;

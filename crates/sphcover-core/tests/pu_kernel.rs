@@ -53,7 +53,10 @@ proptest! {
         prop_assert!((w - kernel.profile(t_actual)).abs() <= 1e-13);
         // All three evaluation paths agree bitwise on the weight.
         prop_assert_eq!(kernel.weight_gradient(x, c, r).0.to_bits(), w.to_bits());
-        prop_assert_eq!(kernel.weight_gradient_hessian(x, c, r).0.to_bits(), w.to_bits());
+        let (w_h, g_h, h_h) = kernel.weight_gradient_hessian(x, c, r);
+        prop_assert_eq!(w_h.to_bits(), w.to_bits());
+        prop_assert_eq!(g_h, kernel.weight_gradient(x, c, r).1);
+        prop_assert_eq!(h_h, h_h.transpose());
         if t_actual >= 1.0 {
             prop_assert_eq!(w, 0.0);
             prop_assert_eq!(kernel.weight_gradient(x, c, r).1, DVec3::ZERO);
