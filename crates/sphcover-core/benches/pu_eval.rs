@@ -107,6 +107,15 @@ fn bench_pu_eval(c: &mut Criterion) {
             black_box(eval.value_gradient_hessian(black_box(points[k])))
         })
     });
+    group.bench_function("supports_containing_single_point", |b| {
+        let mut k = 0;
+        let mut v = Vec::new();
+        b.iter(|| {
+            k = (k + 7919) % points.len();
+            eval.supports_containing(black_box(points[k]), &mut v);
+            black_box(v.len())
+        })
+    });
     group.finish();
 }
 

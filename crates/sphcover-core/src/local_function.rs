@@ -6,7 +6,6 @@
 //! for small supports far from the origin. Every method takes the *offset* `d = x − c` from
 //! the support centre `c`.
 
-use crate::kernel::outer;
 use glam::{DMat3, DVec3};
 
 /// A linear local function `g(x) = α·(x − c) + β`.
@@ -262,78 +261,4 @@ impl LocalFunctions {
             None => false,
         })
     }
-}
-
-/// Contribution of one support's local function to the partition-of-unity sums: value,
-/// gradient and Hessian at offset `d`. Implemented by the two storage kinds so the evaluator's
-/// inner loop is monomorphised per kind.
-pub(crate) trait LocalFunctionArrays: Sync {
-    fn value(&self, i: usize, d: DVec3) -> f64;
-    fn value_gradient(&self, i: usize, d: DVec3) -> (f64, DVec3);
-    /// The Hessian is `None` when it is identically zero (linear functions), to skip the work.
-    fn value_gradient_hessian(&self, i: usize, d: DVec3) -> (f64, DVec3, Option<DMat3>);
-}
-
-/// Borrowed linear storage.
-pub(crate) struct LinearArrays<'a> {
-    pub alpha: &'a [DVec3],
-    pub beta: &'a [f64],
-}
-
-/// Borrowed quadratic storage.
-pub(crate) struct QuadraticArrays<'a> {
-    pub a: &'a [DMat3],
-    pub b: &'a [DVec3],
-    pub k: &'a [f64],
-}
-
-impl LocalFunctionArrays for LinearArrays<'_> {
-    #[inline]
-    fn value(&self, i: usize, d: DVec3) -> f64 {
-        self.alpha[i].dot(d) + self.beta[i]
-    }
-
-    #[inline]
-    fn value_gradient(&self, i: usize, d: DVec3) -> (f64, DVec3) {
-        let alpha = self.alpha[i];
-        (alpha.dot(d) + self.beta[i], alpha)
-    }
-
-    #[inline]
-    fn value_gradient_hessian(&self, i: usize, d: DVec3) -> (f64, DVec3, Option<DMat3>) {
-        let (v, g) = self.value_gradient(i, d);
-        (v, g, None)
-    }
-}
-
-impl LocalFunctionArrays for QuadraticArrays<'_> {
-    #[inline]
-    fn value(&self, i: usize, d: DVec3) -> f64 {
-        d.dot(self.a[i] * d) + self.b[i].dot(d) + self.k[i]
-    }
-
-    #[inline]
-    fn value_gradient(&self, i: usize, d: DVec3) -> (f64, DVec3) {
-        let a = self.a[i];
-        let ad = a * d;
-        let atd = a.transpose() * d;
-        (
-            d.dot(ad) + self.b[i].dot(d) + self.k[i],
-            ad + atd + self.b[i],
-        )
-    }
-
-    #[inline]
-    fn value_gradient_hessian(&self, i: usize, d: DVec3) -> (f64, DVec3, Option<DMat3>) {
-        let (v, g) = self.value_gradient(i, d);
-        let a = self.a[i];
-        (v, g, Some(a + a.transpose()))
-    }
-}
-
-/// `a bᵀ + b aᵀ`.
-#[inline]
-pub(crate) fn sym_outer(a: DVec3, b: DVec3) -> DMat3 {
-    let m = outer(a, b);
-    m + m.transpose()
 }

@@ -20,41 +20,34 @@
 //! The sums run over the supports containing `x` in ascending support index, whatever order
 //! the spatial index reports them in; batch evaluation treats each point independently. So a
 //! result is bit-identical whatever the thread count and whatever the index's internals.
+//! Batches are evaluated in a spatially coherent order for cache efficiency and returned in
+//! input order; the order changes no result.
+
+mod packed;
+mod spatial_order;
 
 use crate::ball_index::BallIndex;
 use crate::cover::{Cover, CoverError};
-use crate::kernel::{Kernel, gradient_hessian};
-use crate::local_function::{
-    LinearArrays, LocalFunctionArrays, LocalFunctions, QuadraticArrays, sym_outer,
-};
+use crate::kernel::{Kernel, gradient_hessian, outer};
 use glam::{DMat3, DVec3};
+use packed::{PackedSupport, PackedSupports};
 use rayon::prelude::*;
 use std::cell::RefCell;
 
-/// Calls `$self.$method::<K, F>(funcs, x, ids)` with the kernel type and local-function
-/// storage of the cover.
+/// Calls `$method::<K, _>(supports, x, ids)` with the kernel type and packed supports of the
+/// evaluator.
 macro_rules! dispatch {
     ($self:ident, $x:ident, $ids:ident, $method:ident) => {{
-        match $self.cover.funcs() {
-            LocalFunctions::Linear { alpha, beta } => {
-                let f = LinearArrays { alpha, beta };
-                dispatch!(@kernel $self, f, $x, $ids, $method)
-            }
-            LocalFunctions::Quadratic { a, b, k } => {
-                let f = QuadraticArrays { a, b, k };
-                dispatch!(@kernel $self, f, $x, $ids, $method)
-            }
+        match &$self.supports {
+            PackedSupports::Linear(v) => dispatch!(@kernel $self, v, $x, $ids, $method),
+            PackedSupports::Quadratic(v) => dispatch!(@kernel $self, v, $x, $ids, $method),
         }
     }};
-    (@kernel $self:ident, $f:ident, $x:ident, $ids:ident, $method:ident) => {
+    (@kernel $self:ident, $v:ident, $x:ident, $ids:ident, $method:ident) => {
         match $self.cover.kernel() {
-            Kernel::QuadraticBSpline => {
-                $self.$method::<QuadraticBSplineKernel, _>(&$f, $x, $ids)
-            }
-            Kernel::TruncatedGaussian => {
-                $self.$method::<TruncatedGaussianKernel, _>(&$f, $x, $ids)
-            }
-            Kernel::WendlandC2 => $self.$method::<WendlandC2Kernel, _>(&$f, $x, $ids),
+            Kernel::QuadraticBSpline => $method::<QuadraticBSplineKernel, _>($v, $x, $ids),
+            Kernel::TruncatedGaussian => $method::<TruncatedGaussianKernel, _>($v, $x, $ids),
+            Kernel::WendlandC2 => $method::<WendlandC2Kernel, _>($v, $x, $ids),
         }
     };
 }
@@ -75,27 +68,25 @@ pub struct ValueGradientHessian {
     pub value: f64,
     /// `∇f(x)`.
     pub gradient: DVec3,
-    /// `∇²f(x)` (symmetric).
+    /// `∇²f(x)` (exactly symmetric).
     pub hessian: DMat3,
 }
 
 /// Evaluates the partition-of-unity function of a [`Cover`] with expansion factor σ.
 ///
-/// Built once per cover and σ (it owns a [`BallIndex`] over the expanded balls); every query
-/// takes `&self`, so one evaluator serves many threads. A query returns `None` where no weight
-/// is positive (outside every expanded ball), where `f` is undefined, and for a non-finite
-/// `x`. The support set at `x`
-/// is the open expanded balls: a point on a sphere `‖x − c_i‖ = σ r_i` gets no weight from
-/// support `i`.
+/// Built once per cover and σ (it owns a [`BallIndex`] over the expanded balls and a packed
+/// copy of the supports); every query takes `&self`, so one evaluator serves many threads. A
+/// query returns `None` where no weight is positive (outside every expanded ball), where `f`
+/// is undefined, and for a non-finite `x`. The support set at `x` is the open expanded balls:
+/// a point on a sphere `‖x − c_i‖ = σ r_i` gets no weight from support `i`.
 ///
-/// The evaluator reads the cover's local functions at query time; to evaluate after changing
+/// The evaluator copies the local functions when it is built; to evaluate after changing
 /// them, build a new evaluator on the changed cover.
 #[derive(Debug)]
 pub struct PuEvaluator<'a> {
     cover: &'a Cover,
     sigma: f64,
-    /// `1 / (σ r_i)`.
-    inv_radii: Vec<f64>,
+    supports: PackedSupports,
     index: BallIndex,
 }
 
@@ -124,12 +115,13 @@ impl<'a> PuEvaluator<'a> {
             }
             expanded.push(r);
         }
-        let inv_radii = expanded.iter().map(|&r| 1.0 / r).collect();
+        let inv_radii: Vec<f64> = expanded.iter().map(|&r| 1.0 / r).collect();
+        let supports = PackedSupports::new(cover, &inv_radii);
         let index = BallIndex::new(cover.centers(), &expanded);
         Ok(PuEvaluator {
             cover,
             sigma,
-            inv_radii,
+            supports,
             index,
         })
     }
@@ -167,8 +159,8 @@ impl<'a> PuEvaluator<'a> {
         let kernel = self.cover.kernel();
         self.with_supports(x, |ids| {
             for &j in ids {
-                let i = j as usize;
-                let u = (x - self.cover.centers()[i]) * self.inv_radii[i];
+                let (c, inv_r) = self.supports.center_inv_radius(j as usize);
+                let u = (x - c) * inv_r;
                 let w = kernel.value_sq(u.length_squared());
                 if w > 0.0 {
                     out.push((j, w));
@@ -194,29 +186,17 @@ impl<'a> PuEvaluator<'a> {
 
     /// [`PuEvaluator::value`] at every point, in parallel, in input order.
     pub fn values(&self, points: &[DVec3]) -> Vec<Option<f64>> {
-        points
-            .par_iter()
-            .with_min_len(BATCH_MIN_LEN)
-            .map(|&x| self.value(x))
-            .collect()
+        batch(points, |x| self.value(x))
     }
 
     /// [`PuEvaluator::value_gradient`] at every point, in parallel, in input order.
     pub fn values_gradients(&self, points: &[DVec3]) -> Vec<Option<ValueGradient>> {
-        points
-            .par_iter()
-            .with_min_len(BATCH_MIN_LEN)
-            .map(|&x| self.value_gradient(x))
-            .collect()
+        batch(points, |x| self.value_gradient(x))
     }
 
     /// [`PuEvaluator::value_gradient_hessian`] at every point, in parallel, in input order.
     pub fn values_gradients_hessians(&self, points: &[DVec3]) -> Vec<Option<ValueGradientHessian>> {
-        points
-            .par_iter()
-            .with_min_len(BATCH_MIN_LEN)
-            .map(|&x| self.value_gradient_hessian(x))
-            .collect()
+        batch(points, |x| self.value_gradient_hessian(x))
     }
 
     /// Runs `body` on the supports whose expanded ball holds `x` (none for a non-finite `x`),
@@ -246,130 +226,157 @@ impl<'a> PuEvaluator<'a> {
             }
         })
     }
-
-    /// `Σ w_i` and `Σ w_i g_i` in the order of `ids`.
-    #[inline]
-    fn value_sum<K: FixedKernel, F: LocalFunctionArrays>(
-        &self,
-        funcs: &F,
-        x: DVec3,
-        ids: &[u32],
-    ) -> Option<f64> {
-        let centers = self.cover.centers();
-        let mut w_sum = 0.0;
-        let mut n_sum = 0.0;
-        for &j in ids {
-            let i = j as usize;
-            let d = x - centers[i];
-            let u = d * self.inv_radii[i];
-            let s = u.length_squared();
-            if s >= 1.0 {
-                continue;
-            }
-            let w = K::KERNEL.value_sq(s);
-            w_sum += w;
-            n_sum += w * funcs.value(i, d);
-        }
-        (w_sum > 0.0).then(|| n_sum / w_sum)
-    }
-
-    #[inline]
-    fn value_gradient_sum<K: FixedKernel, F: LocalFunctionArrays>(
-        &self,
-        funcs: &F,
-        x: DVec3,
-        ids: &[u32],
-    ) -> Option<ValueGradient> {
-        let centers = self.cover.centers();
-        let mut w_sum = 0.0;
-        let mut n_sum = 0.0;
-        let mut w_grad = DVec3::ZERO;
-        let mut n_grad = DVec3::ZERO;
-        for &j in ids {
-            let i = j as usize;
-            let inv_r = self.inv_radii[i];
-            let d = x - centers[i];
-            let u = d * inv_r;
-            let s = u.length_squared();
-            if s >= 1.0 {
-                continue;
-            }
-            let (w, a) = K::KERNEL.value_slope_sq(s);
-            // The expression of `gradient_hessian`, so all paths agree bitwise on ∇f.
-            let grad_w = u * (a * inv_r);
-            let (g, grad_g) = funcs.value_gradient(i, d);
-            w_sum += w;
-            n_sum += w * g;
-            w_grad += grad_w;
-            n_grad += grad_w * g + grad_g * w;
-        }
-        if w_sum <= 0.0 {
-            return None;
-        }
-        // `f` divides exactly as in `value_sum`, so all query paths agree bitwise on `f`.
-        let value = n_sum / w_sum;
-        let inv_w = 1.0 / w_sum;
-        Some(ValueGradient {
-            value,
-            gradient: (n_grad - w_grad * value) * inv_w,
-        })
-    }
-
-    #[inline]
-    fn value_gradient_hessian_sum<K: FixedKernel, F: LocalFunctionArrays>(
-        &self,
-        funcs: &F,
-        x: DVec3,
-        ids: &[u32],
-    ) -> Option<ValueGradientHessian> {
-        let centers = self.cover.centers();
-        let mut w_sum = 0.0;
-        let mut n_sum = 0.0;
-        let mut w_grad = DVec3::ZERO;
-        let mut n_grad = DVec3::ZERO;
-        let mut w_hess = DMat3::ZERO;
-        let mut n_hess = DMat3::ZERO;
-        for &j in ids {
-            let i = j as usize;
-            let inv_r = self.inv_radii[i];
-            let d = x - centers[i];
-            let u = d * inv_r;
-            let s = u.length_squared();
-            if s >= 1.0 {
-                continue;
-            }
-            let (w, a, b) = K::KERNEL.value_slope_curvature_sq(s);
-            let (grad_w, hess_w) = gradient_hessian(u, inv_r, a, b);
-            let (g, grad_g, hess_g) = funcs.value_gradient_hessian(i, d);
-            w_sum += w;
-            n_sum += w * g;
-            w_grad += grad_w;
-            n_grad += grad_w * g + grad_g * w;
-            w_hess += hess_w;
-            n_hess += hess_w * g + sym_outer(grad_w, grad_g);
-            if let Some(hess_g) = hess_g {
-                n_hess += hess_g * w;
-            }
-        }
-        if w_sum <= 0.0 {
-            return None;
-        }
-        // `f` divides exactly as in `value_sum`, so all query paths agree bitwise on `f`.
-        let value = n_sum / w_sum;
-        let inv_w = 1.0 / w_sum;
-        let gradient = (n_grad - w_grad * value) * inv_w;
-        let hessian = (n_hess - w_hess * value - sym_outer(gradient, w_grad)) * inv_w;
-        Some(ValueGradientHessian {
-            value,
-            gradient,
-            hessian,
-        })
-    }
 }
 
 /// Points per rayon task at least: one point costs about a microsecond, so smaller tasks would
 /// spend more on scheduling than on work.
 const BATCH_MIN_LEN: usize = 256;
+
+/// Batches at least this long are evaluated in Morton order; below it the sort costs more
+/// than the cache misses it saves.
+const SPATIAL_ORDER_MIN_LEN: usize = 4096;
+
+/// `eval` at every point, in parallel, in input order. Large batches run in Morton order and
+/// are gathered back; each point's result does not depend on the order.
+fn batch<R: Copy + Send + Sync>(points: &[DVec3], eval: impl Fn(DVec3) -> R + Sync) -> Vec<R> {
+    if points.len() < SPATIAL_ORDER_MIN_LEN || u32::try_from(points.len()).is_err() {
+        return points
+            .par_iter()
+            .with_min_len(BATCH_MIN_LEN)
+            .map(|&x| eval(x))
+            .collect();
+    }
+    let order = spatial_order::morton_order(points);
+    let in_order: Vec<R> = order
+        .par_iter()
+        .with_min_len(BATCH_MIN_LEN)
+        .map(|&i| eval(points[i as usize]))
+        .collect();
+    let mut rank = vec![0u32; points.len()];
+    for (k, &i) in order.iter().enumerate() {
+        rank[i as usize] = k as u32;
+    }
+    rank.par_iter().map(|&k| in_order[k as usize]).collect()
+}
+
+/// `a bᵀ + b aᵀ`.
+#[inline]
+fn sym_outer(a: DVec3, b: DVec3) -> DMat3 {
+    let m = outer(a, b);
+    m + m.transpose()
+}
+
+/// `f` from `Σ w_i` and `Σ w_i g_i` in the order of `ids`.
+#[inline]
+fn value_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+) -> Option<f64> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let d = x - sup.center();
+        let u = d * sup.inv_radius();
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let w = K::KERNEL.value_sq(s);
+        w_sum += w;
+        n_sum += w * sup.value(d);
+    }
+    (w_sum > 0.0).then(|| n_sum / w_sum)
+}
+
+#[inline]
+fn value_gradient_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+) -> Option<ValueGradient> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    let mut w_grad = DVec3::ZERO;
+    let mut n_grad = DVec3::ZERO;
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let inv_r = sup.inv_radius();
+        let d = x - sup.center();
+        let u = d * inv_r;
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let (w, a) = K::KERNEL.value_slope_sq(s);
+        // The expression of `gradient_hessian`, so all paths agree bitwise on ∇f.
+        let grad_w = u * (a * inv_r);
+        let (g, grad_g) = sup.value_gradient(d);
+        w_sum += w;
+        n_sum += w * g;
+        w_grad += grad_w;
+        n_grad += grad_w * g + grad_g * w;
+    }
+    if w_sum <= 0.0 {
+        return None;
+    }
+    // `f` divides exactly as in `value_sum`, so all query paths agree bitwise on `f`.
+    let value = n_sum / w_sum;
+    let inv_w = 1.0 / w_sum;
+    Some(ValueGradient {
+        value,
+        gradient: (n_grad - w_grad * value) * inv_w,
+    })
+}
+
+#[inline]
+fn value_gradient_hessian_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+) -> Option<ValueGradientHessian> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    let mut w_grad = DVec3::ZERO;
+    let mut n_grad = DVec3::ZERO;
+    let mut w_hess = DMat3::ZERO;
+    let mut n_hess = DMat3::ZERO;
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let inv_r = sup.inv_radius();
+        let d = x - sup.center();
+        let u = d * inv_r;
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let (w, a, b) = K::KERNEL.value_slope_curvature_sq(s);
+        let (grad_w, hess_w) = gradient_hessian(u, inv_r, a, b);
+        let (g, grad_g, hess_g) = sup.value_gradient_hessian(d);
+        w_sum += w;
+        n_sum += w * g;
+        w_grad += grad_w;
+        n_grad += grad_w * g + grad_g * w;
+        w_hess += hess_w;
+        n_hess += hess_w * g + sym_outer(grad_w, grad_g);
+        if let Some(hess_g) = hess_g {
+            n_hess += hess_g * w;
+        }
+    }
+    if w_sum <= 0.0 {
+        return None;
+    }
+    let value = n_sum / w_sum;
+    let inv_w = 1.0 / w_sum;
+    let gradient = (n_grad - w_grad * value) * inv_w;
+    let hessian = (n_hess - w_hess * value - sym_outer(gradient, w_grad)) * inv_w;
+    Some(ValueGradientHessian {
+        value,
+        gradient,
+        hessian,
+    })
+}
 
 /// A kernel fixed at compile time, so the inner loops are monomorphised per kernel and the
 /// kernel `match` folds away.

@@ -57,6 +57,52 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Only the symmetric part of `A` enters `g`, so a non-symmetric `A` must give the same
+    /// `f`, `∇f`, `∇²f` as `(A + Aᵀ)/2`.
+    #[test]
+    fn quadratic_uses_the_symmetric_part_of_a(
+        supports in supports_strategy(20),
+        kernel in kernel_strategy(),
+        sigma in sigma_strategy(),
+        skew in vec3(1.0),
+        sym in random_symmetric(),
+        picks in inner_points_strategy(6),
+    ) {
+        let skew_mat = DMat3::from_cols(
+            DVec3::new(0.0, skew.z, -skew.y),
+            DVec3::new(-skew.z, 0.0, skew.x),
+            DVec3::new(skew.y, -skew.x, 0.0),
+        );
+        let make = |a: DMat3| {
+            let funcs = LocalFunctions::from_quadratic(supports.iter().map(|&(c, _)| {
+                QuadraticFunction { a, b: c, k: c.x }
+            }));
+            build(&supports, funcs, kernel)
+        };
+        let plain = make(sym);
+        let skewed = make(sym + skew_mat);
+        let (e1, e2) = (
+            PuEvaluator::new(&plain, sigma).unwrap(),
+            PuEvaluator::new(&skewed, sigma).unwrap(),
+        );
+        for x in place(&supports, sigma, &picks) {
+            let (Some(a), Some(b)) = (e1.value_gradient_hessian(x), e2.value_gradient_hessian(x))
+            else {
+                continue;
+            };
+            let stats = weight_stats(&plain, sigma, x);
+            let gw = stats.grad_sum / stats.w;
+            let tol = 1e-12 * (1.0 + gw + gw * gw + stats.hess_sum / stats.w);
+            prop_assert!((a.value - b.value).abs() <= tol);
+            prop_assert!((a.gradient - b.gradient).length() <= tol);
+            prop_assert!(frobenius(a.hessian - b.hessian) <= tol);
+        }
+    }
+}
+
 /// A fixed random cover big enough that rayon splits the batch.
 fn sample_cover(kernel: Kernel) -> (Cover, Vec<DVec3>) {
     use rand::{Rng, SeedableRng};
