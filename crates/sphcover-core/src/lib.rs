@@ -8,13 +8,21 @@
 #![deny(missing_docs)]
 
 pub mod ball_index;
+pub mod cover;
 pub mod geometry;
 pub mod io;
+pub mod kernel;
+pub mod local_function;
 pub mod mesh;
+pub mod partition_of_unity;
 pub mod point_cloud;
 
 pub use ball_index::BallIndex;
+pub use cover::{Cover, CoverError};
 pub use geometry::{Aabb, Normalisation};
 pub use glam::{DMat3, DVec3};
+pub use kernel::Kernel;
+pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, QuadraticFunction};
 pub use mesh::TriMesh;
+pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;

@@ -1,0 +1,399 @@
+//! Partition-of-unity evaluation of a cover: `f`, `∇f`, `∇²f` (thesis eq. 3.1, 3.5, 3.9),
+//! with the support expansion factor σ of thesis §6.2.2.
+//!
+//! With `W = Σ w_i` and `N = Σ w_i g_i`, `f = N / W` where `W > 0`, and by the quotient rule
+//!
+//! ```text
+//! ∇f  = (∇N − f ∇W) / W
+//! ∇²f = (∇²N − f ∇²W − ∇f ⊗ ∇W − ∇W ⊗ ∇f) / W
+//! ```
+//!
+//! with `∇N = Σ (g_i ∇w_i + w_i ∇g_i)` and
+//! `∇²N = Σ (g_i ∇²w_i + ∇w_i ⊗ ∇g_i + ∇g_i ⊗ ∇w_i + w_i ∇²g_i)`.
+//!
+//! The expansion factor σ ≥ 1 evaluates each weight with radius `σ r_i` and keeps `g_i`
+//! unchanged (σ = 4 for the skeleton's derivatives in the thesis): more supports overlap at
+//! each point, which smooths `f` and its derivatives.
+//!
+//! # Determinism
+//!
+//! The sums run over the supports containing `x` in ascending support index, whatever order
+//! the spatial index reports them in; batch evaluation treats each point independently. So a
+//! result is bit-identical whatever the thread count and whatever the index's internals.
+//! Batches are evaluated in a spatially coherent order for cache efficiency and returned in
+//! input order; the order changes no result.
+
+mod packed;
+mod spatial_order;
+
+use crate::ball_index::BallIndex;
+use crate::cover::{Cover, CoverError};
+use crate::kernel::{Kernel, gradient_hessian, outer};
+use glam::{DMat3, DVec3};
+use packed::{PackedSupport, PackedSupports};
+use rayon::prelude::*;
+use std::cell::RefCell;
+
+/// Calls `$method::<K, _>(supports, x, ids)` with the kernel type and packed supports of the
+/// evaluator.
+macro_rules! dispatch {
+    ($self:ident, $x:ident, $ids:ident, $method:ident) => {{
+        match &$self.supports {
+            PackedSupports::Linear(v) => dispatch!(@kernel $self, v, $x, $ids, $method),
+            PackedSupports::Quadratic(v) => dispatch!(@kernel $self, v, $x, $ids, $method),
+        }
+    }};
+    (@kernel $self:ident, $v:ident, $x:ident, $ids:ident, $method:ident) => {
+        match $self.cover.kernel() {
+            Kernel::QuadraticBSpline => $method::<QuadraticBSplineKernel, _>($v, $x, $ids),
+            Kernel::TruncatedGaussian => $method::<TruncatedGaussianKernel, _>($v, $x, $ids),
+            Kernel::WendlandC2 => $method::<WendlandC2Kernel, _>($v, $x, $ids),
+        }
+    };
+}
+
+/// The value and gradient of `f` at a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValueGradient {
+    /// `f(x)`.
+    pub value: f64,
+    /// `∇f(x)`.
+    pub gradient: DVec3,
+}
+
+/// The value, gradient and Hessian of `f` at a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValueGradientHessian {
+    /// `f(x)`.
+    pub value: f64,
+    /// `∇f(x)`.
+    pub gradient: DVec3,
+    /// `∇²f(x)` (exactly symmetric).
+    pub hessian: DMat3,
+}
+
+/// Evaluates the partition-of-unity function of a [`Cover`] with expansion factor σ.
+///
+/// Built once per cover and σ (it owns a [`BallIndex`] over the expanded balls and a packed
+/// copy of the supports); every query takes `&self`, so one evaluator serves many threads. A
+/// query returns `None` where no weight is positive (outside every expanded ball), where `f`
+/// is undefined, and for a non-finite `x`. The support set at `x` is the open expanded balls:
+/// a point on a sphere `‖x − c_i‖ = σ r_i` gets no weight from support `i`.
+///
+/// The evaluator copies the local functions when it is built; to evaluate after changing
+/// them, build a new evaluator on the changed cover.
+#[derive(Debug)]
+pub struct PuEvaluator<'a> {
+    cover: &'a Cover,
+    sigma: f64,
+    supports: PackedSupports,
+    index: BallIndex,
+}
+
+thread_local! {
+    /// Per-thread buffer for the supports at the point being evaluated, so a query allocates
+    /// nothing once the buffer has grown to the largest overlap seen.
+    static SUPPORT_BUFFER: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
+}
+
+impl<'a> PuEvaluator<'a> {
+    /// Builds the evaluator of `cover` with expansion factor `sigma` (finite, ≥ 1; 1 is the
+    /// plain cover).
+    pub fn new(cover: &'a Cover, sigma: f64) -> Result<PuEvaluator<'a>, CoverError> {
+        if !(sigma.is_finite() && sigma >= 1.0) {
+            return Err(CoverError::InvalidExpansion { sigma });
+        }
+        let mut expanded = Vec::with_capacity(cover.len());
+        for (index, &radius) in cover.radii().iter().enumerate() {
+            let r = sigma * radius;
+            if !r.is_finite() {
+                return Err(CoverError::ExpandedRadiusOverflow {
+                    index,
+                    radius,
+                    sigma,
+                });
+            }
+            expanded.push(r);
+        }
+        let inv_radii: Vec<f64> = expanded.iter().map(|&r| 1.0 / r).collect();
+        let supports = PackedSupports::new(cover, &inv_radii);
+        let index = BallIndex::new(cover.centers(), &expanded);
+        Ok(PuEvaluator {
+            cover,
+            sigma,
+            supports,
+            index,
+        })
+    }
+
+    /// The cover being evaluated.
+    pub fn cover(&self) -> &'a Cover {
+        self.cover
+    }
+
+    /// The expansion factor σ.
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
+    /// The spatial index over the expanded balls `(c_i, σ r_i)`.
+    pub fn ball_index(&self) -> &BallIndex {
+        &self.index
+    }
+
+    /// The supports whose expanded ball contains `x` (`‖x − c_i‖ < σ r_i`), ascending, into
+    /// `out` (cleared first). These are the supports with a positive weight at `x` (up to
+    /// underflow of the weight right at the sphere).
+    pub fn supports_containing(&self, x: DVec3, out: &mut Vec<u32>) {
+        if !x.is_finite() {
+            out.clear();
+            return;
+        }
+        self.index.containing(x, out);
+    }
+
+    /// The positive weights `(i, w_i(x))` at `x`, ascending in `i`, into `out` (cleared
+    /// first). Dividing by their sum gives the partition-of-unity coefficients at `x`.
+    pub fn weights(&self, x: DVec3, out: &mut Vec<(u32, f64)>) {
+        out.clear();
+        let kernel = self.cover.kernel();
+        self.with_supports(x, |ids| {
+            for &j in ids {
+                let (c, inv_r) = self.supports.center_inv_radius(j as usize);
+                let u = (x - c) * inv_r;
+                let w = kernel.value_sq(u.length_squared());
+                if w > 0.0 {
+                    out.push((j, w));
+                }
+            }
+        });
+    }
+
+    /// `f(x)`, or `None` where no weight is positive.
+    pub fn value(&self, x: DVec3) -> Option<f64> {
+        self.with_supports(x, |ids| dispatch!(self, x, ids, value_sum))
+    }
+
+    /// `f(x)` and `∇f(x)`, or `None` where no weight is positive.
+    pub fn value_gradient(&self, x: DVec3) -> Option<ValueGradient> {
+        self.with_supports(x, |ids| dispatch!(self, x, ids, value_gradient_sum))
+    }
+
+    /// `f(x)`, `∇f(x)` and `∇²f(x)`, or `None` where no weight is positive.
+    pub fn value_gradient_hessian(&self, x: DVec3) -> Option<ValueGradientHessian> {
+        self.with_supports(x, |ids| dispatch!(self, x, ids, value_gradient_hessian_sum))
+    }
+
+    /// [`PuEvaluator::value`] at every point, in parallel, in input order.
+    pub fn values(&self, points: &[DVec3]) -> Vec<Option<f64>> {
+        batch(points, |x| self.value(x))
+    }
+
+    /// [`PuEvaluator::value_gradient`] at every point, in parallel, in input order.
+    pub fn values_gradients(&self, points: &[DVec3]) -> Vec<Option<ValueGradient>> {
+        batch(points, |x| self.value_gradient(x))
+    }
+
+    /// [`PuEvaluator::value_gradient_hessian`] at every point, in parallel, in input order.
+    pub fn values_gradients_hessians(&self, points: &[DVec3]) -> Vec<Option<ValueGradientHessian>> {
+        batch(points, |x| self.value_gradient_hessian(x))
+    }
+
+    /// Runs `body` on the supports whose expanded ball holds `x` (none for a non-finite `x`),
+    /// sorted ascending, using the thread's reusable buffer.
+    #[inline]
+    fn with_supports<R>(&self, x: DVec3, body: impl FnOnce(&[u32]) -> R) -> R {
+        let gather = |buf: &mut Vec<u32>| {
+            buf.clear();
+            // A non-finite point lies in no ball; skipping it also keeps NaN out of the sums,
+            // so the loops can test `s >= 1` alone.
+            if !x.is_finite() {
+                return;
+            }
+            self.index.for_each_within(x, 1.0, 0.0, |j| buf.push(j));
+            buf.sort_unstable();
+        };
+        SUPPORT_BUFFER.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut buf) => {
+                gather(&mut buf);
+                body(&buf)
+            }
+            // Only reachable if `body` re-entered the evaluator on this thread; stay correct.
+            Err(_) => {
+                let mut buf = Vec::new();
+                gather(&mut buf);
+                body(&buf)
+            }
+        })
+    }
+}
+
+/// Points per rayon task at least: one point costs about a microsecond, so smaller tasks would
+/// spend more on scheduling than on work.
+const BATCH_MIN_LEN: usize = 256;
+
+/// Batches at least this long are evaluated in Morton order; below it the sort costs more
+/// than the cache misses it saves.
+const SPATIAL_ORDER_MIN_LEN: usize = 4096;
+
+/// `eval` at every point, in parallel, in input order. Large batches run in Morton order and
+/// are gathered back; each point's result does not depend on the order.
+fn batch<R: Copy + Send + Sync>(points: &[DVec3], eval: impl Fn(DVec3) -> R + Sync) -> Vec<R> {
+    if points.len() < SPATIAL_ORDER_MIN_LEN || u32::try_from(points.len()).is_err() {
+        return points
+            .par_iter()
+            .with_min_len(BATCH_MIN_LEN)
+            .map(|&x| eval(x))
+            .collect();
+    }
+    let order = spatial_order::morton_order(points);
+    let in_order: Vec<R> = order
+        .par_iter()
+        .with_min_len(BATCH_MIN_LEN)
+        .map(|&i| eval(points[i as usize]))
+        .collect();
+    let mut rank = vec![0u32; points.len()];
+    for (k, &i) in order.iter().enumerate() {
+        rank[i as usize] = k as u32;
+    }
+    rank.par_iter().map(|&k| in_order[k as usize]).collect()
+}
+
+/// `a bᵀ + b aᵀ`.
+#[inline]
+fn sym_outer(a: DVec3, b: DVec3) -> DMat3 {
+    let m = outer(a, b);
+    m + m.transpose()
+}
+
+/// `f` from `Σ w_i` and `Σ w_i g_i` in the order of `ids`.
+#[inline]
+fn value_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+) -> Option<f64> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let d = x - sup.center();
+        let u = d * sup.inv_radius();
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let w = K::KERNEL.value_sq(s);
+        w_sum += w;
+        n_sum += w * sup.value(d);
+    }
+    (w_sum > 0.0).then(|| n_sum / w_sum)
+}
+
+#[inline]
+fn value_gradient_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+) -> Option<ValueGradient> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    let mut w_grad = DVec3::ZERO;
+    let mut n_grad = DVec3::ZERO;
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let inv_r = sup.inv_radius();
+        let d = x - sup.center();
+        let u = d * inv_r;
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let (w, a) = K::KERNEL.value_slope_sq(s);
+        // The expression of `gradient_hessian`, so all paths agree bitwise on ∇f.
+        let grad_w = u * (a * inv_r);
+        let (g, grad_g) = sup.value_gradient(d);
+        w_sum += w;
+        n_sum += w * g;
+        w_grad += grad_w;
+        n_grad += grad_w * g + grad_g * w;
+    }
+    if w_sum <= 0.0 {
+        return None;
+    }
+    // `f` divides exactly as in `value_sum`, so all query paths agree bitwise on `f`.
+    let value = n_sum / w_sum;
+    let inv_w = 1.0 / w_sum;
+    Some(ValueGradient {
+        value,
+        gradient: (n_grad - w_grad * value) * inv_w,
+    })
+}
+
+#[inline]
+fn value_gradient_hessian_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+) -> Option<ValueGradientHessian> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    let mut w_grad = DVec3::ZERO;
+    let mut n_grad = DVec3::ZERO;
+    let mut w_hess = DMat3::ZERO;
+    let mut n_hess = DMat3::ZERO;
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let inv_r = sup.inv_radius();
+        let d = x - sup.center();
+        let u = d * inv_r;
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let (w, a, b) = K::KERNEL.value_slope_curvature_sq(s);
+        let (grad_w, hess_w) = gradient_hessian(u, inv_r, a, b);
+        let (g, grad_g, hess_g) = sup.value_gradient_hessian(d);
+        w_sum += w;
+        n_sum += w * g;
+        w_grad += grad_w;
+        n_grad += grad_w * g + grad_g * w;
+        w_hess += hess_w;
+        n_hess += hess_w * g + sym_outer(grad_w, grad_g);
+        if let Some(hess_g) = hess_g {
+            n_hess += hess_g * w;
+        }
+    }
+    if w_sum <= 0.0 {
+        return None;
+    }
+    let value = n_sum / w_sum;
+    let inv_w = 1.0 / w_sum;
+    let gradient = (n_grad - w_grad * value) * inv_w;
+    let hessian = (n_hess - w_hess * value - sym_outer(gradient, w_grad)) * inv_w;
+    Some(ValueGradientHessian {
+        value,
+        gradient,
+        hessian,
+    })
+}
+
+/// A kernel fixed at compile time, so the inner loops are monomorphised per kernel and the
+/// kernel `match` folds away.
+trait FixedKernel {
+    const KERNEL: Kernel;
+}
+
+struct QuadraticBSplineKernel;
+struct TruncatedGaussianKernel;
+struct WendlandC2Kernel;
+
+impl FixedKernel for QuadraticBSplineKernel {
+    const KERNEL: Kernel = Kernel::QuadraticBSpline;
+}
+impl FixedKernel for TruncatedGaussianKernel {
+    const KERNEL: Kernel = Kernel::TruncatedGaussian;
+}
+impl FixedKernel for WendlandC2Kernel {
+    const KERNEL: Kernel = Kernel::WendlandC2;
+}

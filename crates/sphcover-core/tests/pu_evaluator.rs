@@ -1,0 +1,274 @@
+//! The evaluator against brute-force oracles: domain (None outside every ball), support
+//! queries, determinism across batch/single calls and thread counts; cover validation.
+
+mod pu_common;
+
+use proptest::prelude::*;
+use pu_common::*;
+use sphcover_core::{
+    Cover, CoverError, DMat3, DVec3, Kernel, LinearFunction, LocalFunctions, PuEvaluator,
+    QuadraticFunction,
+};
+
+fn brute_force_containing(cover: &Cover, sigma: f64, x: DVec3) -> Vec<u32> {
+    (0..cover.len() as u32)
+        .filter(|&i| x.distance(cover.centers()[i as usize]) < sigma * cover.radii()[i as usize])
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    #[test]
+    fn matches_brute_force_and_is_undefined_outside(
+        (supports, funcs) in supports_strategy(30)
+            .prop_flat_map(|s| { let n = s.len(); (Just(s), random_quadratic(n)) }),
+        kernel in kernel_strategy(),
+        sigma in sigma_strategy(),
+        inner in inner_points_strategy(6),
+        free in prop::collection::vec(vec3(3.0), 6),
+    ) {
+        let cover = build(&supports, LocalFunctions::from_quadratic(funcs), kernel);
+        let eval = PuEvaluator::new(&cover, sigma).unwrap();
+        let mut ids = Vec::new();
+        let mut weights = Vec::new();
+        for x in place(&supports, sigma, &inner).into_iter().chain(free) {
+            eval.supports_containing(x, &mut ids);
+            prop_assert_eq!(&ids, &brute_force_containing(&cover, sigma, x));
+            eval.weights(x, &mut weights);
+            prop_assert!(weights.iter().map(|w| w.0).eq(ids.iter().copied()));
+            let oracle = oracle_value(&cover, sigma, x);
+            let value = eval.value(x);
+            let vg = eval.value_gradient(x);
+            let vgh = eval.value_gradient_hessian(x);
+            if ids.is_empty() {
+                prop_assert_eq!(value, None);
+                prop_assert_eq!(vg, None);
+                prop_assert_eq!(vgh, None);
+                prop_assert_eq!(oracle, None);
+            } else {
+                let (o, v) = (oracle.unwrap(), value.unwrap());
+                prop_assert!((o - v).abs() <= 1e-12 * (1.0 + o.abs()), "{v} vs oracle {o}");
+                prop_assert_eq!(vg.unwrap().value.to_bits(), v.to_bits());
+                prop_assert_eq!(vgh.unwrap().value.to_bits(), v.to_bits());
+                prop_assert_eq!(vgh.unwrap().gradient, vg.unwrap().gradient);
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Only the symmetric part of `A` enters `g`, so a non-symmetric `A` must give the same
+    /// `f`, `∇f`, `∇²f` as `(A + Aᵀ)/2`.
+    #[test]
+    fn quadratic_uses_the_symmetric_part_of_a(
+        supports in supports_strategy(20),
+        kernel in kernel_strategy(),
+        sigma in sigma_strategy(),
+        skew in vec3(1.0),
+        sym in random_symmetric(),
+        picks in inner_points_strategy(6),
+    ) {
+        let skew_mat = DMat3::from_cols(
+            DVec3::new(0.0, skew.z, -skew.y),
+            DVec3::new(-skew.z, 0.0, skew.x),
+            DVec3::new(skew.y, -skew.x, 0.0),
+        );
+        let make = |a: DMat3| {
+            let funcs = LocalFunctions::from_quadratic(supports.iter().map(|&(c, _)| {
+                QuadraticFunction { a, b: c, k: c.x }
+            }));
+            build(&supports, funcs, kernel)
+        };
+        let plain = make(sym);
+        let skewed = make(sym + skew_mat);
+        let (e1, e2) = (
+            PuEvaluator::new(&plain, sigma).unwrap(),
+            PuEvaluator::new(&skewed, sigma).unwrap(),
+        );
+        for x in place(&supports, sigma, &picks) {
+            let (Some(a), Some(b)) = (e1.value_gradient_hessian(x), e2.value_gradient_hessian(x))
+            else {
+                continue;
+            };
+            let stats = weight_stats(&plain, sigma, x);
+            let gw = stats.grad_sum / stats.w;
+            let tol = 1e-12 * (1.0 + gw + gw * gw + stats.hess_sum / stats.w);
+            prop_assert!((a.value - b.value).abs() <= tol);
+            prop_assert!((a.gradient - b.gradient).length() <= tol);
+            prop_assert!(frobenius(a.hessian - b.hessian) <= tol);
+        }
+    }
+}
+
+/// A fixed random cover big enough that rayon splits the batch.
+fn sample_cover(kernel: Kernel) -> (Cover, Vec<DVec3>) {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+    let n = 400;
+    let centers: Vec<DVec3> = (0..n)
+        .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()))
+        .collect();
+    let radii: Vec<f64> = (0..n).map(|_| 0.05 + 0.2 * rng.random::<f64>()).collect();
+    let funcs = LocalFunctions::from_quadratic((0..n).map(|_| QuadraticFunction {
+        a: DMat3::from_diagonal(DVec3::new(rng.random(), rng.random(), rng.random())),
+        b: DVec3::new(rng.random(), rng.random(), rng.random()),
+        k: rng.random(),
+    }));
+    let cover = Cover::new(centers, radii, funcs, kernel).unwrap();
+    let points = (0..5000)
+        .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()) * 1.4 - 0.2)
+        .collect();
+    (cover, points)
+}
+
+#[test]
+fn batch_equals_single_and_is_independent_of_thread_count() {
+    for kernel in Kernel::ALL {
+        let (cover, points) = sample_cover(kernel);
+        let eval = PuEvaluator::new(&cover, 1.5).unwrap();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    (
+                        eval.values(&points),
+                        eval.values_gradients(&points),
+                        eval.values_gradients_hessians(&points),
+                    )
+                })
+        };
+        let one = run(1);
+        let three = run(3);
+        assert_eq!(one, three, "{kernel}");
+        let (values, vgs, vghs) = one;
+        assert!(values.iter().any(Option::is_none) && values.iter().any(Option::is_some));
+        for (i, &x) in points.iter().enumerate() {
+            assert_eq!(values[i], eval.value(x));
+            assert_eq!(vgs[i], eval.value_gradient(x));
+            assert_eq!(vghs[i], eval.value_gradient_hessian(x));
+        }
+    }
+}
+
+#[test]
+fn expansion_enlarges_the_domain_but_keeps_local_functions() {
+    let c = DVec3::ZERO;
+    let g = LinearFunction {
+        alpha: DVec3::new(1.0, 2.0, 3.0),
+        beta: -0.5,
+    };
+    let cover = Cover::new(
+        vec![c],
+        vec![1.0],
+        LocalFunctions::from_linear([g]),
+        Kernel::WendlandC2,
+    )
+    .unwrap();
+    let x = DVec3::new(0.0, 2.5, 0.0);
+    assert_eq!(PuEvaluator::new(&cover, 1.0).unwrap().value(x), None);
+    let four = PuEvaluator::new(&cover, 4.0).unwrap();
+    let fg = four.value_gradient(x).unwrap();
+    assert!((fg.value - g.value(x - c)).abs() < 1e-14);
+    assert!((fg.gradient - g.alpha).length() < 1e-13);
+    assert_eq!(four.sigma(), 4.0);
+}
+
+#[test]
+fn empty_cover_is_undefined_everywhere() {
+    let cover = Cover::new(
+        vec![],
+        vec![],
+        LocalFunctions::zero_linear(0),
+        Kernel::default(),
+    )
+    .unwrap();
+    assert!(cover.is_empty());
+    let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+    assert_eq!(eval.value(DVec3::ZERO), None);
+    assert_eq!(
+        eval.values_gradients(&[DVec3::ZERO, DVec3::ONE]),
+        vec![None, None]
+    );
+}
+
+#[test]
+fn invalid_input_is_reported_with_its_index() {
+    let ok_funcs = || LocalFunctions::zero_linear(2);
+    let c = vec![DVec3::ZERO, DVec3::ONE];
+    let k = Kernel::default();
+    assert_eq!(
+        Cover::new(c.clone(), vec![1.0], ok_funcs(), k),
+        Err(CoverError::LengthMismatch {
+            array: "radii",
+            expected: 2,
+            found: 1
+        })
+    );
+    assert_eq!(
+        Cover::new(c.clone(), vec![1.0, 1.0], LocalFunctions::zero_linear(3), k),
+        Err(CoverError::LengthMismatch {
+            array: "alpha",
+            expected: 2,
+            found: 3
+        })
+    );
+    let short_k = LocalFunctions::Quadratic {
+        a: vec![DMat3::ZERO; 2],
+        b: vec![DVec3::ZERO; 2],
+        k: vec![0.0],
+    };
+    assert_eq!(
+        Cover::new(c.clone(), vec![1.0, 1.0], short_k, k),
+        Err(CoverError::LengthMismatch {
+            array: "k",
+            expected: 2,
+            found: 1
+        })
+    );
+    let bad_center = vec![DVec3::ZERO, DVec3::new(0.0, f64::NAN, 0.0)];
+    assert!(matches!(
+        Cover::new(bad_center, vec![1.0, 1.0], ok_funcs(), k),
+        Err(CoverError::NonFiniteCenter { index: 1, .. })
+    ));
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-320] {
+        assert!(
+            matches!(
+                Cover::new(c.clone(), vec![1.0, bad], ok_funcs(), k),
+                Err(CoverError::InvalidRadius { index: 1, .. })
+            ),
+            "radius {bad}"
+        );
+    }
+    let nan_func = LocalFunctions::from_linear([
+        LinearFunction::default(),
+        LinearFunction {
+            alpha: DVec3::new(0.0, 0.0, f64::INFINITY),
+            beta: 0.0,
+        },
+    ]);
+    assert_eq!(
+        Cover::new(c.clone(), vec![1.0, 1.0], nan_func.clone(), k),
+        Err(CoverError::NonFiniteFunction { index: 1 })
+    );
+    let mut cover = Cover::new(c, vec![1.0, 1e300], ok_funcs(), k).unwrap();
+    assert_eq!(
+        cover.set_funcs(nan_func),
+        Err(CoverError::NonFiniteFunction { index: 1 })
+    );
+    assert_eq!(cover.funcs(), &ok_funcs());
+    for sigma in [0.5, f64::NAN, f64::INFINITY] {
+        assert!(matches!(
+            PuEvaluator::new(&cover, sigma),
+            Err(CoverError::InvalidExpansion { .. })
+        ));
+    }
+    assert!(matches!(
+        PuEvaluator::new(&cover, 1e10),
+        Err(CoverError::ExpandedRadiusOverflow { index: 1, .. })
+    ));
+}
