@@ -1,9 +1,11 @@
 //! Tetrahedral meshes of a spherical cover (thesis §3.5).
-//!
-//! This crate will hold exact adaptive predicates (orient3d and the lifted power test with
-//! symbolic perturbation), an incremental 3D regular triangulation of support centres weighted
-//! by `r²`, the dual complex of the union of balls (tetrahedra whose orthocentre has negative
-//! power), the `TetMesh` type with unique edges and cyclic edge rings, and marching tetrahedra.
-//!
-//! It depends only on `sphcover-core`. Nothing is implemented yet, so it exposes no API.
 #![deny(missing_docs)]
+
+pub mod error;
+pub mod expansion;
+pub mod predicates;
+pub mod regular;
+pub mod spatial_sort;
+
+pub use error::TetraError;
+pub use regular::{RegularTriangulation, TriangulationParams, VertexStatus};

@@ -1,0 +1,738 @@
+//! Incremental 3D regular (weighted Delaunay) triangulation.
+//!
+//! Design (after geogram's `Delaunay_3d`, BSD-3): points are inserted one at a time in BRIO +
+//! Hilbert order ([`crate::spatial_sort`]); each is located by a remembering stochastic walk
+//! from the previous insertion; the *conflict zone* (tetrahedra whose orthosphere the new
+//! weighted point has negative power against) is grown by a depth-first search from the
+//! located tetrahedron and replaced by the cone from the new point to its boundary
+//! (Bowyer–Watson). The convex hull is closed by tetrahedra through one *infinite vertex*.
+//!
+//! Redundant (hidden) points. A weighted point whose lifted image lies above the lower
+//! convex hull of the lifted points has no power cell and is not a vertex:
+//! * if the tetrahedron containing the new point is not in conflict with it, the point is
+//!   redundant when it arrives and is not inserted;
+//! * a heavier point can make an existing vertex redundant. Then every tetrahedron around
+//!   that vertex is in conflict (its lifted image is above the new lower hull), so the vertex
+//!   lies inside the conflict zone and disappears with it: after building the cone we mark
+//!   as hidden every vertex of the zone that no new tetrahedron uses. A hidden point stays
+//!   hidden (inserting points only lowers the lower hull), so no vertex ever reappears.
+//!
+//! Ties (co-spherical, co-planar configurations) are broken by the symbolic perturbation of
+//! [`crate::predicates`], which is a genuine perturbation of the lifted coordinates: the
+//! result is the regular triangulation of a generic point set infinitesimally close to the
+//! input, every tetrahedron has positive volume, and no random perturbation is needed.
+//! Points with identical centres are resolved before insertion: the heaviest (then the
+//! first) stays, the others are hidden.
+//!
+//! Storage is struct-of-arrays with `u32` handles: tetrahedron vertices, the neighbour
+//! opposite each vertex, and a free list of slots.
+
+use crate::error::TetraError;
+use crate::predicates::{
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, in_power_sphere_sos, orient3d,
+};
+use crate::spatial_sort::{SplitMix64, brio_order};
+
+/// The infinite vertex, closing the hull.
+pub const INFINITE_VERTEX: u32 = u32::MAX;
+/// A missing handle (no tetrahedron / no neighbour).
+pub const NO_TET: u32 = u32::MAX;
+/// Vertex-slot marker of a freed tetrahedron.
+const DEAD: u32 = u32::MAX - 1;
+
+/// What became of an input point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VertexStatus {
+    /// A vertex of the triangulation.
+    Vertex,
+    /// Redundant: its power cell is empty (a heavier neighbour swallows it).
+    Hidden,
+    /// Same centre as another point that is kept (the heavier one, or the first of equals).
+    Duplicate,
+}
+
+/// Options of [`RegularTriangulation::new`].
+#[derive(Clone, Debug)]
+pub struct TriangulationParams {
+    /// Seed of the insertion order and of the walk (same seed → same triangulation).
+    pub seed: u64,
+}
+
+impl Default for TriangulationParams {
+    fn default() -> Self {
+        Self {
+            seed: 0x5eed_7e7a,
+        }
+    }
+}
+
+/// Counters of one construction.
+#[derive(Clone, Debug, Default)]
+pub struct TriangulationStats {
+    /// Points given.
+    pub points: usize,
+    /// Points that ended as vertices.
+    pub vertices: usize,
+    /// Points hidden on arrival or later.
+    pub hidden: usize,
+    /// Points dropped as duplicated centres.
+    pub duplicates: usize,
+    /// Live tetrahedra, finite and infinite.
+    pub tets: usize,
+    /// Live finite tetrahedra.
+    pub finite_tets: usize,
+    /// Orientation steps of the point-location walks.
+    pub walk_steps: u64,
+    /// Tetrahedra found in conflict over all insertions.
+    pub conflict_tets: u64,
+}
+
+/// A 3D regular triangulation of weighted points (weights are squared radii).
+#[derive(Clone, Debug)]
+pub struct RegularTriangulation {
+    points: Vec<Point>,
+    weights: Vec<f64>,
+    tets: Vec<[u32; 4]>,
+    neighbors: Vec<[u32; 4]>,
+    free: Vec<u32>,
+    vertex_tet: Vec<u32>,
+    status: Vec<VertexStatus>,
+    stats: TriangulationStats,
+}
+
+/// Scratch buffers reused across insertions (no allocation in the steady state).
+struct Scratch {
+    /// Per-tet stamp: `2·s` in conflict with insertion `s`, `2·s + 1` tested and not.
+    mark: Vec<u32>,
+    stamp: u32,
+    stack: Vec<u32>,
+    cavity: Vec<u32>,
+    boundary: Vec<(u32, u8)>,
+    new_tets: Vec<u32>,
+    edge_table: EdgeTable,
+    rng: SplitMix64,
+}
+
+/// Open-addressing table pairing the new tetrahedra's faces through the new point by the
+/// edge they share with the cavity boundary (each such edge is on exactly two faces).
+struct EdgeTable {
+    keys: Vec<u64>,
+    vals: Vec<u32>,
+    generation: Vec<u32>,
+    current: u32,
+    mask: usize,
+}
+
+impl EdgeTable {
+    fn new() -> Self {
+        Self {
+            keys: vec![0; 64],
+            vals: vec![0; 64],
+            generation: vec![0; 64],
+            current: 0,
+            mask: 63,
+        }
+    }
+
+    fn reset(&mut self, entries: usize) {
+        let want = (entries * 2).next_power_of_two().max(64);
+        if want > self.keys.len() {
+            self.keys = vec![0; want];
+            self.vals = vec![0; want];
+            self.generation = vec![0; want];
+            self.mask = want - 1;
+            self.current = 0;
+        }
+        self.current = self.current.wrapping_add(1);
+        if self.current == 0 {
+            self.generation.iter_mut().for_each(|g| *g = 0);
+            self.current = 1;
+        }
+    }
+
+    /// Inserts `(key, val)`; if `key` is present, removes it and returns its value.
+    #[inline]
+    fn pair(&mut self, key: u64, val: u32) -> Option<u32> {
+        let mut h = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32) as usize & self.mask;
+        loop {
+            if self.generation[h] != self.current {
+                self.generation[h] = self.current;
+                self.keys[h] = key;
+                self.vals[h] = val;
+                return None;
+            }
+            if self.keys[h] == key {
+                // Leave a tombstone-free slot: the key never returns in this insertion.
+                self.keys[h] = u64::MAX;
+                return Some(self.vals[h]);
+            }
+            h = (h + 1) & self.mask;
+        }
+    }
+}
+
+impl RegularTriangulation {
+    /// Triangulates `points` with `weights` (squared radii).
+    ///
+    /// Errors: mismatched lengths, non-finite or out-of-range values (coordinates beyond
+    /// ±1e20, weights beyond 1e40), more than `u32::MAX − 2` points, or distinct centres that
+    /// do not span 3D (fewer than four affinely independent ones).
+    pub fn new(
+        points: &[Point],
+        weights: &[f64],
+        params: &TriangulationParams,
+    ) -> Result<Self, TetraError> {
+        if points.len() != weights.len() {
+            return Err(TetraError::LengthMismatch {
+                points: points.len(),
+                weights: weights.len(),
+            });
+        }
+        if points.len() >= (u32::MAX - 2) as usize {
+            return Err(TetraError::TooManyPoints {
+                count: points.len(),
+            });
+        }
+        for (i, p) in points.iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite() && c.abs() <= MAX_COORDINATE) {
+                return Err(TetraError::InvalidPoint { index: i });
+            }
+        }
+        for (i, w) in weights.iter().enumerate() {
+            if !(w.is_finite() && w.abs() <= MAX_WEIGHT) {
+                return Err(TetraError::InvalidWeight { index: i });
+            }
+        }
+        let n = points.len();
+        let mut tri = RegularTriangulation {
+            points: points.to_vec(),
+            weights: weights.to_vec(),
+            tets: Vec::with_capacity(7 * n + 16),
+            neighbors: Vec::with_capacity(7 * n + 16),
+            free: Vec::new(),
+            vertex_tet: vec![NO_TET; n],
+            status: vec![VertexStatus::Vertex; n],
+            stats: TriangulationStats {
+                points: n,
+                ..Default::default()
+            },
+        };
+        let mut order = tri.distinct_points();
+        let distinct = order.len();
+        brio_order(&tri.points, &mut order, params.seed);
+        let first = tri.initial_simplex(&order).map_err(|dimension| {
+            TetraError::NotFullDimensional {
+                dimension,
+                distinct,
+            }
+        })?;
+        let mut scratch = Scratch {
+            mark: Vec::with_capacity(7 * n + 16),
+            stamp: 0,
+            stack: Vec::new(),
+            cavity: Vec::new(),
+            boundary: Vec::new(),
+            new_tets: Vec::new(),
+            edge_table: EdgeTable::new(),
+            rng: SplitMix64::new(params.seed ^ 0xa5a5_5a5a_dead_beef),
+        };
+        let mut hint = 0u32;
+        for &v in &order {
+            if first.contains(&v) {
+                continue;
+            }
+            hint = tri.insert(v, hint, &mut scratch);
+        }
+        tri.stats.duplicates = tri
+            .status
+            .iter()
+            .filter(|s| **s == VertexStatus::Duplicate)
+            .count();
+        tri.stats.hidden = tri
+            .status
+            .iter()
+            .filter(|s| **s == VertexStatus::Hidden)
+            .count();
+        tri.stats.vertices = n - tri.stats.duplicates - tri.stats.hidden;
+        tri.stats.tets = tri.tets.len() - tri.free.len();
+        tri.stats.finite_tets = tri.finite_tets().count();
+        Ok(tri)
+    }
+
+    /// Marks points with a repeated centre as duplicates and returns the kept ones.
+    fn distinct_points(&mut self) -> Vec<u32> {
+        let n = self.points.len();
+        let mut idx: Vec<u32> = (0..n as u32).collect();
+        let pts = &self.points;
+        idx.sort_unstable_by(|&a, &b| {
+            let (p, q) = (pts[a as usize], pts[b as usize]);
+            (p[0], p[1], p[2])
+                .partial_cmp(&(q[0], q[1], q[2]))
+                .unwrap_or(std::cmp::Ordering::Equal)
+                .then(a.cmp(&b))
+        });
+        let mut kept = Vec::with_capacity(n);
+        let mut i = 0;
+        while i < n {
+            let mut j = i + 1;
+            let p = pts[idx[i] as usize];
+            while j < n && pts[idx[j] as usize] == p {
+                j += 1;
+            }
+            // Heaviest wins; among equals the lowest index (the group is index-sorted).
+            let mut best = idx[i];
+            for &k in &idx[i + 1..j] {
+                if self.weights[k as usize] > self.weights[best as usize] {
+                    best = k;
+                }
+            }
+            for &k in &idx[i..j] {
+                if k != best {
+                    self.status[k as usize] = VertexStatus::Duplicate;
+                }
+            }
+            kept.push(best);
+            i = j;
+        }
+        kept
+    }
+
+    /// Builds the first tetrahedron and its four infinite neighbours from the first four
+    /// affinely independent points of `order`; returns them, or the dimension reached.
+    fn initial_simplex(&mut self, order: &[u32]) -> Result<[u32; 4], u8> {
+        let p = |v: u32| &self.points[v as usize];
+        let Some(&a) = order.first() else {
+            return Err(0);
+        };
+        let Some(&b) = order.get(1) else {
+            return Err(0);
+        };
+        // b differs from a (centres are distinct).
+        let collinear = |c: u32| collinear(p(a), p(b), p(c));
+        let Some(&c) = order[2..].iter().find(|&&c| !collinear(c)) else {
+            return Err(1);
+        };
+        let Some(&d) = order[2..]
+            .iter()
+            .find(|&&d| d != c && orient3d(p(a), p(b), p(c), p(d)) != 0)
+        else {
+            return Err(2);
+        };
+        let (a, b) = if orient3d(p(a), p(b), p(c), p(d)) > 0 {
+            (a, b)
+        } else {
+            (b, a)
+        };
+        let finite = [a, b, c, d];
+        let mut cells = vec![finite];
+        for i in 0..4 {
+            // Face i of the finite cell with the infinite vertex in place of vertex i, made
+            // positive by swapping two finite vertices.
+            let mut t = finite;
+            t[i] = INFINITE_VERTEX;
+            let (j, k) = match i {
+                0 => (1, 2),
+                _ => (0, if i == 1 { 2 } else { 1 }),
+            };
+            t.swap(j, k);
+            cells.push(t);
+        }
+        for cell in &cells {
+            let id = self.alloc(*cell);
+            for &v in cell {
+                if v != INFINITE_VERTEX {
+                    self.vertex_tet[v as usize] = id;
+                }
+            }
+        }
+        // Link the five cells by matching faces.
+        for t in 0..5u32 {
+            for i in 0..4 {
+                let face = face_key(&self.tets[t as usize], i);
+                for u in 0..5u32 {
+                    if u == t {
+                        continue;
+                    }
+                    for j in 0..4 {
+                        if face_key(&self.tets[u as usize], j) == face {
+                            self.neighbors[t as usize][i] = u;
+                        }
+                    }
+                }
+            }
+        }
+        Ok(finite)
+    }
+
+    #[inline]
+    fn alloc(&mut self, cell: [u32; 4]) -> u32 {
+        if let Some(t) = self.free.pop() {
+            self.tets[t as usize] = cell;
+            self.neighbors[t as usize] = [NO_TET; 4];
+            t
+        } else {
+            self.tets.push(cell);
+            self.neighbors.push([NO_TET; 4]);
+            (self.tets.len() - 1) as u32
+        }
+    }
+
+    #[inline]
+    fn point(&self, v: u32) -> &Point {
+        &self.points[v as usize]
+    }
+
+    /// Inserts point `v`, walking from `hint`; returns a live tetrahedron near `v`.
+    fn insert(&mut self, v: u32, hint: u32, s: &mut Scratch) -> u32 {
+        let start = self.locate(v, hint, s);
+        if !self.in_conflict(start, v) {
+            self.status[v as usize] = VertexStatus::Hidden;
+            return start;
+        }
+        if s.mark.len() < self.tets.len() {
+            s.mark.resize(self.tets.len(), 0);
+        }
+        s.stamp += 1;
+        let conflict = 2 * s.stamp;
+        let outside = conflict + 1;
+        s.stack.clear();
+        s.cavity.clear();
+        s.boundary.clear();
+        s.stack.push(start);
+        s.mark[start as usize] = conflict;
+        while let Some(t) = s.stack.pop() {
+            s.cavity.push(t);
+            for i in 0..4u8 {
+                let n = self.neighbors[t as usize][i as usize];
+                let m = s.mark[n as usize];
+                if m == conflict {
+                    continue;
+                }
+                if m != outside && self.in_conflict(n, v) {
+                    s.mark[n as usize] = conflict;
+                    s.stack.push(n);
+                } else {
+                    s.mark[n as usize] = outside;
+                    s.boundary.push((t, i));
+                }
+            }
+        }
+        self.stats.conflict_tets += s.cavity.len() as u64;
+        // Vertices of the zone lose their incident tetrahedron until the cone gives one back.
+        for &t in &s.cavity {
+            for &u in &self.tets[t as usize] {
+                if u != INFINITE_VERTEX {
+                    self.vertex_tet[u as usize] = NO_TET;
+                }
+            }
+        }
+        s.new_tets.clear();
+        s.edge_table.reset(s.boundary.len() * 3 / 2 + 1);
+        for &(t, i) in &s.boundary {
+            let mut cell = self.tets[t as usize];
+            cell[i as usize] = v;
+            let outer = self.neighbors[t as usize][i as usize];
+            let nt = self.alloc(cell);
+            if s.mark.len() < self.tets.len() {
+                s.mark.resize(self.tets.len(), 0);
+            }
+            s.mark[nt as usize] = 0;
+            self.neighbors[nt as usize][i as usize] = outer;
+            let back = self.neighbors[outer as usize]
+                .iter()
+                .position(|&x| x == t)
+                .expect("adjacency is symmetric");
+            self.neighbors[outer as usize][back] = nt;
+            for &u in &cell {
+                if u != INFINITE_VERTEX {
+                    self.vertex_tet[u as usize] = nt;
+                }
+            }
+            // The three faces through v are paired by their edge opposite v.
+            for k in 0..4usize {
+                if k == i as usize {
+                    continue;
+                }
+                let (x, y) = other_two(i as usize, k);
+                let (a, b) = (cell[x], cell[y]);
+                let key = if a < b {
+                    ((a as u64) << 32) | b as u64
+                } else {
+                    ((b as u64) << 32) | a as u64
+                };
+                let val = (nt << 2) | k as u32;
+                if let Some(other) = s.edge_table.pair(key, val) {
+                    let (ot, ok) = (other >> 2, (other & 3) as usize);
+                    self.neighbors[nt as usize][k] = ot;
+                    self.neighbors[ot as usize][ok] = nt;
+                }
+            }
+            s.new_tets.push(nt);
+        }
+        for &t in &s.cavity {
+            for &u in &self.tets[t as usize] {
+                if u != INFINITE_VERTEX && self.vertex_tet[u as usize] == NO_TET {
+                    self.status[u as usize] = VertexStatus::Hidden;
+                }
+            }
+        }
+        for &t in &s.cavity {
+            self.tets[t as usize] = [DEAD; 4];
+            self.free.push(t);
+        }
+        s.new_tets[0]
+    }
+
+    /// Remembering stochastic walk to a tetrahedron containing point `v` (closed), or to an
+    /// infinite tetrahedron whose hull facet `v` lies strictly beyond.
+    fn locate(&mut self, v: u32, hint: u32, s: &mut Scratch) -> u32 {
+        let q = *self.point(v);
+        let mut t = hint;
+        if self.tets[t as usize][0] == DEAD {
+            t = (0..self.tets.len() as u32)
+                .find(|&x| self.tets[x as usize][0] != DEAD)
+                .unwrap_or(0);
+        }
+        if let Some(k) = self.tets[t as usize]
+            .iter()
+            .position(|&x| x == INFINITE_VERTEX)
+        {
+            t = self.neighbors[t as usize][k];
+        }
+        let mut previous = NO_TET;
+        let mut steps = 0u64;
+        'walk: loop {
+            let cell = self.tets[t as usize];
+            let first = (s.rng.next_u64() >> 62) as usize;
+            for j in 0..4 {
+                let i = (first + j) & 3;
+                let n = self.neighbors[t as usize][i];
+                if n == previous {
+                    continue;
+                }
+                let mut p: [&Point; 4] = [
+                    self.point(cell[0]),
+                    self.point(cell[1]),
+                    self.point(cell[2]),
+                    self.point(cell[3]),
+                ];
+                p[i] = &q;
+                steps += 1;
+                if orient3d(p[0], p[1], p[2], p[3]) < 0 {
+                    previous = t;
+                    t = n;
+                    if self.tets[t as usize].contains(&INFINITE_VERTEX) {
+                        self.stats.walk_steps += steps;
+                        return t;
+                    }
+                    continue 'walk;
+                }
+            }
+            self.stats.walk_steps += steps;
+            return t;
+        }
+    }
+
+    /// Whether point `v` conflicts with tetrahedron `t` (perturbed power test; for an
+    /// infinite tetrahedron: beyond its hull facet, or on its plane and inside the facet's
+    /// power circle).
+    #[inline]
+    fn in_conflict(&self, t: u32, v: u32) -> bool {
+        let cell = self.tets[t as usize];
+        let q = self.point(v);
+        let wq = self.weights[v as usize];
+        if let Some(k) = cell.iter().position(|&x| x == INFINITE_VERTEX) {
+            let mut p: [&Point; 4] = [q; 4];
+            for i in 0..4 {
+                if i != k {
+                    p[i] = self.point(cell[i]);
+                }
+            }
+            let o = orient3d(p[0], p[1], p[2], p[3]);
+            if o != 0 {
+                return o > 0;
+            }
+            let (x, y, z) = match k {
+                0 => (1, 2, 3),
+                1 => (0, 2, 3),
+                2 => (0, 1, 3),
+                _ => (0, 1, 2),
+            };
+            let f = [cell[x], cell[y], cell[z]];
+            let w = |x: u32| self.weights[x as usize];
+            return in_power_circle_sos(
+                self.point(f[0]),
+                self.point(f[1]),
+                self.point(f[2]),
+                q,
+                [w(f[0]), w(f[1]), w(f[2]), wq],
+            );
+        }
+        let p = [
+            self.point(cell[0]),
+            self.point(cell[1]),
+            self.point(cell[2]),
+            self.point(cell[3]),
+        ];
+        let w = [
+            self.weights[cell[0] as usize],
+            self.weights[cell[1] as usize],
+            self.weights[cell[2] as usize],
+            self.weights[cell[3] as usize],
+        ];
+        in_power_sphere_sos(p, w, q, wq)
+    }
+
+    /// The input points.
+    pub fn points(&self) -> &[Point] {
+        &self.points
+    }
+
+    /// The input weights.
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// What became of each input point.
+    pub fn vertex_status(&self) -> &[VertexStatus] {
+        &self.status
+    }
+
+    /// Construction counters.
+    pub fn stats(&self) -> &TriangulationStats {
+        &self.stats
+    }
+
+    /// Raw tetrahedron slots: vertex handles ([`INFINITE_VERTEX`] for the hull vertex);
+    /// freed slots are not live (see [`Self::is_live`]).
+    pub fn tet_slots(&self) -> &[[u32; 4]] {
+        &self.tets
+    }
+
+    /// Neighbour handles per slot: entry `i` is across the face opposite vertex `i`.
+    pub fn neighbor_slots(&self) -> &[[u32; 4]] {
+        &self.neighbors
+    }
+
+    /// Whether slot `t` holds a live tetrahedron.
+    pub fn is_live(&self, t: u32) -> bool {
+        self.tets[t as usize][0] != DEAD
+    }
+
+    /// Whether slot `t` is live and has no infinite vertex.
+    pub fn is_finite(&self, t: u32) -> bool {
+        let c = &self.tets[t as usize];
+        c[0] != DEAD && !c.contains(&INFINITE_VERTEX)
+    }
+
+    /// Handles of the live finite tetrahedra, in slot order.
+    pub fn finite_tets(&self) -> impl Iterator<Item = u32> + '_ {
+        (0..self.tets.len() as u32).filter(|&t| self.is_finite(t))
+    }
+
+    /// Brute-force validity check, `O(T · n)`: every live tetrahedron's adjacency is
+    /// symmetric and shares exactly the opposite face, every finite tetrahedron is positively
+    /// oriented, every infinite one faces outward, no vertex (point of status
+    /// [`VertexStatus::Vertex`]) has negative perturbed power against a finite tetrahedron's
+    /// orthosphere, every hidden point is redundant (lies in some finite tetrahedron's closed
+    /// hull without conflict or outside nothing), and vertex statuses match the cells.
+    /// Meant for tests; returns the first violation found.
+    pub fn check_validity(&self) -> Result<(), String> {
+        let mut used = vec![false; self.points.len()];
+        for t in 0..self.tets.len() as u32 {
+            if !self.is_live(t) {
+                continue;
+            }
+            let cell = self.tets[t as usize];
+            for i in 0..4 {
+                let n = self.neighbors[t as usize][i];
+                if n == NO_TET || !self.is_live(n) {
+                    return Err(format!("tet {t} has a missing neighbour {i}"));
+                }
+                let back = self.neighbors[n as usize].iter().filter(|&&x| x == t).count();
+                if back != 1 {
+                    return Err(format!("tet {t} and {n}: adjacency not symmetric"));
+                }
+                let j = self.neighbors[n as usize]
+                    .iter()
+                    .position(|&x| x == t)
+                    .unwrap_or(0);
+                if face_key(&cell, i) != face_key(&self.tets[n as usize], j) {
+                    return Err(format!("tet {t} and {n} do not share the face"));
+                }
+                if self.tets[n as usize][j] == cell[i] {
+                    return Err(format!("tet {t} and {n} are the same cell"));
+                }
+            }
+            for &v in &cell {
+                if v != INFINITE_VERTEX {
+                    used[v as usize] = true;
+                }
+            }
+            if self.is_finite(t) {
+                let p = cell.map(|v| self.point(v));
+                if orient3d(p[0], p[1], p[2], p[3]) <= 0 {
+                    return Err(format!("tet {t} is not positively oriented"));
+                }
+            }
+        }
+        for (v, &u) in used.iter().enumerate() {
+            let is_vertex = self.status[v] == VertexStatus::Vertex;
+            if u != is_vertex {
+                return Err(format!(
+                    "point {v}: status {:?} but used by a cell: {u}",
+                    self.status[v]
+                ));
+            }
+        }
+        for t in 0..self.tets.len() as u32 {
+            if !self.is_live(t) {
+                continue;
+            }
+            for v in 0..self.points.len() as u32 {
+                if self.status[v as usize] == VertexStatus::Duplicate
+                    || self.tets[t as usize].contains(&v)
+                {
+                    continue;
+                }
+                // Vertices must not conflict; hidden points must not conflict either (a
+                // hidden point conflicting with a final cell would belong to the hull).
+                if self.in_conflict(t, v) {
+                    return Err(format!(
+                        "point {v} ({:?}) conflicts with tet {t}",
+                        self.status[v as usize]
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The three vertices of face `i` of `cell`, sorted.
+fn face_key(cell: &[u32; 4], i: usize) -> [u32; 3] {
+    let mut f = [0u32; 3];
+    let mut k = 0;
+    for (j, &v) in cell.iter().enumerate() {
+        if j != i {
+            f[k] = v;
+            k += 1;
+        }
+    }
+    f.sort_unstable();
+    f
+}
+
+/// The two positions of `0..4` other than `i` and `k`.
+#[inline]
+fn other_two(i: usize, k: usize) -> (usize, usize) {
+    let mut r = [0usize; 2];
+    let mut n = 0;
+    for j in 0..4 {
+        if j != i && j != k {
+            r[n] = j;
+            n += 1;
+        }
+    }
+    (r[0], r[1])
+}
