@@ -257,8 +257,10 @@ fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> i32 {
     LiftedDet { p, w, q, wq }.eval::<Expansion>().sign()
 }
 
-/// The `i128` stage: coordinate differences exact multiples `n·2^e` with `|n| < 2^22`, and
-/// weight differences exact multiples of `2^{2e}` below `2^46` of them.
+/// The `i128` stage, for coordinate differences that are exact multiples `n·2^e` with
+/// `|n| < 2^22` (grids, octrees). The 3×3 minors `D_i` and `Σ ±‖a_i‖²·D_i` are then exact
+/// integers; the weight differences enter either as integers (multiples of `2^{2e}`) or as
+/// exact `f64` products with the minors, summed exactly without allocation.
 fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option<i32> {
     let mut vals = [0.0; 12];
     for i in 0..4 {
@@ -270,27 +272,105 @@ fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option
             vals[3 * i + k] = d;
         }
     }
+    let mut dw = [0.0; 4];
+    for i in 0..4 {
+        dw[i] = w[i] - wq;
+        if !exact_diff(w[i], wq, dw[i]) {
+            return None;
+        }
+    }
     let mut ints = [0i64; 12];
     let e = to_fixed(&vals, 22, &mut ints)?;
-    let mut dw = [0i128; 4];
-    for i in 0..4 {
-        let d = w[i] - wq;
-        if !exact_diff(w[i], wq, d) {
-            return None;
-        }
-        let scaled = scale_pow2(d, -2 * e);
-        if scaled.abs() >= 2f64.powi(46) || scaled.fract() != 0.0 {
-            return None;
-        }
-        dw[i] = scaled as i128;
-    }
     let a = |i: usize, k: usize| ints[3 * i + k] as i128;
-    let lam = |i: usize| a(i, 0) * a(i, 0) + a(i, 1) * a(i, 1) + a(i, 2) * a(i, 2) - dw[i];
+    let sq = |i: usize| a(i, 0) * a(i, 0) + a(i, 1) * a(i, 1) + a(i, 2) * a(i, 2);
     let m = |i: usize, j: usize| a(i, 0) * a(j, 1) - a(j, 0) * a(i, 1);
-    let d3 = |i: usize, j: usize, k: usize| a(i, 2) * m(j, k) - a(j, 2) * m(i, k) + a(k, 2) * m(i, j);
-    let det = -lam(0) * d3(1, 2, 3) + lam(1) * d3(0, 2, 3) - lam(2) * d3(0, 1, 3)
-        + lam(3) * d3(0, 1, 2);
-    Some(det.signum() as i32)
+    let d3 =
+        |i: usize, j: usize, k: usize| a(i, 2) * m(j, k) - a(j, 2) * m(i, k) + a(k, 2) * m(i, j);
+    // Signed cofactors of the lifted column.
+    let c = [-d3(1, 2, 3), d3(0, 2, 3), -d3(0, 1, 3), d3(0, 1, 2)];
+    let x: i128 = (0..4).map(|i| sq(i) * c[i]).sum();
+    if dw.iter().all(|&d| d == 0.0) {
+        return Some(x.signum() as i32);
+    }
+    // Weight differences in units of 2^{2e}, when they are small integers there.
+    if 2 * e.abs() < 1000 {
+        let scaled = dw.map(|d| scale_pow2(d, -2 * e));
+        if scaled.iter().all(|s| s.abs() < 2f64.powi(46) && s.fract() == 0.0) {
+            let lam_w: i128 = (0..4).map(|i| scaled[i] as i128 * c[i]).sum();
+            return Some((x - lam_w).signum() as i32);
+        }
+        // Otherwise: sign(x·2^{2e} − Σ dw_i·c_i), all terms exact f64 values.
+        let mut terms = [0.0f64; 19];
+        let xs = split_i128(x);
+        for k in 0..3 {
+            terms[k] = scale_pow2(xs[k], 2 * e);
+        }
+        for i in 0..4 {
+            let ci = split_i128(c[i]);
+            for (j, &part) in ci[..2].iter().enumerate() {
+                let (hi, lo) = two_product(dw[i], part);
+                terms[3 + 4 * i + 2 * j] = -hi;
+                terms[3 + 4 * i + 2 * j + 1] = -lo;
+            }
+            if ci[2] != 0.0 {
+                return None;
+            }
+        }
+        return Some(exact_sign_of_sum(&terms));
+    }
+    None
+}
+
+/// Splits an integer below `2^117` into three `f64` whose exact sum it is.
+fn split_i128(x: i128) -> [f64; 3] {
+    let hi = x as f64;
+    let r1 = x - hi as i128;
+    let mid = r1 as f64;
+    let lo = (r1 - mid as i128) as f64;
+    [hi, mid, lo]
+}
+
+#[inline]
+fn two_product(a: f64, b: f64) -> (f64, f64) {
+    let x = a * b;
+    (x, a.mul_add(b, -x))
+}
+
+/// The exact sign of a sum of at most 32 `f64` terms (repeated exact growth of an expansion
+/// in a fixed buffer).
+fn exact_sign_of_sum(terms: &[f64]) -> i32 {
+    let mut h = [0.0f64; 40];
+    let mut len = 0;
+    for &b in terms {
+        if b == 0.0 {
+            continue;
+        }
+        let mut q = b;
+        let mut k = 0;
+        for i in 0..len {
+            let s = q + h[i];
+            let b_virtual = s - q;
+            let a_virtual = s - b_virtual;
+            let err = (q - a_virtual) + (h[i] - b_virtual);
+            q = s;
+            if err != 0.0 {
+                h[k] = err;
+                k += 1;
+            }
+        }
+        if q != 0.0 {
+            h[k] = q;
+            k += 1;
+        }
+        len = k;
+    }
+    if len == 0 {
+        0
+    } else if h[len - 1] > 0.0 {
+        1
+    } else {
+        -1
+    }
 }
 
 struct LiftedDet<'a> {
@@ -334,24 +414,52 @@ pub fn in_power_sphere_sos(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> b
     if s != 0 {
         return s < 0;
     }
-    power_sphere_perturbed(p, q)
-}
-
-#[cold]
-fn power_sphere_perturbed(p: [&Point; 4], q: &Point) -> bool {
-    // Indices 0..4 are the cell's vertices, 4 is the query; visit from the largest.
-    let mut order = [0usize, 1, 2, 3, 4];
     let pt = |i: usize| if i == 4 { q } else { p[i] };
+    let mut order = [0usize, 1, 2, 3, 4];
     order.sort_unstable_by(|&i, &j| {
         let (a, b) = (pt(i), pt(j));
         (a[0], a[1], a[2])
             .partial_cmp(&(b[0], b[1], b[2]))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    for &i in order.iter().rev() {
+    let mut rank = [0u32; 5];
+    for (r, &i) in order.iter().enumerate() {
+        rank[i] = r as u32;
+    }
+    power_sphere_perturbed(p, q, rank)
+}
+
+/// [`in_power_sphere_sos`] with the lexicographic ranks of the five points given (`rank[4]`
+/// is the query's): any numbers ordered as the points are.
+#[inline]
+pub fn in_power_sphere_sos_ranked(
+    p: [&Point; 4],
+    w: [f64; 4],
+    q: &Point,
+    wq: f64,
+    rank: [u32; 5],
+) -> bool {
+    let s = power_test(p, w, q, wq);
+    if s != 0 {
+        return s < 0;
+    }
+    power_sphere_perturbed(p, q, rank)
+}
+
+/// Decides a tie: from the lexicographically largest of the five points down.
+#[cold]
+fn power_sphere_perturbed(p: [&Point; 4], q: &Point, mut rank: [u32; 5]) -> bool {
+    for _ in 0..5 {
+        let mut i = 0;
+        for j in 1..5 {
+            if rank[j] > rank[i] {
+                i = j;
+            }
+        }
         if i == 4 {
             return false;
         }
+        rank[i] = 0;
         let mut r = p;
         r[i] = q;
         let o = orient3d(r[0], r[1], r[2], r[3]);
@@ -485,6 +593,50 @@ impl OrthoPower<'_> {
 /// negative when the four balls share interior points lying in no other of the four's
 /// complement (the 4D spheres of SPEC §7 meet), zero when they touch at one point.
 pub fn orthocentre_power_sign(p: [&Point; 4], w: [f64; 4]) -> i32 {
+    // Static filter: the polynomial of `OrthoPower` in f64, with its permanent. The longest
+    // chain of roundings is 30 steps; 34u leaves slack for rounding the permanent itself.
+    let o = p[0];
+    let e = |i: usize| [p[i][0] - o[0], p[i][1] - o[1], p[i][2] - o[2]];
+    let (b, c, d) = (e(1), e(2), e(3));
+    let sq = |x: [f64; 3]| x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+    let (ab, ac, ad) = (sq(b) + (w[0] - w[1]), sq(c) + (w[0] - w[2]), sq(d) + (w[0] - w[3]));
+    let (pab, pac, pad) = (
+        sq(b) + (w[0] - w[1]).abs(),
+        sq(c) + (w[0] - w[2]).abs(),
+        sq(d) + (w[0] - w[3]).abs(),
+    );
+    let cross = |u: [f64; 3], v: [f64; 3]| {
+        [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ]
+    };
+    let cross_p = |u: [f64; 3], v: [f64; 3]| {
+        [
+            (u[1] * v[2]).abs() + (u[2] * v[1]).abs(),
+            (u[2] * v[0]).abs() + (u[0] * v[2]).abs(),
+            (u[0] * v[1]).abs() + (u[1] * v[0]).abs(),
+        ]
+    };
+    let (cd, db, bc) = (cross(c, d), cross(d, b), cross(b, c));
+    let (pcd, pdb, pbc) = (cross_p(c, d), cross_p(d, b), cross_p(b, c));
+    let n: [f64; 3] = std::array::from_fn(|k| ab * cd[k] + ac * db[k] + ad * bc[k]);
+    let pn: [f64; 3] = std::array::from_fn(|k| pab * pcd[k] + pac * pdb[k] + pad * pbc[k]);
+    let det = b[0] * cd[0] + b[1] * cd[1] + b[2] * cd[2];
+    let pdet = b[0].abs() * pcd[0] + b[1].abs() * pcd[1] + b[2].abs() * pcd[2];
+    let value = sq(n) - det * det * (4.0 * w[0]);
+    let permanent = sq(pn) + pdet * pdet * (4.0 * w[0].abs());
+    let bound = 34.0 * U * permanent;
+    // Degree-8 terms can underflow for tiny tetrahedra: leave those to the exact path.
+    if permanent > 1e-200 && permanent < 1e200 {
+        if value > bound {
+            return 1;
+        }
+        if value < -bound {
+            return -1;
+        }
+    }
     let f = OrthoPower { p, w };
     if let Some(s) = f.eval::<crate::expansion::Bounded>().certain_sign() {
         return s;

@@ -29,7 +29,7 @@
 
 use crate::error::TetraError;
 use crate::predicates::{
-    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, in_power_sphere_sos, orient3d,
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, in_power_sphere_sos_ranked, orient3d,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -97,6 +97,9 @@ pub struct RegularTriangulation {
     free: Vec<u32>,
     vertex_tet: Vec<u32>,
     status: Vec<VertexStatus>,
+    /// Lexicographic rank of each point's centre (ties share a rank; only distinct centres
+    /// are inserted), the order of the symbolic perturbation.
+    rank: Vec<u32>,
     stats: TriangulationStats,
 }
 
@@ -212,6 +215,7 @@ impl RegularTriangulation {
             free: Vec::new(),
             vertex_tet: vec![NO_TET; n],
             status: vec![VertexStatus::Vertex; n],
+            rank: vec![0; n],
             stats: TriangulationStats {
                 points: n,
                 ..Default::default()
@@ -287,6 +291,7 @@ impl RegularTriangulation {
                 }
             }
             for &k in &idx[i..j] {
+                self.rank[k as usize] = kept.len() as u32;
                 if k != best {
                     self.status[k as usize] = VertexStatus::Duplicate;
                 }
@@ -580,7 +585,9 @@ impl RegularTriangulation {
             self.weights[cell[2] as usize],
             self.weights[cell[3] as usize],
         ];
-        in_power_sphere_sos(p, w, q, wq)
+        let r = |x: u32| self.rank[x as usize];
+        let rank = [r(cell[0]), r(cell[1]), r(cell[2]), r(cell[3]), r(v)];
+        in_power_sphere_sos_ranked(p, w, q, wq, rank)
     }
 
     /// The input points.
