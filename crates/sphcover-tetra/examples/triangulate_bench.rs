@@ -26,7 +26,10 @@ fn main() {
     let shrink: f64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(0.75);
     let (depth, centers, radii) = octree_torus_cover_of_size(n);
     let base_memory = peak_memory_bytes().unwrap_or(0);
-    println!("octree torus cover: depth {depth}, {} supports, shrink {shrink}", centers.len());
+    println!(
+        "octree torus cover: depth {depth}, {} supports, shrink {shrink}",
+        centers.len()
+    );
     let points: Vec<[f64; 3]> = centers.iter().map(|c| c.to_array()).collect();
     let weights: Vec<f64> = radii.iter().map(|r| (r * shrink) * (r * shrink)).collect();
     let t0 = Instant::now();
@@ -45,7 +48,11 @@ fn main() {
         s.walk_steps as f64 / s.points as f64,
         s.conflict_tets as f64 / s.points as f64
     );
-    println!("filter: {:.3} s ({} dual tets)", (t2 - t1).as_secs_f64(), dc.tets.len());
+    println!(
+        "filter: {:.3} s ({} dual tets)",
+        (t2 - t1).as_secs_f64(),
+        dc.tets.len()
+    );
     println!("triangulate + filter: {:.3} s", (t2 - t0).as_secs_f64());
     drop(tri);
     if let Some(peak) = peak_memory_bytes() {

@@ -135,7 +135,15 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
     let nb = tri.neighbor_slots();
     let neighbors: Vec<[u32; 4]> = (0..slots.len())
         .filter(|&t| keep[t])
-        .map(|t| nb[t].map(|n| if keep[n as usize] { index[n as usize] } else { NO_TET }))
+        .map(|t| {
+            nb[t].map(|n| {
+                if keep[n as usize] {
+                    index[n as usize]
+                } else {
+                    NO_TET
+                }
+            })
+        })
         .collect();
     DualComplex {
         tets,

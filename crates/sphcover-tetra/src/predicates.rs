@@ -49,9 +49,9 @@ pub const MAX_WEIGHT: f64 = 1e40;
 /// Exact sign of `det[b − a; c − a; d − a]` (−1, 0 or 1).
 #[inline]
 pub fn orient3d(a: &Point, b: &Point, c: &Point, d: &Point) -> i32 {
-    let bax = b[0] - a[0];
-    let bay = b[1] - a[1];
-    let baz = b[2] - a[2];
+    let ba_x = b[0] - a[0];
+    let ba_y = b[1] - a[1];
+    let ba_z = b[2] - a[2];
     let cax = c[0] - a[0];
     let cay = c[1] - a[1];
     let caz = c[2] - a[2];
@@ -64,10 +64,10 @@ pub fn orient3d(a: &Point, b: &Point, c: &Point, d: &Point) -> i32 {
     let m4 = caz * dax;
     let m5 = cax * day;
     let m6 = cay * dax;
-    let det = bax * (m1 - m2) - bay * (m3 - m4) + baz * (m5 - m6);
-    let permanent = bax.abs() * (m1.abs() + m2.abs())
-        + bay.abs() * (m3.abs() + m4.abs())
-        + baz.abs() * (m5.abs() + m6.abs());
+    let det = ba_x * (m1 - m2) - ba_y * (m3 - m4) + ba_z * (m5 - m6);
+    let permanent = ba_x.abs() * (m1.abs() + m2.abs())
+        + ba_y.abs() * (m3.abs() + m4.abs())
+        + ba_z.abs() * (m5.abs() + m6.abs());
     let bound = ORIENT3D_BOUND * permanent + UNDERFLOW_SLACK;
     if det > bound {
         return 1;
@@ -211,13 +211,11 @@ fn scale_pow2(v: f64, e: i32) -> f64 {
 /// the tetrahedron in a regular triangulation; zero is the tie.
 #[inline]
 pub fn power_test(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> i32 {
-    let a: [[f64; 3]; 4] = std::array::from_fn(|i| {
-        [p[i][0] - q[0], p[i][1] - q[1], p[i][2] - q[2]]
-    });
+    let a: [[f64; 3]; 4] =
+        std::array::from_fn(|i| [p[i][0] - q[0], p[i][1] - q[1], p[i][2] - q[2]]);
     let dw: [f64; 4] = std::array::from_fn(|i| w[i] - wq);
-    let lam: [f64; 4] = std::array::from_fn(|i| {
-        a[i][0] * a[i][0] + a[i][1] * a[i][1] + a[i][2] * a[i][2] - dw[i]
-    });
+    let lam: [f64; 4] =
+        std::array::from_fn(|i| a[i][0] * a[i][0] + a[i][1] * a[i][1] + a[i][2] * a[i][2] - dw[i]);
     let lam_p: [f64; 4] = std::array::from_fn(|i| {
         a[i][0] * a[i][0] + a[i][1] * a[i][1] + a[i][2] * a[i][2] + dw[i].abs()
     });
@@ -295,7 +293,10 @@ fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option
     // Weight differences in units of 2^{2e}, when they are small integers there.
     if 2 * e.abs() < 1000 {
         let scaled = dw.map(|d| scale_pow2(d, -2 * e));
-        if scaled.iter().all(|s| s.abs() < 2f64.powi(46) && s.fract() == 0.0) {
+        if scaled
+            .iter()
+            .all(|s| s.abs() < 2f64.powi(46) && s.fract() == 0.0)
+        {
             let lam_w: i128 = (0..4).map(|i| scaled[i] as i128 * c[i]).sum();
             return Some((x - lam_w).signum() as i32);
         }
@@ -382,11 +383,11 @@ struct LiftedDet<'a> {
 
 impl LiftedDet<'_> {
     fn eval<R: Ring>(&self) -> R {
-        let a: [[R; 3]; 4] =
-            std::array::from_fn(|i| std::array::from_fn(|k| R::input_diff(self.p[i][k], self.q[k])));
-        let lam: [R; 4] = std::array::from_fn(|i| {
-            dot3(&a[i], &a[i]).sub(&R::input_diff(self.w[i], self.wq))
+        let a: [[R; 3]; 4] = std::array::from_fn(|i| {
+            std::array::from_fn(|k| R::input_diff(self.p[i][k], self.q[k]))
         });
+        let lam: [R; 4] =
+            std::array::from_fn(|i| dot3(&a[i], &a[i]).sub(&R::input_diff(self.w[i], self.wq)));
         let d123 = det3(&a[1], &a[2], &a[3]);
         let d023 = det3(&a[0], &a[2], &a[3]);
         let d013 = det3(&a[0], &a[1], &a[3]);
@@ -492,7 +493,11 @@ impl PowerCircle<'_> {
         let (eb, ec, eq) = (e(self.b), e(self.c), e(self.q));
         let alpha = |ex: &[R; 3], wx: f64| dot3(ex, ex).add(&R::input_diff(self.w[0], wx));
         let row = |ex: &[R; 3], wx: f64| [dot3(ex, &eb), dot3(ex, &ec), alpha(ex, wx)];
-        det3(&row(&eb, self.w[1]), &row(&ec, self.w[2]), &row(&eq, self.w[3]))
+        det3(
+            &row(&eb, self.w[1]),
+            &row(&ec, self.w[2]),
+            &row(&eq, self.w[3]),
+        )
     }
 }
 
@@ -599,7 +604,11 @@ pub fn orthocentre_power_sign(p: [&Point; 4], w: [f64; 4]) -> i32 {
     let e = |i: usize| [p[i][0] - o[0], p[i][1] - o[1], p[i][2] - o[2]];
     let (b, c, d) = (e(1), e(2), e(3));
     let sq = |x: [f64; 3]| x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-    let (ab, ac, ad) = (sq(b) + (w[0] - w[1]), sq(c) + (w[0] - w[2]), sq(d) + (w[0] - w[3]));
+    let (ab, ac, ad) = (
+        sq(b) + (w[0] - w[1]),
+        sq(c) + (w[0] - w[2]),
+        sq(d) + (w[0] - w[3]),
+    );
     let (pab, pac, pad) = (
         sq(b) + (w[0] - w[1]).abs(),
         sq(c) + (w[0] - w[2]).abs(),

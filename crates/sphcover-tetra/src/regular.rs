@@ -29,7 +29,8 @@
 
 use crate::error::TetraError;
 use crate::predicates::{
-    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, in_power_sphere_sos_ranked, orient3d,
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, in_power_sphere_sos_ranked,
+    orient3d,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -60,9 +61,7 @@ pub struct TriangulationParams {
 
 impl Default for TriangulationParams {
     fn default() -> Self {
-        Self {
-            seed: 0x5eed_7e7a,
-        }
+        Self { seed: 0x5eed_7e7a }
     }
 }
 
@@ -224,12 +223,12 @@ impl RegularTriangulation {
         let mut order = tri.distinct_points();
         let distinct = order.len();
         brio_order(&tri.points, &mut order, params.seed);
-        let first = tri.initial_simplex(&order).map_err(|dimension| {
-            TetraError::NotFullDimensional {
-                dimension,
-                distinct,
-            }
-        })?;
+        let first =
+            tri.initial_simplex(&order)
+                .map_err(|dimension| TetraError::NotFullDimensional {
+                    dimension,
+                    distinct,
+                })?;
         let mut scratch = Scratch {
             mark: Vec::with_capacity(7 * n + 16),
             stamp: 0,
@@ -637,14 +636,63 @@ impl RegularTriangulation {
         (0..self.tets.len() as u32).filter(|&t| self.is_finite(t))
     }
 
-    /// Brute-force validity check, `O(T · n)`: every live tetrahedron's adjacency is
-    /// symmetric and shares exactly the opposite face, every finite tetrahedron is positively
-    /// oriented, every infinite one faces outward, no vertex (point of status
-    /// [`VertexStatus::Vertex`]) has negative perturbed power against a finite tetrahedron's
-    /// orthosphere, every hidden point is redundant (lies in some finite tetrahedron's closed
-    /// hull without conflict or outside nothing), and vertex statuses match the cells.
-    /// Meant for tests; returns the first violation found.
+    /// Brute-force validity check, `O(T · n)` (for tests): the structure is sound (see
+    /// [`Self::check_local_regularity`]) and no point other than a dropped duplicate is in
+    /// conflict with any tetrahedron, finite or infinite: vertices satisfy the empty power
+    /// sphere condition, hidden points are truly redundant, and the hull is convex.
+    /// Returns the first violation found.
     pub fn check_validity(&self) -> Result<(), String> {
+        self.check_structure()?;
+        for t in 0..self.tets.len() as u32 {
+            if !self.is_live(t) {
+                continue;
+            }
+            for v in 0..self.points.len() as u32 {
+                if self.status[v as usize] == VertexStatus::Duplicate
+                    || self.tets[t as usize].contains(&v)
+                {
+                    continue;
+                }
+                if self.in_conflict(t, v) {
+                    return Err(format!(
+                        "point {v} ({:?}) conflicts with tet {t}",
+                        self.status[v as usize]
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Local validity check, `O(T)` (for tests on large inputs): adjacency is symmetric and
+    /// neighbours share exactly the opposite face, finite tetrahedra are positively oriented,
+    /// the points used by cells are exactly those of status [`VertexStatus::Vertex`], and
+    /// across every face the opposite vertex is not in conflict (local regularity, which
+    /// implies global regularity). Does not test hidden points.
+    pub fn check_local_regularity(&self) -> Result<(), String> {
+        self.check_structure()?;
+        for t in 0..self.tets.len() as u32 {
+            if !self.is_live(t) {
+                continue;
+            }
+            for i in 0..4 {
+                let n = self.neighbors[t as usize][i];
+                let j = self.neighbors[n as usize]
+                    .iter()
+                    .position(|&x| x == t)
+                    .unwrap_or(0);
+                let v = self.tets[n as usize][j];
+                if v != INFINITE_VERTEX && self.in_conflict(t, v) {
+                    return Err(format!(
+                        "vertex {v} of tet {n} conflicts with its neighbour {t}"
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn check_structure(&self) -> Result<(), String> {
         let mut used = vec![false; self.points.len()];
         for t in 0..self.tets.len() as u32 {
             if !self.is_live(t) {
@@ -656,7 +704,10 @@ impl RegularTriangulation {
                 if n == NO_TET || !self.is_live(n) {
                     return Err(format!("tet {t} has a missing neighbour {i}"));
                 }
-                let back = self.neighbors[n as usize].iter().filter(|&&x| x == t).count();
+                let back = self.neighbors[n as usize]
+                    .iter()
+                    .filter(|&&x| x == t)
+                    .count();
                 if back != 1 {
                     return Err(format!("tet {t} and {n}: adjacency not symmetric"));
                 }
@@ -690,26 +741,6 @@ impl RegularTriangulation {
                     "point {v}: status {:?} but used by a cell: {u}",
                     self.status[v]
                 ));
-            }
-        }
-        for t in 0..self.tets.len() as u32 {
-            if !self.is_live(t) {
-                continue;
-            }
-            for v in 0..self.points.len() as u32 {
-                if self.status[v as usize] == VertexStatus::Duplicate
-                    || self.tets[t as usize].contains(&v)
-                {
-                    continue;
-                }
-                // Vertices must not conflict; hidden points must not conflict either (a
-                // hidden point conflicting with a final cell would belong to the hull).
-                if self.in_conflict(t, v) {
-                    return Err(format!(
-                        "point {v} ({:?}) conflicts with tet {t}",
-                        self.status[v as usize]
-                    ));
-                }
             }
         }
         Ok(())

@@ -6,7 +6,10 @@ use sphcover_tetra::{DualComplexParams, dual_complex, predicates::orient3d};
 
 fn run(name: &str, shrink: f64, reference: &str) {
     let (c, r) = read_spheres(&format!("{name}.spheres.txt"));
-    let params = DualComplexParams { shrink, ..Default::default() };
+    let params = DualComplexParams {
+        shrink,
+        ..Default::default()
+    };
     let dc = dual_complex(&c, &r, &params).unwrap();
     for t in &dc.tets {
         let p = t.map(|i| c[i as usize].to_array());
@@ -15,14 +18,26 @@ fn run(name: &str, shrink: f64, reference: &str) {
     let ours = canonical(&dc.tets);
     let theirs = read_tets(reference);
     let same = ours == theirs;
-    let missing = theirs.iter().filter(|t| ours.binary_search(t).is_err()).count();
-    let extra = ours.iter().filter(|t| theirs.binary_search(t).is_err()).count();
+    let missing = theirs
+        .iter()
+        .filter(|t| ours.binary_search(t).is_err())
+        .count();
+    let extra = ours
+        .iter()
+        .filter(|t| theirs.binary_search(t).is_err())
+        .count();
     println!(
         "{name} x{shrink}: ours {} theirs {} identical {same} missing {missing} extra {extra}; hidden {}",
-        ours.len(), theirs.len(), dc.triangulation.hidden
+        ours.len(),
+        theirs.len(),
+        dc.triangulation.hidden
     );
     let (vo, vt) = (total_volume(&c, &ours), total_volume(&c, &theirs));
-    println!("volume {vo} vs {vt}; euler {} vs {}", euler_of_tets(&ours), euler_of_tets(&theirs));
+    println!(
+        "volume {vo} vs {vt}; euler {} vs {}",
+        euler_of_tets(&ours),
+        euler_of_tets(&theirs)
+    );
     assert!(same, "{name}: {missing} missing, {extra} extra");
 }
 

@@ -33,7 +33,10 @@ pub fn read_spheres(name: &str) -> (Vec<sphcover_core::DVec3>, Vec<f64>) {
     let mut c = Vec::new();
     let mut r = Vec::new();
     for line in text.lines().filter(|l| !l.trim().is_empty()) {
-        let v: Vec<f64> = line.split_whitespace().map(|x| x.parse().unwrap()).collect();
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
         c.push(sphcover_core::DVec3::new(v[0], v[1], v[2]));
         r.push(v[3]);
     }
