@@ -24,10 +24,10 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
     let shrink: f64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(0.75);
-    let (depth, centers, radii) = octree_torus_cover_of_size(n);
+    let (depth, band, centers, radii) = octree_torus_cover_of_size(n);
     let base_memory = peak_memory_bytes().unwrap_or(0);
     println!(
-        "octree torus cover: depth {depth}, {} supports, shrink {shrink}",
+        "octree torus cover: depth {depth}, band {band:.3}, {} supports, shrink {shrink}",
         centers.len()
     );
     let points: Vec<[f64; 3]> = centers.iter().map(|c| c.to_array()).collect();

@@ -109,8 +109,7 @@ pub fn dual_complex(
 /// non-positive power with respect to the triangulation's own weights.
 pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
     let slots = tri.tet_slots();
-    let points = tri.points();
-    let weights = tri.weights();
+
     // Decide each slot independently (deterministic whatever the thread count).
     let keep: Vec<bool> = slots
         .par_iter()
@@ -119,9 +118,9 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
             if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
                 return false;
             }
-            let p = cell.map(|v| &points[v as usize]);
-            let w = cell.map(|v| weights[v as usize]);
-            orthocentre_power_sign(p, w) <= 0
+            let p = cell.map(|v| tri.point_of(v));
+            let w = cell.map(|v| tri.weight(v));
+            orthocentre_power_sign([&p[0], &p[1], &p[2], &p[3]], w) <= 0
         })
         .collect();
     let mut index = vec![NO_TET; slots.len()];

@@ -153,20 +153,26 @@ fn exact_diff(a: f64, b: f64, d: f64) -> bool {
 }
 
 /// Writes `vals` as integer multiples of a common power of two `2^e` and returns `e`, if
-/// every multiple is below `2^bits` in magnitude.
+/// every multiple is below `2^bits` in magnitude (`bits ≤ 62`). Works on the bit patterns:
+/// no floating-point scaling.
+#[inline]
 fn to_fixed(vals: &[f64], bits: i32, out: &mut [i64]) -> Option<i32> {
     let mut low = i32::MAX;
     let mut high = i32::MIN;
     for &v in vals {
-        if v == 0.0 {
-            continue;
+        let raw = v.to_bits();
+        let biased = ((raw >> 52) & 0x7ff) as i32;
+        if biased == 0 {
+            if raw << 1 == 0 {
+                continue;
+            }
+            return None; // subnormal
         }
-        if !v.is_normal() {
+        if biased == 0x7ff {
             return None;
         }
-        let raw = v.to_bits();
-        let exponent = ((raw >> 52) & 0x7ff) as i32 - 1075;
         let mantissa = (raw & ((1u64 << 52) - 1)) | (1u64 << 52);
+        let exponent = biased - 1075;
         low = low.min(exponent + mantissa.trailing_zeros() as i32);
         high = high.max(exponent + 53);
     }
@@ -178,25 +184,34 @@ fn to_fixed(vals: &[f64], bits: i32, out: &mut [i64]) -> Option<i32> {
         return None;
     }
     for (o, &v) in out.iter_mut().zip(vals) {
-        // Scaling by a power of two is exact for normal values in range.
-        *o = scale_pow2(v, -low) as i64;
+        let raw = v.to_bits();
+        if raw << 1 == 0 {
+            *o = 0;
+            continue;
+        }
+        let mantissa = (raw & ((1u64 << 52) - 1)) | (1u64 << 52);
+        let exponent = ((raw >> 52) & 0x7ff) as i32 - 1075;
+        let shift = exponent - low;
+        let m = if shift >= 0 {
+            (mantissa << shift) as i64
+        } else {
+            (mantissa >> -shift) as i64
+        };
+        *o = if raw >> 63 == 1 { -m } else { m };
     }
     Some(low)
 }
 
+/// `v · 2^e`, exact when the result is a normal number.
+#[inline]
 fn scale_pow2(v: f64, e: i32) -> f64 {
-    // Split the scaling so the factor itself never overflows.
-    let mut x = v;
-    let mut e = e;
-    while e > 1000 {
-        x *= 2f64.powi(1000);
-        e -= 1000;
+    if (-1022..=1023).contains(&e) {
+        v * f64::from_bits(((e + 1023) as u64) << 52)
+    } else {
+        // Split the scaling so no factor overflows.
+        let half = e / 2;
+        scale_pow2(scale_pow2(v, half), e - half)
     }
-    while e < -1000 {
-        x *= 2f64.powi(-1000);
-        e += 1000;
-    }
-    x * 2f64.powi(e)
 }
 
 // ------------------------------------------------------------------------------------------
@@ -279,13 +294,19 @@ fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option
     }
     let mut ints = [0i64; 12];
     let e = to_fixed(&vals, 22, &mut ints)?;
-    let a = |i: usize, k: usize| ints[3 * i + k] as i128;
-    let sq = |i: usize| a(i, 0) * a(i, 0) + a(i, 1) * a(i, 1) + a(i, 2) * a(i, 2);
-    let m = |i: usize, j: usize| a(i, 0) * a(j, 1) - a(j, 0) * a(i, 1);
-    let d3 =
-        |i: usize, j: usize, k: usize| a(i, 2) * m(j, k) - a(j, 2) * m(i, k) + a(k, 2) * m(i, j);
+    // Below 2^22 in magnitude: 2×2 minors fit in i64, the rest in i128.
+    let a = |i: usize, k: usize| ints[3 * i + k];
+    let sq = |i: usize| (a(i, 0) * a(i, 0) + a(i, 1) * a(i, 1) + a(i, 2) * a(i, 2)) as i128;
+    let m = |i: usize, j: usize| (a(i, 0) * a(j, 1) - a(j, 0) * a(i, 1)) as i128;
+    let (m01, m02, m03, m12, m13, m23) = (m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3));
+    let z = |i: usize| a(i, 2) as i128;
     // Signed cofactors of the lifted column.
-    let c = [-d3(1, 2, 3), d3(0, 2, 3), -d3(0, 1, 3), d3(0, 1, 2)];
+    let c = [
+        -(z(1) * m23 - z(2) * m13 + z(3) * m12),
+        z(0) * m23 - z(2) * m03 + z(3) * m02,
+        -(z(0) * m13 - z(1) * m03 + z(3) * m01),
+        z(0) * m12 - z(1) * m02 + z(2) * m01,
+    ];
     let x: i128 = (0..4).map(|i| sq(i) * c[i]).sum();
     if dw.iter().all(|&d| d == 0.0) {
         return Some(x.signum() as i32);
@@ -430,26 +451,13 @@ pub fn in_power_sphere_sos(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> b
     power_sphere_perturbed(p, q, rank)
 }
 
-/// [`in_power_sphere_sos`] with the lexicographic ranks of the five points given (`rank[4]`
-/// is the query's): any numbers ordered as the points are.
-#[inline]
-pub fn in_power_sphere_sos_ranked(
-    p: [&Point; 4],
-    w: [f64; 4],
-    q: &Point,
-    wq: f64,
-    rank: [u32; 5],
-) -> bool {
-    let s = power_test(p, w, q, wq);
-    if s != 0 {
-        return s < 0;
-    }
-    power_sphere_perturbed(p, q, rank)
-}
-
-/// Decides a tie: from the lexicographically largest of the five points down.
+/// Decides a tie of [`power_test`] (a zero result) for the positively oriented `p` and the
+/// query `q` by the symbolic perturbation, given the lexicographic ranks of the five points
+/// (`rank[4]` is the query's; any numbers ordered as the points are): from the largest point
+/// down, the query loses if it is the largest, otherwise the orientation of the cell with
+/// that point replaced by the query decides.
 #[cold]
-fn power_sphere_perturbed(p: [&Point; 4], q: &Point, mut rank: [u32; 5]) -> bool {
+pub fn power_sphere_perturbed(p: [&Point; 4], q: &Point, mut rank: [u32; 5]) -> bool {
     for _ in 0..5 {
         let mut i = 0;
         for j in 1..5 {

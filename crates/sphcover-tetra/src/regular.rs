@@ -29,8 +29,8 @@
 
 use crate::error::TetraError;
 use crate::predicates::{
-    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, in_power_sphere_sos_ranked,
-    orient3d,
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, orient3d,
+    power_sphere_perturbed, power_test,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -65,6 +65,13 @@ impl Default for TriangulationParams {
     }
 }
 
+/// A centre and its weight, stored together (32 bytes: two per cache line).
+#[derive(Clone, Copy, Debug)]
+struct WeightedPoint {
+    p: Point,
+    w: f64,
+}
+
 /// Counters of one construction.
 #[derive(Clone, Debug, Default)]
 pub struct TriangulationStats {
@@ -89,12 +96,13 @@ pub struct TriangulationStats {
 /// A 3D regular triangulation of weighted points (weights are squared radii).
 #[derive(Clone, Debug)]
 pub struct RegularTriangulation {
-    points: Vec<Point>,
-    weights: Vec<f64>,
+    /// `[x, y, z, w]` per point (one cache line holds two). While building, indexed by
+    /// insertion rank (neighbouring cells then touch neighbouring memory); afterwards by input
+    /// index, like every handle the API returns.
+    pw: Vec<WeightedPoint>,
     tets: Vec<[u32; 4]>,
     neighbors: Vec<[u32; 4]>,
     free: Vec<u32>,
-    vertex_tet: Vec<u32>,
     status: Vec<VertexStatus>,
     /// Lexicographic rank of each point's centre (ties share a rank; only distinct centres
     /// are inserted), the order of the symbolic perturbation.
@@ -104,74 +112,24 @@ pub struct RegularTriangulation {
 
 /// Scratch buffers reused across insertions (no allocation in the steady state).
 struct Scratch {
-    /// Per-tet stamp: `2·s` in conflict with insertion `s`, `2·s + 1` tested and not.
-    mark: Vec<u32>,
+    /// Per tet: [`UNTESTED`], [`IN_CONFLICT`] or [`OUTSIDE`] for the current insertion; reset
+    /// before the next one (one byte keeps the array cache-resident).
+    mark: Vec<u8>,
     stamp: u32,
     stack: Vec<u32>,
     cavity: Vec<u32>,
     boundary: Vec<(u32, u8)>,
     new_tets: Vec<u32>,
-    edge_table: EdgeTable,
     rng: SplitMix64,
+    /// Per vertex: the insertion stamp of the last cavity boundary it was on.
+    vmark: Vec<u32>,
+    /// Per vertex (insertion numbering): hidden on arrival or swallowed later.
+    hidden: Vec<bool>,
 }
 
-/// Open-addressing table pairing the new tetrahedra's faces through the new point by the
-/// edge they share with the cavity boundary (each such edge is on exactly two faces).
-struct EdgeTable {
-    keys: Vec<u64>,
-    vals: Vec<u32>,
-    generation: Vec<u32>,
-    current: u32,
-    mask: usize,
-}
-
-impl EdgeTable {
-    fn new() -> Self {
-        Self {
-            keys: vec![0; 64],
-            vals: vec![0; 64],
-            generation: vec![0; 64],
-            current: 0,
-            mask: 63,
-        }
-    }
-
-    fn reset(&mut self, entries: usize) {
-        let want = (entries * 2).next_power_of_two().max(64);
-        if want > self.keys.len() {
-            self.keys = vec![0; want];
-            self.vals = vec![0; want];
-            self.generation = vec![0; want];
-            self.mask = want - 1;
-            self.current = 0;
-        }
-        self.current = self.current.wrapping_add(1);
-        if self.current == 0 {
-            self.generation.iter_mut().for_each(|g| *g = 0);
-            self.current = 1;
-        }
-    }
-
-    /// Inserts `(key, val)`; if `key` is present, removes it and returns its value.
-    #[inline]
-    fn pair(&mut self, key: u64, val: u32) -> Option<u32> {
-        let mut h = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32) as usize & self.mask;
-        loop {
-            if self.generation[h] != self.current {
-                self.generation[h] = self.current;
-                self.keys[h] = key;
-                self.vals[h] = val;
-                return None;
-            }
-            if self.keys[h] == key {
-                // Leave a tombstone-free slot: the key never returns in this insertion.
-                self.keys[h] = u64::MAX;
-                return Some(self.vals[h]);
-            }
-            h = (h + 1) & self.mask;
-        }
-    }
-}
+const UNTESTED: u8 = 0;
+const IN_CONFLICT: u8 = 1;
+const OUTSIDE: u8 = 2;
 
 impl RegularTriangulation {
     /// Triangulates `points` with `weights` (squared radii).
@@ -206,105 +164,91 @@ impl RegularTriangulation {
             }
         }
         let n = points.len();
+        let mut status = vec![VertexStatus::Vertex; n];
+        let mut rank = vec![0u32; n];
+        let mut order = distinct_points(points, weights, &mut status, &mut rank);
+        let distinct = order.len();
+        brio_order(points, &mut order, params.seed);
+        // While building, vertex `i` is the `i`-th point inserted.
         let mut tri = RegularTriangulation {
-            points: points.to_vec(),
-            weights: weights.to_vec(),
-            tets: Vec::with_capacity(7 * n + 16),
-            neighbors: Vec::with_capacity(7 * n + 16),
+            pw: order
+                .iter()
+                .map(|&e| WeightedPoint {
+                    p: points[e as usize],
+                    w: weights[e as usize],
+                })
+                .collect(),
+            rank: order.iter().map(|&e| rank[e as usize]).collect(),
+            tets: Vec::with_capacity(7 * distinct + 16),
+            neighbors: Vec::with_capacity(7 * distinct + 16),
             free: Vec::new(),
-            vertex_tet: vec![NO_TET; n],
-            status: vec![VertexStatus::Vertex; n],
-            rank: vec![0; n],
+            status: Vec::new(),
             stats: TriangulationStats {
                 points: n,
                 ..Default::default()
             },
         };
-        let mut order = tri.distinct_points();
-        let distinct = order.len();
-        brio_order(&tri.points, &mut order, params.seed);
         let first =
-            tri.initial_simplex(&order)
+            tri.initial_simplex(distinct)
                 .map_err(|dimension| TetraError::NotFullDimensional {
                     dimension,
                     distinct,
                 })?;
         let mut scratch = Scratch {
-            mark: Vec::with_capacity(7 * n + 16),
+            mark: Vec::with_capacity(7 * distinct + 16),
             stamp: 0,
             stack: Vec::new(),
             cavity: Vec::new(),
             boundary: Vec::new(),
             new_tets: Vec::new(),
-            edge_table: EdgeTable::new(),
             rng: SplitMix64::new(params.seed ^ 0xa5a5_5a5a_dead_beef),
+            vmark: vec![0; distinct],
+            hidden: vec![false; distinct],
         };
         let mut hint = 0u32;
-        for &v in &order {
+        for v in 0..distinct as u32 {
             if first.contains(&v) {
                 continue;
             }
             hint = tri.insert(v, hint, &mut scratch);
         }
-        tri.stats.duplicates = tri
-            .status
+        // Back to input numbering.
+        for cell in tri.tets.iter_mut() {
+            if cell[0] != DEAD {
+                for x in cell.iter_mut() {
+                    if *x != INFINITE_VERTEX {
+                        *x = order[*x as usize];
+                    }
+                }
+            }
+        }
+        for (i, &h) in scratch.hidden.iter().enumerate() {
+            if h {
+                status[order[i] as usize] = VertexStatus::Hidden;
+            }
+        }
+        tri.pw = points
             .iter()
-            .filter(|s| **s == VertexStatus::Duplicate)
-            .count();
-        tri.stats.hidden = tri
-            .status
-            .iter()
-            .filter(|s| **s == VertexStatus::Hidden)
-            .count();
+            .zip(weights)
+            .map(|(&p, &w)| WeightedPoint { p, w })
+            .collect();
+        tri.rank = rank;
+        tri.status = status;
+        let count = |k: VertexStatus| tri.status.iter().filter(|s| **s == k).count();
+        tri.stats.duplicates = count(VertexStatus::Duplicate);
+        tri.stats.hidden = count(VertexStatus::Hidden);
         tri.stats.vertices = n - tri.stats.duplicates - tri.stats.hidden;
         tri.stats.tets = tri.tets.len() - tri.free.len();
         tri.stats.finite_tets = tri.finite_tets().count();
         Ok(tri)
     }
 
-    /// Marks points with a repeated centre as duplicates and returns the kept ones.
-    fn distinct_points(&mut self) -> Vec<u32> {
-        let n = self.points.len();
-        let mut idx: Vec<u32> = (0..n as u32).collect();
-        let pts = &self.points;
-        idx.sort_unstable_by(|&a, &b| {
-            let (p, q) = (pts[a as usize], pts[b as usize]);
-            (p[0], p[1], p[2])
-                .partial_cmp(&(q[0], q[1], q[2]))
-                .unwrap_or(std::cmp::Ordering::Equal)
-                .then(a.cmp(&b))
-        });
-        let mut kept = Vec::with_capacity(n);
-        let mut i = 0;
-        while i < n {
-            let mut j = i + 1;
-            let p = pts[idx[i] as usize];
-            while j < n && pts[idx[j] as usize] == p {
-                j += 1;
-            }
-            // Heaviest wins; among equals the lowest index (the group is index-sorted).
-            let mut best = idx[i];
-            for &k in &idx[i + 1..j] {
-                if self.weights[k as usize] > self.weights[best as usize] {
-                    best = k;
-                }
-            }
-            for &k in &idx[i..j] {
-                self.rank[k as usize] = kept.len() as u32;
-                if k != best {
-                    self.status[k as usize] = VertexStatus::Duplicate;
-                }
-            }
-            kept.push(best);
-            i = j;
-        }
-        kept
-    }
-
     /// Builds the first tetrahedron and its four infinite neighbours from the first four
     /// affinely independent points of `order`; returns them, or the dimension reached.
-    fn initial_simplex(&mut self, order: &[u32]) -> Result<[u32; 4], u8> {
-        let p = |v: u32| &self.points[v as usize];
+    fn initial_simplex(&mut self, count: usize) -> Result<[u32; 4], u8> {
+        let order: Vec<u32> = (0..count as u32).collect();
+        let order = &order[..];
+        let p = |v: u32| self.point(v);
         let Some(&a) = order.first() else {
             return Err(0);
         };
@@ -342,12 +286,7 @@ impl RegularTriangulation {
             cells.push(t);
         }
         for cell in &cells {
-            let id = self.alloc(*cell);
-            for &v in cell {
-                if v != INFINITE_VERTEX {
-                    self.vertex_tet[v as usize] = id;
-                }
-            }
+            self.alloc(*cell);
         }
         // Link the five cells by matching faces.
         for t in 0..5u32 {
@@ -383,22 +322,21 @@ impl RegularTriangulation {
 
     #[inline]
     fn point(&self, v: u32) -> &Point {
-        &self.points[v as usize]
+        &self.pw[v as usize].p
     }
 
     /// Inserts point `v`, walking from `hint`; returns a live tetrahedron near `v`.
     fn insert(&mut self, v: u32, hint: u32, s: &mut Scratch) -> u32 {
         let start = self.locate(v, hint, s);
         if !self.in_conflict(start, v) {
-            self.status[v as usize] = VertexStatus::Hidden;
+            s.hidden[v as usize] = true;
             return start;
         }
         if s.mark.len() < self.tets.len() {
             s.mark.resize(self.tets.len(), 0);
         }
         s.stamp += 1;
-        let conflict = 2 * s.stamp;
-        let outside = conflict + 1;
+        let (conflict, outside) = (IN_CONFLICT, OUTSIDE);
         s.stack.clear();
         s.cavity.clear();
         s.boundary.clear();
@@ -422,68 +360,94 @@ impl RegularTriangulation {
             }
         }
         self.stats.conflict_tets += s.cavity.len() as u64;
-        // Vertices of the zone lose their incident tetrahedron until the cone gives one back.
-        for &t in &s.cavity {
-            for &u in &self.tets[t as usize] {
-                if u != INFINITE_VERTEX {
-                    self.vertex_tet[u as usize] = NO_TET;
-                }
-            }
-        }
         s.new_tets.clear();
-        s.edge_table.reset(s.boundary.len() * 3 / 2 + 1);
+        // Cone from v over the zone's boundary. The old cell keeps, in the slot of the
+        // boundary face, the handle of the new cell built on that face: the second pass
+        // finds the new cells' mutual neighbours through it.
         for &(t, i) in &s.boundary {
             let mut cell = self.tets[t as usize];
             cell[i as usize] = v;
             let outer = self.neighbors[t as usize][i as usize];
             let nt = self.alloc(cell);
             if s.mark.len() < self.tets.len() {
-                s.mark.resize(self.tets.len(), 0);
+                s.mark.resize(self.tets.len(), UNTESTED);
             }
-            s.mark[nt as usize] = 0;
+            s.mark[nt as usize] = UNTESTED;
+            // The search is over: clear the tested-outside mark for the next insertion.
+            s.mark[outer as usize] = UNTESTED;
             self.neighbors[nt as usize][i as usize] = outer;
             let back = self.neighbors[outer as usize]
                 .iter()
                 .position(|&x| x == t)
                 .expect("adjacency is symmetric");
             self.neighbors[outer as usize][back] = nt;
+            self.neighbors[t as usize][i as usize] = nt;
+            // The boundary facet's vertices stay; `v` is new.
             for &u in &cell {
-                if u != INFINITE_VERTEX {
-                    self.vertex_tet[u as usize] = nt;
-                }
-            }
-            // The three faces through v are paired by their edge opposite v.
-            for k in 0..4usize {
-                if k == i as usize {
-                    continue;
-                }
-                let (x, y) = other_two(i as usize, k);
-                let (a, b) = (cell[x], cell[y]);
-                let key = if a < b {
-                    ((a as u64) << 32) | b as u64
-                } else {
-                    ((b as u64) << 32) | a as u64
-                };
-                let val = (nt << 2) | k as u32;
-                if let Some(other) = s.edge_table.pair(key, val) {
-                    let (ot, ok) = (other >> 2, (other & 3) as usize);
-                    self.neighbors[nt as usize][k] = ot;
-                    self.neighbors[ot as usize][ok] = nt;
+                if u != INFINITE_VERTEX && u != v {
+                    s.vmark[u as usize] = s.stamp;
                 }
             }
             s.new_tets.push(nt);
         }
+        // Each face of a new cell through v contains an edge ab of the zone's boundary; the
+        // neighbour across it is the new cell on the next boundary face around ab, reached by
+        // turning about ab through the zone's cells (which are intact until freed below).
+        for (&(t, i), &nt) in s.boundary.iter().zip(&s.new_tets) {
+            let cell = self.tets[t as usize];
+            for k in 0..4usize {
+                if k == i as usize || self.neighbors[nt as usize][k] != NO_TET {
+                    continue;
+                }
+                let (x, y) = other_two(i as usize, k);
+                let (a, b) = (cell[x], cell[y]);
+                let mut cur = t;
+                let mut opp = k;
+                loop {
+                    let next = self.neighbors[cur as usize][opp];
+                    if s.mark[next as usize] != IN_CONFLICT {
+                        // `next` is the new cell on the boundary face (cur, opp); link both
+                        // sides (the face of `next` through v, a, b is opposite its vertex
+                        // outside {v, a, b}).
+                        self.neighbors[nt as usize][k] = next;
+                        let other = self.tets[next as usize]
+                            .iter()
+                            .position(|&u| u != v && u != a && u != b)
+                            .expect("a tetrahedron has four distinct vertices");
+                        self.neighbors[next as usize][other] = nt;
+                        break;
+                    }
+                    // Crossed the face {a, b, w}; continue through the face of `next`
+                    // opposite w.
+                    let c = &self.tets[cur as usize];
+                    let skip = c[opp];
+                    let w = c
+                        .iter()
+                        .copied()
+                        .find(|&u| u != a && u != b && u != skip)
+                        .expect("a tetrahedron has four distinct vertices");
+                    opp = self.tets[next as usize]
+                        .iter()
+                        .position(|&u| u == w)
+                        .expect("neighbours share the crossed face");
+                    cur = next;
+                }
+            }
+        }
+        // A vertex of the zone on no boundary facet has been swallowed.
         for &t in &s.cavity {
             for &u in &self.tets[t as usize] {
-                if u != INFINITE_VERTEX && self.vertex_tet[u as usize] == NO_TET {
-                    self.status[u as usize] = VertexStatus::Hidden;
+                if u != INFINITE_VERTEX && s.vmark[u as usize] != s.stamp {
+                    s.hidden[u as usize] = true;
                 }
             }
         }
         for &t in &s.cavity {
             self.tets[t as usize] = [DEAD; 4];
+            s.mark[t as usize] = UNTESTED;
             self.free.push(t);
         }
+
         s.new_tets[0]
     }
 
@@ -544,7 +508,7 @@ impl RegularTriangulation {
     fn in_conflict(&self, t: u32, v: u32) -> bool {
         let cell = self.tets[t as usize];
         let q = self.point(v);
-        let wq = self.weights[v as usize];
+        let wq = self.pw[v as usize].w;
         if let Some(k) = cell.iter().position(|&x| x == INFINITE_VERTEX) {
             let mut p: [&Point; 4] = [q; 4];
             for i in 0..4 {
@@ -563,7 +527,7 @@ impl RegularTriangulation {
                 _ => (0, 1, 2),
             };
             let f = [cell[x], cell[y], cell[z]];
-            let w = |x: u32| self.weights[x as usize];
+            let w = |x: u32| self.pw[x as usize].w;
             return in_power_circle_sos(
                 self.point(f[0]),
                 self.point(f[1]),
@@ -572,31 +536,30 @@ impl RegularTriangulation {
                 [w(f[0]), w(f[1]), w(f[2]), wq],
             );
         }
-        let p = [
-            self.point(cell[0]),
-            self.point(cell[1]),
-            self.point(cell[2]),
-            self.point(cell[3]),
-        ];
-        let w = [
-            self.weights[cell[0] as usize],
-            self.weights[cell[1] as usize],
-            self.weights[cell[2] as usize],
-            self.weights[cell[3] as usize],
-        ];
+        let p = cell.map(|x| self.point(x));
+        let w = cell.map(|x| self.pw[x as usize].w);
+        let s = power_test(p, w, q, wq);
+        if s != 0 {
+            return s < 0;
+        }
+        // A tie: only now fetch the perturbation ranks.
         let r = |x: u32| self.rank[x as usize];
-        let rank = [r(cell[0]), r(cell[1]), r(cell[2]), r(cell[3]), r(v)];
-        in_power_sphere_sos_ranked(p, w, q, wq, rank)
+        power_sphere_perturbed(p, q, [r(cell[0]), r(cell[1]), r(cell[2]), r(cell[3]), r(v)])
     }
 
-    /// The input points.
-    pub fn points(&self) -> &[Point] {
-        &self.points
+    /// Number of input points (vertices, hidden points and duplicates).
+    pub fn num_points(&self) -> usize {
+        self.pw.len()
     }
 
-    /// The input weights.
-    pub fn weights(&self) -> &[f64] {
-        &self.weights
+    /// Centre of input point `v`.
+    pub fn point_of(&self, v: u32) -> Point {
+        *self.point(v)
+    }
+
+    /// Weight of input point `v`.
+    pub fn weight(&self, v: u32) -> f64 {
+        self.pw[v as usize].w
     }
 
     /// What became of each input point.
@@ -647,7 +610,7 @@ impl RegularTriangulation {
             if !self.is_live(t) {
                 continue;
             }
-            for v in 0..self.points.len() as u32 {
+            for v in 0..self.pw.len() as u32 {
                 if self.status[v as usize] == VertexStatus::Duplicate
                     || self.tets[t as usize].contains(&v)
                 {
@@ -693,7 +656,7 @@ impl RegularTriangulation {
     }
 
     fn check_structure(&self) -> Result<(), String> {
-        let mut used = vec![false; self.points.len()];
+        let mut used = vec![false; self.pw.len()];
         for t in 0..self.tets.len() as u32 {
             if !self.is_live(t) {
                 continue;
@@ -747,6 +710,57 @@ impl RegularTriangulation {
     }
 }
 
+/// Marks points with a repeated centre as duplicates (the heaviest stays, then the first),
+/// writes every point's lexicographic rank (equal centres share one), and returns the kept
+/// points.
+fn distinct_points(
+    pts: &[Point],
+    weights: &[f64],
+    status: &mut [VertexStatus],
+    rank: &mut [u32],
+) -> Vec<u32> {
+    let n = pts.len();
+    // Order-preserving integer keys (−0 and +0 are one value): an integer sort is much
+    // faster than comparing float tuples.
+    let key = |x: f64| {
+        let b = (x + 0.0).to_bits();
+        if b >> 63 == 1 { !b } else { b | (1 << 63) }
+    };
+    let mut keyed: Vec<([u64; 3], u32)> = pts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| ([key(p[0]), key(p[1]), key(p[2])], i as u32))
+        .collect();
+    keyed.sort_unstable();
+    let idx: Vec<u32> = keyed.iter().map(|k| k.1).collect();
+    drop(keyed);
+    let mut kept = Vec::with_capacity(n);
+    let mut i = 0;
+    while i < n {
+        let mut j = i + 1;
+        let p = pts[idx[i] as usize];
+        while j < n && pts[idx[j] as usize] == p {
+            j += 1;
+        }
+        // Heaviest wins; among equals the lowest index (the group is index-sorted).
+        let mut best = idx[i];
+        for &k in &idx[i + 1..j] {
+            if weights[k as usize] > weights[best as usize] {
+                best = k;
+            }
+        }
+        for &k in &idx[i..j] {
+            rank[k as usize] = kept.len() as u32;
+            if k != best {
+                status[k as usize] = VertexStatus::Duplicate;
+            }
+        }
+        kept.push(best);
+        i = j;
+    }
+    kept
+}
+
 /// The three vertices of face `i` of `cell`, sorted.
 fn face_key(cell: &[u32; 4], i: usize) -> [u32; 3] {
     let mut f = [0u32; 3];
@@ -761,16 +775,15 @@ fn face_key(cell: &[u32; 4], i: usize) -> [u32; 3] {
     f
 }
 
-/// The two positions of `0..4` other than `i` and `k`.
+/// The two positions of `0..4` other than `i` and `k` (`i ≠ k`), by table.
 #[inline]
 fn other_two(i: usize, k: usize) -> (usize, usize) {
-    let mut r = [0usize; 2];
-    let mut n = 0;
-    for j in 0..4 {
-        if j != i && j != k {
-            r[n] = j;
-            n += 1;
-        }
-    }
-    (r[0], r[1])
+    const OTHER: [[(u8, u8); 4]; 4] = [
+        [(0, 0), (2, 3), (1, 3), (1, 2)],
+        [(2, 3), (0, 0), (0, 3), (0, 2)],
+        [(1, 3), (0, 3), (0, 0), (0, 1)],
+        [(1, 2), (0, 2), (0, 1), (0, 0)],
+    ];
+    let (x, y) = OTHER[i & 3][k & 3];
+    (x as usize, y as usize)
 }

@@ -11,10 +11,9 @@ fn build(p: &[[f64; 3]], w: &[f64]) -> Result<RegularTriangulation, TetraError> 
 
 /// Sum of finite tetrahedron volumes (must equal the hull volume; exact on integer grids).
 fn volume(t: &RegularTriangulation) -> f64 {
-    let p = t.points();
     t.finite_tets()
         .map(|c| {
-            let [a, b, cc, d] = t.tet_slots()[c as usize].map(|v| p[v as usize]);
+            let [a, b, cc, d] = t.tet_slots()[c as usize].map(|v| t.point_of(v));
             let e = |x: [f64; 3]| [x[0] - a[0], x[1] - a[1], x[2] - a[2]];
             let (u, v, w) = (e(b), e(cc), e(d));
             u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
