@@ -29,7 +29,7 @@
 
 use crate::error::TetraError;
 use crate::predicates::{
-    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, in_power_circle_sos, orient3d,
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, orient3d,
     power_sphere_perturbed, power_test,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
@@ -520,21 +520,12 @@ impl RegularTriangulation {
             if o != 0 {
                 return o > 0;
             }
-            let (x, y, z) = match k {
-                0 => (1, 2, 3),
-                1 => (0, 2, 3),
-                2 => (0, 1, 3),
-                _ => (0, 1, 2),
-            };
-            let f = [cell[x], cell[y], cell[z]];
-            let w = |x: u32| self.pw[x as usize].w;
-            return in_power_circle_sos(
-                self.point(f[0]),
-                self.point(f[1]),
-                self.point(f[2]),
-                q,
-                [w(f[0]), w(f[1]), w(f[2]), wq],
-            );
+            // On the hull facet's plane: conflict with the facet's power circle. For a
+            // coplanar query that equals conflict with the orthosphere of the finite cell on
+            // the facet (both are the lifted plane through the facet's lifted vertices), and
+            // the perturbation agrees too (the apex's term is the flat orient(a, b, c, q)).
+            let finite = self.neighbors[t as usize][k];
+            return self.in_conflict(finite, v);
         }
         let p = cell.map(|x| self.point(x));
         let w = cell.map(|x| self.pw[x as usize].w);

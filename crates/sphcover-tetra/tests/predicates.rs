@@ -3,7 +3,8 @@
 use num_bigint::BigInt;
 use proptest::prelude::*;
 use sphcover_tetra::predicates::{
-    in_power_sphere_sos, orient3d, orthocentre_power_sign, power_test,
+    collinear, in_power_circle_sos, in_power_sphere_sos, orient3d, orthocentre_power_sign,
+    power_test,
 };
 
 fn big(x: f64) -> BigInt {
@@ -114,6 +115,34 @@ proptest! {
             power_test([&p[0], &p[1], &p[2], &p[3]], pw, &q, w[4]),
             oracle_power(p, pw, q, w[4])
         );
+    }
+
+    #[test]
+    fn power_circle_equals_power_sphere_of_any_apex(
+        t in prop::array::uniform4(prop::array::uniform2(-3i32..=3)),
+        apex in prop::array::uniform3(-3i32..=3),
+        w in prop::array::uniform5(0i32..3),
+    ) {
+        // Four points on the plane z = x + 2y (so ties and perturbation cases are frequent);
+        // the 2D power-circle test of the fourth against the first three must equal the 3D
+        // test against the tetrahedron with any apex off the plane, perturbation included.
+        let on = |u: [i32; 2]| [u[0] as f64, u[1] as f64, (u[0] + 2 * u[1]) as f64];
+        let (a, b, c, q) = (on(t[0]), on(t[1]), on(t[2]), on(t[3]));
+        let d = [apex[0] as f64, apex[1] as f64, apex[2] as f64 + 0.5];
+        let wf = w.map(|x| x as f64 * 0.5);
+        let distinct = [a, b, c, q].iter().enumerate().all(|(i, x)| {
+            [a, b, c, q].iter().skip(i + 1).all(|y| x != y)
+        });
+        if distinct && !collinear(&a, &b, &c) && orient3d(&a, &b, &c, &d) != 0 {
+            let (pa, pb, wa, wb) = if orient3d(&a, &b, &c, &d) > 0 {
+                (&a, &b, wf[0], wf[1])
+            } else {
+                (&b, &a, wf[1], wf[0])
+            };
+            let sphere = in_power_sphere_sos([pa, pb, &c, &d], [wa, wb, wf[2], wf[4]], &q, wf[3]);
+            let circle = in_power_circle_sos(&a, &b, &c, &q, [wf[0], wf[1], wf[2], wf[3]]);
+            prop_assert_eq!(sphere, circle);
+        }
     }
 
     #[test]
