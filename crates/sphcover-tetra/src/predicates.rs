@@ -226,6 +226,16 @@ fn scale_pow2(v: f64, e: i32) -> f64 {
 /// the tetrahedron in a regular triangulation; zero is the tie.
 #[inline]
 pub fn power_test(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> i32 {
+    match power_test_filter(p, w, q, wq) {
+        Some(s) => s,
+        None => power_test_exact(p, w, q, wq),
+    }
+}
+
+/// The floating-point stage of [`power_test`]: the sign when the static error bound
+/// certifies it.
+#[inline]
+pub(crate) fn power_test_filter(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option<i32> {
     let a: [[f64; 3]; 4] =
         std::array::from_fn(|i| [p[i][0] - q[0], p[i][1] - q[1], p[i][2] - q[2]]);
     let dw: [f64; 4] = std::array::from_fn(|i| w[i] - wq);
@@ -254,16 +264,17 @@ pub fn power_test(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> i32 {
     let permanent = lam_p[0] * e123 + lam_p[1] * e023 + lam_p[2] * e013 + lam_p[3] * e012;
     let bound = LIFTED_BOUND * permanent + UNDERFLOW_SLACK;
     if det > bound {
-        return 1;
+        return Some(1);
     }
     if det < -bound {
-        return -1;
+        return Some(-1);
     }
-    power_test_exact(p, w, q, wq)
+    None
 }
 
+/// The exact stages of [`power_test`].
 #[cold]
-fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> i32 {
+pub(crate) fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> i32 {
     if let Some(s) = power_test_integer(p, w, q, wq) {
         return s;
     }
@@ -285,6 +296,15 @@ fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option
             vals[3 * i + k] = d;
         }
     }
+    let mut ints = [0i64; 12];
+    let e = to_fixed(&vals, 22, &mut ints)?;
+    lifted_sign_fixed(&ints, e, w, wq)
+}
+
+/// The exact sign of the lifted determinant from the coordinate differences `p_i − q` given
+/// as integers `ints` (row-major, units of `2^e`, magnitudes below `2^22`) and the weights.
+/// `None` when a weight difference is not exact in `f64` (then expansions decide).
+pub(crate) fn lifted_sign_fixed(ints: &[i64; 12], e: i32, w: [f64; 4], wq: f64) -> Option<i32> {
     let mut dw = [0.0; 4];
     for i in 0..4 {
         dw[i] = w[i] - wq;
@@ -292,8 +312,6 @@ fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option
             return None;
         }
     }
-    let mut ints = [0i64; 12];
-    let e = to_fixed(&vals, 22, &mut ints)?;
     // Below 2^22 in magnitude: 2×2 minors fit in i64, the rest in i128.
     let a = |i: usize, k: usize| ints[3 * i + k];
     let sq = |i: usize| (a(i, 0) * a(i, 0) + a(i, 1) * a(i, 1) + a(i, 2) * a(i, 2)) as i128;
@@ -316,7 +334,7 @@ fn power_test_integer(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> Option
         let scaled = dw.map(|d| scale_pow2(d, -2 * e));
         if scaled
             .iter()
-            .all(|s| s.abs() < 2f64.powi(46) && s.fract() == 0.0)
+            .all(|s| s.abs() < 70_368_744_177_664.0 && s.fract() == 0.0)
         {
             let lam_w: i128 = (0..4).map(|i| scaled[i] as i128 * c[i]).sum();
             return Some((x - lam_w).signum() as i32);

@@ -29,8 +29,8 @@
 
 use crate::error::TetraError;
 use crate::predicates::{
-    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, orient3d,
-    power_sphere_perturbed, power_test,
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, lifted_sign_fixed, orient3d,
+    power_sphere_perturbed, power_test_exact, power_test_filter,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -104,6 +104,9 @@ pub struct RegularTriangulation {
     neighbors: Vec<[u32; 4]>,
     free: Vec<u32>,
     status: Vec<VertexStatus>,
+    /// While building, when every centre lies on one dyadic grid (grids, octrees): each
+    /// centre as integers in units of `2^e`, so exact tie-breaking skips the bit analysis.
+    grid: Option<(i32, Vec<[i32; 3]>)>,
     /// Lexicographic rank of each point's centre (ties share a rank; only distinct centres
     /// are inserted), the order of the symbolic perturbation.
     rank: Vec<u32>,
@@ -183,11 +186,13 @@ impl RegularTriangulation {
             neighbors: Vec::with_capacity(7 * distinct + 16),
             free: Vec::new(),
             status: Vec::new(),
+            grid: None,
             stats: TriangulationStats {
                 points: n,
                 ..Default::default()
             },
         };
+        tri.grid = integer_grid(&tri.pw);
         let first =
             tri.initial_simplex(distinct)
                 .map_err(|dimension| TetraError::NotFullDimensional {
@@ -227,6 +232,7 @@ impl RegularTriangulation {
                 status[order[i] as usize] = VertexStatus::Hidden;
             }
         }
+        tri.grid = None;
         tri.pw = points
             .iter()
             .zip(weights)
@@ -529,13 +535,48 @@ impl RegularTriangulation {
         }
         let p = cell.map(|x| self.point(x));
         let w = cell.map(|x| self.pw[x as usize].w);
-        let s = power_test(p, w, q, wq);
+        let s = match power_test_filter(p, w, q, wq) {
+            Some(s) => s,
+            None => self.exact_power_test(&cell, v, p, w, q, wq),
+        };
         if s != 0 {
             return s < 0;
         }
         // A tie: only now fetch the perturbation ranks.
         let r = |x: u32| self.rank[x as usize];
         power_sphere_perturbed(p, q, [r(cell[0]), r(cell[1]), r(cell[2]), r(cell[3]), r(v)])
+    }
+
+    /// [`power_test`]'s exact stages, through the precomputed grid when there is one.
+    #[cold]
+    fn exact_power_test(
+        &self,
+        cell: &[u32; 4],
+        v: u32,
+        p: [&Point; 4],
+        w: [f64; 4],
+        q: &Point,
+        wq: f64,
+    ) -> i32 {
+        if let Some((e, ic)) = &self.grid {
+            let iq = ic[v as usize];
+            let mut ints = [0i64; 12];
+            let mut range = 0i64;
+            for i in 0..4 {
+                let ip = ic[cell[i] as usize];
+                for k in 0..3 {
+                    let d = ip[k] as i64 - iq[k] as i64;
+                    ints[3 * i + k] = d;
+                    range |= d.abs();
+                }
+            }
+            if range < 1 << 22 {
+                if let Some(s) = lifted_sign_fixed(&ints, *e, w, wq) {
+                    return s;
+                }
+            }
+        }
+        power_test_exact(p, w, q, wq)
     }
 
     /// Number of input points (vertices, hidden points and duplicates).
@@ -750,6 +791,48 @@ fn distinct_points(
         i = j;
     }
     kept
+}
+
+/// The common dyadic grid of all centres, if their coordinates are integer multiples of one
+/// power of two `2^e` below `2^30` of them: `(e, integer coordinates)`.
+fn integer_grid(pw: &[WeightedPoint]) -> Option<(i32, Vec<[i32; 3]>)> {
+    let mut low = i32::MAX;
+    let mut high = i32::MIN;
+    for c in pw.iter().flat_map(|x| x.p) {
+        let raw = c.to_bits();
+        let biased = ((raw >> 52) & 0x7ff) as i32;
+        if raw << 1 == 0 {
+            continue;
+        }
+        if biased == 0 || biased == 0x7ff {
+            return None;
+        }
+        let mantissa = (raw & ((1u64 << 52) - 1)) | (1u64 << 52);
+        let exponent = biased - 1075;
+        low = low.min(exponent + mantissa.trailing_zeros() as i32);
+        high = high.max(exponent + 53);
+        if high - low > 30 {
+            return None;
+        }
+    }
+    if low == i32::MAX {
+        low = 0;
+    }
+    let to_int = |c: f64| -> i32 {
+        let raw = c.to_bits();
+        if raw << 1 == 0 {
+            return 0;
+        }
+        let mantissa = (raw & ((1u64 << 52) - 1)) | (1u64 << 52);
+        let shift = ((raw >> 52) & 0x7ff) as i32 - 1075 - low;
+        let m = if shift >= 0 {
+            (mantissa << shift) as i64
+        } else {
+            (mantissa >> -shift) as i64
+        };
+        (if raw >> 63 == 1 { -m } else { m }) as i32
+    };
+    Some((low, pw.iter().map(|x| x.p.map(to_int)).collect()))
 }
 
 /// The three vertices of face `i` of `cell`, sorted.
