@@ -145,7 +145,10 @@ impl TetMesh {
                 let (pc, pd) = ring_positions(cell, a, b);
                 neighbors[t as usize][if forward { pc } else { pd }]
             };
+            // Walk backwards to the ring's start (an open ring) or all the way round (a
+            // closed ring, which starts at its smallest tetrahedron).
             let mut start = t0;
+            let mut min = t0;
             let mut closed = false;
             loop {
                 let p = step(start, false);
@@ -157,18 +160,9 @@ impl TetMesh {
                     break;
                 }
                 start = p;
+                min = min.min(p);
             }
             if closed {
-                // Canonical start: the smallest tetrahedron of the ring.
-                let mut t = t0;
-                let mut min = t0;
-                loop {
-                    t = step(t, true);
-                    if t == t0 {
-                        break;
-                    }
-                    min = min.min(t);
-                }
                 start = min;
             }
             let mut t = start;
@@ -264,22 +258,24 @@ impl TetMesh {
 /// permutation `(a, b, c, d)` of the cell's positions is even (positive orientation).
 #[inline]
 fn ring_positions(cell: &[u32; 4], a: u32, b: u32) -> (usize, usize) {
-    let pa = cell.iter().position(|&x| x == a).unwrap_or(0);
-    let pb = cell.iter().position(|&x| x == b).unwrap_or(1);
-    let mut rest = [0usize; 2];
-    let mut k = 0;
-    for i in 0..4 {
-        if i != pa && i != pb {
-            rest[k] = i;
-            k += 1;
+    // EVEN_REST[pa][pb] = (pc, pd) with (pa, pb, pc, pd) an even permutation of 0..4.
+    const EVEN_REST: [[(u8, u8); 4]; 4] = [
+        [(0, 0), (2, 3), (3, 1), (1, 2)],
+        [(3, 2), (0, 0), (0, 3), (2, 0)],
+        [(1, 3), (3, 0), (0, 0), (0, 1)],
+        [(2, 1), (0, 2), (1, 0), (0, 0)],
+    ];
+    let mut pa = 0;
+    let mut pb = 1;
+    for (i, &x) in cell.iter().enumerate() {
+        if x == a {
+            pa = i;
+        } else if x == b {
+            pb = i;
         }
     }
-    let (pc, pd) = (rest[0], rest[1]);
-    if permutation_is_even([pa, pb, pc, pd]) {
-        (pc, pd)
-    } else {
-        (pd, pc)
-    }
+    let (c, d) = EVEN_REST[pa][pb];
+    (c as usize, d as usize)
 }
 
 /// Parity of a permutation of `0..4` by counting inversions.
@@ -294,4 +290,26 @@ pub(crate) fn permutation_is_even(p: [usize; 4]) -> bool {
         }
     }
     inversions % 2 == 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn even_rest_table_gives_even_permutations() {
+        for pa in 0..4 {
+            for pb in 0..4 {
+                if pa == pb {
+                    continue;
+                }
+                let cell = [10u32, 11, 12, 13];
+                let (pc, pd) = ring_positions(&cell, 10 + pa as u32, 10 + pb as u32);
+                let mut all = [pa, pb, pc, pd];
+                assert!(permutation_is_even(all));
+                all.sort_unstable();
+                assert_eq!(all, [0, 1, 2, 3]);
+            }
+        }
+    }
 }
