@@ -25,7 +25,13 @@
 //! first) stays, the others are hidden.
 //!
 //! Storage is struct-of-arrays with `u32` handles: tetrahedron vertices, the neighbour
-//! opposite each vertex, and a free list of slots.
+//! opposite each vertex, and a free list of slots. While building, vertices are numbered in
+//! insertion order (cells near the new point then touch nearby memory) and mapped back to
+//! input indices at the end. The cone over the conflict zone is stitched without hashing: the
+//! neighbour of a new cell across a face through the new point is found by turning about the
+//! face's boundary edge through the (still intact) old cells. On inputs whose centres lie on
+//! one dyadic grid (voxel grids, octrees), integer coordinates are precomputed so that exact
+//! tie-breaking, frequent there, skips the per-call bit analysis.
 
 use crate::error::TetraError;
 use crate::predicates::{
