@@ -47,7 +47,7 @@
 //! * [`regular`]: [`RegularTriangulation`], incremental Bowyer–Watson with a remembering
 //!   stochastic walk, an infinite vertex, hidden (redundant) points; struct-of-arrays storage
 //!   (`[u32; 4]` vertices and neighbours per tetrahedron, a free list).
-//! * [`dual_complex`]: the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
+//! * [`dual_complex`](mod@dual_complex): the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
 //!   `σ_t` of thesis §3.5.2.
 //! * [`tet_mesh`]: [`TetMesh`], plain arrays and CSR offsets.
 //! * [`marching`]: marching tetrahedra on a [`TetMesh`].
