@@ -475,18 +475,19 @@ pub fn in_power_sphere_sos(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) -> b
 /// down, the query loses if it is the largest, otherwise the orientation of the cell with
 /// that point replaced by the query decides.
 #[cold]
-pub fn power_sphere_perturbed(p: [&Point; 4], q: &Point, mut rank: [u32; 5]) -> bool {
+pub fn power_sphere_perturbed(p: [&Point; 4], q: &Point, rank: [u32; 5]) -> bool {
+    let mut visited = [false; 5];
     for _ in 0..5 {
-        let mut i = 0;
-        for j in 1..5 {
-            if rank[j] > rank[i] {
+        let mut i = 5;
+        for j in 0..5 {
+            if !visited[j] && (i == 5 || rank[j] > rank[i]) {
                 i = j;
             }
         }
         if i == 4 {
             return false;
         }
-        rank[i] = 0;
+        visited[i] = true;
         let mut r = p;
         r[i] = q;
         let o = orient3d(r[0], r[1], r[2], r[3]);

@@ -35,8 +35,8 @@
 
 use crate::error::TetraError;
 use crate::predicates::{
-    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, lifted_sign_fixed, orient3d,
-    power_sphere_perturbed, power_test_exact, power_test_filter,
+    MAX_COORDINATE, MAX_WEIGHT, Point, collinear, lifted_sign_fixed, orient3d, power_test_exact,
+    power_test_filter,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -466,7 +466,6 @@ impl RegularTriangulation {
     /// Remembering stochastic walk to a tetrahedron containing point `v` (closed), or to an
     /// infinite tetrahedron whose hull facet `v` lies strictly beyond.
     fn locate(&mut self, v: u32, hint: u32, s: &mut Scratch) -> u32 {
-        let q = *self.point(v);
         let mut t = hint;
         if self.tets[t as usize][0] == DEAD {
             t = (0..self.tets.len() as u32)
@@ -490,15 +489,10 @@ impl RegularTriangulation {
                 if n == previous {
                     continue;
                 }
-                let mut p: [&Point; 4] = [
-                    self.point(cell[0]),
-                    self.point(cell[1]),
-                    self.point(cell[2]),
-                    self.point(cell[3]),
-                ];
-                p[i] = &q;
+                let mut ids = cell;
+                ids[i] = v;
                 steps += 1;
-                if orient3d(p[0], p[1], p[2], p[3]) < 0 {
+                if self.orient(ids) < 0 {
                     previous = t;
                     t = n;
                     if self.tets[t as usize].contains(&INFINITE_VERTEX) {
@@ -522,13 +516,9 @@ impl RegularTriangulation {
         let q = self.point(v);
         let wq = self.pw[v as usize].w;
         if let Some(k) = cell.iter().position(|&x| x == INFINITE_VERTEX) {
-            let mut p: [&Point; 4] = [q; 4];
-            for i in 0..4 {
-                if i != k {
-                    p[i] = self.point(cell[i]);
-                }
-            }
-            let o = orient3d(p[0], p[1], p[2], p[3]);
+            let mut ids = cell;
+            ids[k] = v;
+            let o = self.orient(ids);
             if o != 0 {
                 return o > 0;
             }
@@ -548,9 +538,56 @@ impl RegularTriangulation {
         if s != 0 {
             return s < 0;
         }
-        // A tie: only now fetch the perturbation ranks.
+        // A tie: the symbolic perturbation decides (see `predicates::power_sphere_perturbed`,
+        // here with orientations through `orient`).
         let r = |x: u32| self.rank[x as usize];
-        power_sphere_perturbed(p, q, [r(cell[0]), r(cell[1]), r(cell[2]), r(cell[3]), r(v)])
+        let mut rank = [r(cell[0]), r(cell[1]), r(cell[2]), r(cell[3]), r(v)];
+        let mut left = 5;
+        while left > 0 {
+            let mut i = 5;
+            for j in 0..5 {
+                if rank[j] != u32::MAX && (i == 5 || rank[j] > rank[i]) {
+                    i = j;
+                }
+            }
+            if i == 4 {
+                return false;
+            }
+            rank[i] = u32::MAX;
+            left -= 1;
+            let mut ids = cell;
+            ids[i] = v;
+            let o = self.orient(ids);
+            if o != 0 {
+                return o > 0;
+            }
+        }
+        // Unreachable: the cell is not flat, so some replacement is not flat either.
+        false
+    }
+
+    /// Exact orientation of four vertices (no infinite one): by `i128` arithmetic on the
+    /// precomputed grid when there is one, else by the adaptive [`orient3d`].
+    #[inline]
+    fn orient(&self, ids: [u32; 4]) -> i32 {
+        if let Some((_, ic)) = &self.grid {
+            let a = ic[ids[0] as usize];
+            let d = |x: u32| {
+                let b = ic[x as usize];
+                [
+                    (b[0] as i64 - a[0] as i64) as i128,
+                    (b[1] as i64 - a[1] as i64) as i128,
+                    (b[2] as i64 - a[2] as i64) as i128,
+                ]
+            };
+            let (b, c, e) = (d(ids[1]), d(ids[2]), d(ids[3]));
+            // Differences below 2^31: each product of three below 2^93.
+            let det = b[0] * (c[1] * e[2] - c[2] * e[1]) - b[1] * (c[0] * e[2] - c[2] * e[0])
+                + b[2] * (c[0] * e[1] - c[1] * e[0]);
+            return det.signum() as i32;
+        }
+        let p = ids.map(|x| self.point(x));
+        orient3d(p[0], p[1], p[2], p[3])
     }
 
     /// [`power_test`]'s exact stages, through the precomputed grid when there is one.
