@@ -353,22 +353,6 @@ impl Ring for Bounded {
     }
 }
 
-/// The exact sign of a polynomial written once over [`Ring`]: the floating-point evaluation
-/// decides when its error bound allows, the exact one otherwise.
-#[inline]
-pub fn adaptive_sign<P: RingPolynomial>(p: &P) -> i32 {
-    if let Some(s) = p.eval::<Bounded>().certain_sign() {
-        return s;
-    }
-    p.eval::<Expansion>().sign()
-}
-
-/// A polynomial in `f64` inputs that can be evaluated in any [`Ring`].
-pub trait RingPolynomial {
-    /// Evaluates the polynomial in `R`.
-    fn eval<R: Ring>(&self) -> R;
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

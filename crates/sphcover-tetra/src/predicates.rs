@@ -439,12 +439,6 @@ impl LiftedDet<'_> {
     }
 }
 
-/// Lexicographic `(x, y, z)` order of points (the perturbation order).
-#[inline]
-pub fn lex_less(a: &Point, b: &Point) -> bool {
-    (a[0], a[1], a[2]) < (b[0], b[1], b[2])
-}
-
 /// Whether `q` is in conflict with the positively oriented tetrahedron `p` (its power with
 /// respect to the orthosphere is negative), ties broken by the symbolic perturbation.
 /// The five points must be distinct.
