@@ -499,12 +499,19 @@ impl<'a> Grid<'a> {
                 .then_with(|| a.step[1].cmp(&b.step[1]))
                 .then_with(|| a.step[0].cmp(&b.step[0]))
         });
+        // Offsets at the same true distance can differ in the last bits of their computed
+        // distance (summation order): a shell gathers every offset within a relative 1e-9
+        // of its first one, and keeps the largest computed distance.
         let mut shells: Vec<(f64, usize)> = Vec::new();
+        let mut shell_start = f64::NEG_INFINITY;
         for (idx, o) in offsets.iter().enumerate() {
             let d = d2(o);
             match shells.last_mut() {
-                Some(last) if last.0 == d => last.1 = idx + 1,
-                _ => shells.push((d, idx + 1)),
+                Some(last) if d <= shell_start * (1.0 + 1e-9) => *last = (d, idx + 1),
+                _ => {
+                    shell_start = d;
+                    shells.push((d, idx + 1));
+                }
             }
         }
         let rmin2 = (r_min / unit) * (r_min / unit);
