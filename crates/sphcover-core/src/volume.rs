@@ -88,11 +88,7 @@ impl Volume {
                 found: values.len(),
             });
         }
-        let det = affine.matrix3.determinant();
-        if !(affine.matrix3.is_finite() && affine.translation.is_finite())
-            || !det.is_normal()
-            || !affine.matrix3.inverse().is_finite()
-        {
+        if !is_invertible_affine(&affine) {
             return Err(VolumeError::SingularAffine);
         }
         Ok(Volume {
@@ -171,11 +167,8 @@ impl Volume {
     /// World position of the centre of voxel `(i, j, k)`.
     #[inline]
     pub fn voxel_center(&self, ijk: [usize; 3]) -> DVec3 {
-        self.affine.transform_point3(DVec3::new(
-            ijk[0] as f64,
-            ijk[1] as f64,
-            ijk[2] as f64,
-        ))
+        self.affine
+            .transform_point3(DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64))
     }
 
     /// Edge lengths of a voxel: the lengths of the affine's columns.
@@ -215,6 +208,15 @@ impl Volume {
             ..PointCloud::default()
         }
     }
+}
+
+/// True when the affine map is finite and its linear part invertible with a finite inverse.
+pub(crate) fn is_invertible_affine(affine: &DAffine3) -> bool {
+    let m = affine.matrix3;
+    m.is_finite()
+        && affine.translation.is_finite()
+        && m.determinant().is_normal()
+        && m.inverse().is_finite()
 }
 
 fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {

@@ -76,7 +76,11 @@ fn thin_plate_phantom_is_covered_compactly_within_tolerance() {
     );
     let rms = max_support_rms(&volume, &cover, &stats);
     assert!(rms <= params.tolerance, "max RMS {rms}");
-    assert!((rms - stats.max_rms).abs() < 1e-9, "{rms} vs {}", stats.max_rms);
+    assert!(
+        (rms - stats.max_rms).abs() < 1e-9,
+        "{rms} vs {}",
+        stats.max_rms
+    );
     assert_eq!(stats.above_tolerance, 0);
     // A quadratic cannot follow the profile of a 4-voxel plate within 5 % RMS beyond a
     // radius of about 2 voxels, which bounds the ratio (7.8 here; see the module docs).
@@ -84,14 +88,17 @@ fn thin_plate_phantom_is_covered_compactly_within_tolerance() {
     assert!(ratio >= 6.0, "ratio {ratio}");
 }
 
-
 #[test]
 fn thicker_plate_with_looser_tolerance_is_far_more_compact() {
     let dims = [40, 40, 24];
     let values = volume_common::thin_plate(dims, 8.0, 20.0, 0.8);
-    let volume =
-        Volume::axis_aligned(dims, VoxelValues::F64(values), DVec3::splat(0.1), DVec3::ZERO)
-            .unwrap();
+    let volume = Volume::axis_aligned(
+        dims,
+        VoxelValues::F64(values),
+        DVec3::splat(0.1),
+        DVec3::ZERO,
+    )
+    .unwrap();
     let params = VolumeCoverParams {
         tolerance: 0.1,
         ..hu_params()
@@ -194,20 +201,34 @@ fn rotated_anisotropic_grid_is_covered() {
 fn linear_bounding_box_variant_covers_every_voxel() {
     let dims = [20, 18, 12];
     let values = volume_common::thin_plate(dims, 4.0, 20.0, 0.8);
-    let volume =
-        Volume::axis_aligned(dims, VoxelValues::F64(values), DVec3::splat(0.2), DVec3::ZERO)
-            .unwrap();
+    let volume = Volume::axis_aligned(
+        dims,
+        VoxelValues::F64(values),
+        DVec3::splat(0.2),
+        DVec3::ZERO,
+    )
+    .unwrap();
     let params = VolumeCoverParams {
         variant: VolumeCoverVariant::BoundingBoxLinear,
         ..hu_params()
     };
     let (cover, stats) = build_volume_cover(&volume, &params).unwrap();
-    assert!(matches!(cover.funcs(), sphcover_core::LocalFunctions::Linear { .. }));
+    assert!(matches!(
+        cover.funcs(),
+        sphcover_core::LocalFunctions::Linear { .. }
+    ));
     assert_eq!(stats.candidates, volume.len());
-    assert_all_inside(&cover, (0..volume.len()).map(|i| volume.voxel_center(volume.ijk(i))));
+    assert_all_inside(
+        &cover,
+        (0..volume.len()).map(|i| volume.voxel_center(volume.ijk(i))),
+    );
     let rms = max_support_rms(&volume, &cover, &stats);
     assert!((rms - stats.max_rms).abs() < 1e-9);
-    assert!(stats.supports * 4 < volume.len(), "{} supports", stats.supports);
+    assert!(
+        stats.supports * 4 < volume.len(),
+        "{} supports",
+        stats.supports
+    );
 }
 
 #[test]
@@ -222,8 +243,7 @@ fn non_finite_voxels_are_no_samples() {
         finite.clone().copied().fold(f64::INFINITY, f64::min),
         finite.copied().fold(f64::NEG_INFINITY, f64::max),
     );
-    let volume =
-        Volume::new(volume.dims(), VoxelValues::F64(values), volume.affine()).unwrap();
+    let volume = Volume::new(volume.dims(), VoxelValues::F64(values), volume.affine()).unwrap();
     let (cover, stats) = build_volume_cover(&volume, &hu_params()).unwrap();
     assert_eq!(stats.value_range, range);
     let rms = max_support_rms(&volume, &cover, &stats);
@@ -264,11 +284,27 @@ fn degenerate_inputs_are_refused_with_clear_errors() {
     );
     assert!(err.to_string().contains("selects no voxel"));
     for bad in [
-        VolumeCoverParams { tolerance: 0.0, ..p.clone() },
-        VolumeCoverParams { r_min: Some(-1.0), ..p.clone() },
-        VolumeCoverParams { r_min: Some(2.0), r_max: Some(1.0), ..p.clone() },
-        VolumeCoverParams { threshold: Threshold::Normalised(1.0), ..p.clone() },
-        VolumeCoverParams { threshold: Threshold::Raw(f64::NAN), ..p.clone() },
+        VolumeCoverParams {
+            tolerance: 0.0,
+            ..p.clone()
+        },
+        VolumeCoverParams {
+            r_min: Some(-1.0),
+            ..p.clone()
+        },
+        VolumeCoverParams {
+            r_min: Some(2.0),
+            r_max: Some(1.0),
+            ..p.clone()
+        },
+        VolumeCoverParams {
+            threshold: Threshold::Normalised(1.0),
+            ..p.clone()
+        },
+        VolumeCoverParams {
+            threshold: Threshold::Raw(f64::NAN),
+            ..p.clone()
+        },
     ] {
         assert!(matches!(
             build_volume_cover(&ramp, &bad),

@@ -466,11 +466,7 @@ fn affine_of(h: &Header) -> Result<(DAffine3, AffineSource), DecodeError> {
             )
         }
     };
-    let m = affine.matrix3;
-    if !(m.is_finite() && affine.translation.is_finite())
-        || !m.determinant().is_normal()
-        || !m.inverse().is_finite()
-    {
+    if !crate::volume::is_invertible_affine(&affine) {
         let name = match source {
             AffineSource::Sform => "srow_x/srow_y/srow_z (sform)",
             AffineSource::Qform => "quatern_b/c/d, qoffset and pixdim (qform)",
@@ -501,9 +497,21 @@ fn quaternion_matrix(q: [f64; 3]) -> DMat3 {
     };
     // Rows as the NIfTI-1 standard writes R; glam takes columns.
     DMat3::from_cols(
-        DVec3::new(a * a + b * b - c * c - d * d, 2.0 * (b * c + a * d), 2.0 * (b * d - a * c)),
-        DVec3::new(2.0 * (b * c - a * d), a * a + c * c - b * b - d * d, 2.0 * (c * d + a * b)),
-        DVec3::new(2.0 * (b * d + a * c), 2.0 * (c * d - a * b), a * a + d * d - c * c - b * b),
+        DVec3::new(
+            a * a + b * b - c * c - d * d,
+            2.0 * (b * c + a * d),
+            2.0 * (b * d - a * c),
+        ),
+        DVec3::new(
+            2.0 * (b * c - a * d),
+            a * a + c * c - b * b - d * d,
+            2.0 * (c * d + a * b),
+        ),
+        DVec3::new(
+            2.0 * (b * d + a * c),
+            2.0 * (c * d - a * b),
+            a * a + d * d - c * c - b * b,
+        ),
     )
 }
 
@@ -641,7 +649,13 @@ fn decode<R: Read>(
     // Extensions between the header and the data are skipped.
     let gap = vox_offset - h.size as u64;
     if stream.skip(gap)? < gap {
-        return Err(truncated(stream.offset, vox_offset, datatype, voxels, frames));
+        return Err(truncated(
+            stream.offset,
+            vox_offset,
+            datatype,
+            voxels,
+            frames,
+        ));
     }
     let mut data = vec![0u8; 0];
     // Grow as data arrives: an uncompressed file's size was checked, and a gzip stream is
@@ -653,20 +667,28 @@ fn decode<R: Read>(
         data.resize(start + want, 0);
         let got = stream.fill(&mut data[start..])?;
         if got < want {
-            return Err(truncated(stream.offset, vox_offset, datatype, voxels, frames));
+            return Err(truncated(
+                stream.offset,
+                vox_offset,
+                datatype,
+                voxels,
+                frames,
+            ));
         }
     }
     let rest = data_bytes - frame_bytes;
     if stream.skip(rest)? < rest {
-        return Err(truncated(stream.offset, vox_offset, datatype, voxels, frames));
+        return Err(truncated(
+            stream.offset,
+            vox_offset,
+            datatype,
+            voxels,
+            frames,
+        ));
     }
 
     let values = convert(&data, datatype, big, scaling, version);
-    let dims = [
-        extent[0] as usize,
-        extent[1] as usize,
-        extent[2] as usize,
-    ];
+    let dims = [extent[0] as usize, extent[1] as usize, extent[2] as usize];
     let volume = Volume::new(dims, values, affine)
         .map_err(|e| header_error(h.dim[1].1, format!("invalid volume: {e}")))?;
     let info = NiftiInfo {

@@ -102,9 +102,9 @@ fn solve_spd<const N: usize>(
 ) -> Option<SVector<f64, N>> {
     if let Some(chol) = m.cholesky() {
         let diag = chol.l_dirty().diagonal();
-        let (lo, hi) = diag
-            .iter()
-            .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+        let (lo, hi) = diag.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        });
         if lo > 1e-6 * hi {
             let c = chol.solve(b);
             if c.iter().all(|v| v.is_finite()) {
@@ -148,12 +148,17 @@ mod tests {
             scale in 0.2f64..5.0,
         ) {
             let mut ne = NormalEquations::<QUADRATIC>::new();
+            let mut vmax: f64 = 0.0;
             for p in &pts {
                 let u = [p[0] * scale, p[1] * scale, p[2] * scale];
-                ne.add(*p, evaluate(&coef, u));
+                let v = evaluate(&coef, u);
+                vmax = vmax.max(v.abs());
+                ne.add(*p, v);
             }
             let (c, rms) = ne.solve(scale).unwrap();
-            prop_assert!(rms < 1e-6, "rms {rms}");
+            // The residual comes from Σv² − 2cᵀb + cᵀMc, which cancels to ~√(ε_mach)·|v|
+            // for an exact fit; the builder reports directly summed residuals instead.
+            prop_assert!(rms < 1e-6 * (1.0 + vmax), "rms {rms}");
             for (a, b) in c.iter().zip(&coef) {
                 prop_assert!((a - b).abs() < 1e-6, "{c:?} vs {coef:?}");
             }

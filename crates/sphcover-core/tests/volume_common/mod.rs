@@ -12,12 +12,7 @@ pub const MATERIAL: f64 = 2000.0;
 /// supersampling of each voxel, then a separable Gaussian blur of `blur` voxels (the scanner's
 /// point spread; 0 for none). The plate normal is tilted by `tilt_degrees` from the z axis,
 /// towards the direction 30° from the x axis, so no face is aligned with the grid.
-pub fn thin_plate(
-    dims: [usize; 3],
-    thickness: f64,
-    tilt_degrees: f64,
-    blur: f64,
-) -> Vec<f64> {
+pub fn thin_plate(dims: [usize; 3], thickness: f64, tilt_degrees: f64, blur: f64) -> Vec<f64> {
     let [nx, ny, nz] = dims;
     let (t, p) = (tilt_degrees.to_radians(), 30f64.to_radians());
     let normal = DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
