@@ -16,6 +16,8 @@ pub mod local_function;
 pub mod mesh;
 pub mod partition_of_unity;
 pub mod point_cloud;
+pub mod volume;
+pub mod volume_cover;
 
 pub use ball_index::BallIndex;
 pub use cover::{Cover, CoverError};
@@ -26,3 +28,8 @@ pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, Quadrati
 pub use mesh::TriMesh;
 pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
+pub use volume::{Volume, VolumeError, VoxelValues};
+pub use volume_cover::{
+    Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
+    build_volume_cover,
+};

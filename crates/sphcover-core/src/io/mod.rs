@@ -43,6 +43,8 @@
 mod atomic;
 mod encode;
 mod error;
+#[cfg(feature = "nifti")]
+mod nifti;
 mod non_finite;
 mod obj;
 mod off;
@@ -60,6 +62,10 @@ use crate::point_cloud::PointCloud;
 
 pub use atomic::write_atomic;
 pub use error::{IoError, Location, Problem};
+#[cfg(feature = "nifti")]
+pub use nifti::{
+    AffineSource, NiftiDatatype, NiftiInfo, is_volume_path, parse_nifti, read_nifti, read_volume,
+};
 
 /// A file format, named by the file's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
