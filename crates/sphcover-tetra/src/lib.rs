@@ -68,7 +68,7 @@ pub mod tet_mesh;
 
 pub use dual_complex::{DualComplex, DualComplexParams, dual_complex, dual_complex_of};
 pub use error::TetraError;
-pub use mesh_file::{TetMeshFormat, write_tet_mesh};
 pub use marching::{IsoSurface, marching_tetrahedra, marching_tetrahedra_scalar};
+pub use mesh_file::{TetMeshFormat, write_tet_mesh};
 pub use regular::{RegularTriangulation, TriangulationParams, VertexStatus};
 pub use tet_mesh::TetMesh;

@@ -208,7 +208,13 @@ mod tests {
         assert!(write_tet_mesh(&bad, &mesh, &centers, &radii, &[]).is_err());
         let input = dir.path().join("in.txt");
         std::fs::write(&input, "keep").unwrap();
-        let err = write_tet_mesh(&input, &mesh, &centers, &radii, std::slice::from_ref(&input));
+        let err = write_tet_mesh(
+            &input,
+            &mesh,
+            &centers,
+            &radii,
+            std::slice::from_ref(&input),
+        );
         assert!(matches!(err, Err(IoError::OutputIsInput { .. })));
         assert_eq!(std::fs::read_to_string(&input).unwrap(), "keep");
     }
