@@ -11,9 +11,12 @@ pub mod ball_index;
 pub mod geometry;
 pub mod mesh;
 pub mod point_cloud;
+pub mod sphere_intersection_graph;
+pub mod synthetic;
 
-pub use ball_index::BallIndex;
+pub use ball_index::{BallIndex, BallIndexError};
 pub use geometry::{Aabb, Normalisation};
 pub use glam::{DMat3, DVec3};
 pub use mesh::TriMesh;
 pub use point_cloud::PointCloud;
+pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
