@@ -16,10 +16,12 @@ pub mod local_function;
 pub mod mesh;
 pub mod partition_of_unity;
 pub mod point_cloud;
+pub mod sphere_intersection_graph;
+pub mod synthetic;
 pub mod volume;
 pub mod volume_cover;
 
-pub use ball_index::BallIndex;
+pub use ball_index::{BallIndex, BallIndexError};
 pub use cover::{Cover, CoverError};
 pub use geometry::{Aabb, Normalisation};
 pub use glam::{DMat3, DVec3};
@@ -28,6 +30,7 @@ pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, Quadrati
 pub use mesh::TriMesh;
 pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
+pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
     Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
