@@ -59,7 +59,7 @@ pub struct InfoArgs {
 pub struct TetraArgs {
     /// A sphere set (`x y z r` text, or PLY with a `radius` vertex property).
     #[arg(value_name = "SPHERES")]
-    pub input: PathBuf,
+    pub spheres: PathBuf,
     /// Output: `.vtk` (VTK legacy unstructured grid, opens in ParaView) or `.txt`/`.tets`
     /// (one tetrahedron per line as four ascending support indices, rows sorted).
     #[arg(short, long, value_name = "FILE")]
@@ -71,6 +71,17 @@ pub struct TetraArgs {
     /// Seed of the insertion order and point-location walks (the mesh does not depend on it).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
+/// How input files are read.
+#[derive(Debug, Args)]
+pub struct InputArgs {
+    /// Drop vertices with NaN or infinite coordinates (with a warning) instead of refusing
+    /// the file.
+    #[arg(long)]
+    pub drop_non_finite: bool,
 }
 
 /// Arguments of a subcommand whose pipeline is not built yet: accepted so that the command

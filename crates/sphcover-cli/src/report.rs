@@ -63,6 +63,13 @@ impl Reporter {
         }
     }
 
+    /// A warning, printed unless `--quiet`.
+    pub fn warn(&self, message: &str) {
+        if !self.quiet {
+            eprintln!("warning: {message}");
+        }
+    }
+
     /// A note printed with `-v`.
     pub fn detail(&self, message: &str) {
         if self.verbose > 0 {

@@ -193,3 +193,34 @@ fn tetra_refuses_to_overwrite_its_input_and_bad_inputs() {
     assert!(text(&run.stderr).contains("radii"));
     assert!(!out.exists());
 }
+
+#[test]
+fn non_finite_spheres_are_refused_unless_dropped_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("s.sph");
+    std::fs::write(&input, "0 0 0 1\n1 0 0 1\nnan 0 0 1\n0 1 0 1\n0 0 1 1\n").unwrap();
+    let out = dir.path().join("s.tets");
+    let refused = sphcover(&[
+        "tetra",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(refused.status.code(), Some(2));
+    let stderr = text(&refused.stderr);
+    assert!(
+        stderr.contains("s.sph") && stderr.contains("line 3"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let dropped = sphcover(&[
+        "tetra",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--drop-non-finite",
+    ]);
+    assert_eq!(dropped.status.code(), Some(0), "{}", text(&dropped.stderr));
+    assert!(text(&dropped.stderr).contains("dropped 1 spheres"));
+    assert!(out.exists());
+}

@@ -1,7 +1,7 @@
 //! `sphcover tetra`: the tetrahedral mesh of a cover (thesis §3.5), built as the dual complex
 //! of the union of balls on an exact regular triangulation.
 
-use sphcover_core::io::{self, ReadOptions};
+use sphcover_core::io::{self, NonFinitePolicy, ReadOptions, SphereSet};
 use sphcover_tetra::{DualComplexParams, TetMesh, TetMeshFormat, dual_complex, write_tet_mesh};
 
 use crate::args::TetraArgs;
@@ -26,7 +26,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
 
     let stage = reporter.stage("read spheres");
-    let spheres = io::read_spheres(&args.input, &ReadOptions::default())?;
+    let spheres = read_spheres(args, reporter)?;
     stage.finish();
     reporter.detail(&format!("  {} spheres", spheres.centers.len()));
 
@@ -37,7 +37,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
         seed: args.seed,
     };
     let complex = dual_complex(&spheres.centers, &spheres.radii, &params)
-        .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
+        .map_err(|e| BadInput(format!("{}: {e}", args.spheres.display())))?;
     bar.finish_and_clear();
     stage.finish();
 
@@ -51,7 +51,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
         &mesh,
         &spheres.centers,
         &spheres.radii,
-        std::slice::from_ref(&args.input),
+        std::slice::from_ref(&args.spheres),
     )?;
     stage.finish();
 
@@ -69,4 +69,33 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
         args.output.display()
     ));
     Ok(())
+}
+
+/// Reads the sphere set, dropping non-finite spheres with a warning when asked to.
+fn read_spheres(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<SphereSet> {
+    let options = ReadOptions {
+        non_finite: if args.input.drop_non_finite {
+            NonFinitePolicy::Drop
+        } else {
+            NonFinitePolicy::Refuse
+        },
+    };
+    let geometry = io::read_geometry(&args.spheres, &options)?;
+    let dropped = geometry.info.non_finite.dropped_vertices;
+    if dropped > 0 {
+        reporter.warn(&format!(
+            "{}: dropped {dropped} spheres with non-finite values",
+            args.spheres.display()
+        ));
+    }
+    let Some(radii) = geometry.radii else {
+        return Err(io::IoError::NoRadius {
+            path: args.spheres.clone(),
+        }
+        .into());
+    };
+    Ok(SphereSet {
+        centers: geometry.points.positions,
+        radii,
+    })
 }
