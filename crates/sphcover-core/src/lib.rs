@@ -16,6 +16,8 @@ pub mod local_function;
 pub mod mesh;
 pub mod partition_of_unity;
 pub mod point_cloud;
+pub mod point_index;
+pub mod surface_cover;
 
 pub use ball_index::BallIndex;
 pub use cover::{Cover, CoverError};
@@ -26,3 +28,8 @@ pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, Quadrati
 pub use mesh::TriMesh;
 pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
+pub use point_index::{PointIndex, PointIndexError};
+pub use surface_cover::{
+    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings,
+    build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,
+};
