@@ -39,8 +39,8 @@ pub enum Command {
     Skeleton(PendingArgs),
     /// Build a spherical cover of points or a volume (not available yet).
     Cover(PendingArgs),
-    /// Build the tetrahedral mesh (dual complex) of a cover (not available yet).
-    Tetra(PendingArgs),
+    /// Build the tetrahedral mesh of a cover: the dual complex of its union of balls.
+    Tetra(TetraArgs),
 }
 
 /// Arguments of `sphcover info`.
@@ -52,6 +52,25 @@ pub struct InfoArgs {
     /// Print the report as JSON instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Arguments of `sphcover tetra`.
+#[derive(Debug, Args)]
+pub struct TetraArgs {
+    /// A sphere set (`x y z r` text, or PLY with a `radius` vertex property).
+    #[arg(value_name = "SPHERES")]
+    pub input: PathBuf,
+    /// Output: `.vtk` (VTK legacy unstructured grid, opens in ParaView) or `.txt`/`.tets`
+    /// (one tetrahedron per line as four ascending support indices, rows sorted).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Radius factor σ_t applied before triangulating (thesis §3.5.2): below 1 it avoids
+    /// skinny tetrahedra near the boundary and hides fewer small spheres.
+    #[arg(long, default_value_t = 0.75, value_name = "S")]
+    pub shrink: f64,
+    /// Seed of the insertion order and point-location walks (the mesh does not depend on it).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 /// Arguments of a subcommand whose pipeline is not built yet: accepted so that the command

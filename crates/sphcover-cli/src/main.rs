@@ -36,7 +36,7 @@ fn main() -> ExitCode {
         Command::Recon(a) => commands::unavailable::run("recon", a, &reporter),
         Command::Skeleton(a) => commands::unavailable::run("skeleton", a, &reporter),
         Command::Cover(a) => commands::unavailable::run("cover", a, &reporter),
-        Command::Tetra(a) => commands::unavailable::run("tetra", a, &reporter),
+        Command::Tetra(a) => commands::tetra::run(a, &reporter),
     };
     match result {
         Ok(()) => ExitCode::from(exit::SUCCESS),

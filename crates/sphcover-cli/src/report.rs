@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 #[derive(Debug)]
 pub struct Reporter {
     verbose: u8,
+    quiet: bool,
     bars: bool,
 }
 
@@ -19,6 +20,7 @@ impl Reporter {
     pub fn new(verbose: u8, quiet: bool) -> Reporter {
         Reporter {
             verbose,
+            quiet,
             bars: !quiet && std::io::stderr().is_terminal(),
         }
     }
@@ -51,6 +53,13 @@ impl Reporter {
             reporter: self,
             name: name.to_owned(),
             start: Instant::now(),
+        }
+    }
+
+    /// The closing report of a command, printed unless `--quiet`.
+    pub fn summary(&self, message: &str) {
+        if !self.quiet {
+            eprintln!("{message}");
         }
     }
 

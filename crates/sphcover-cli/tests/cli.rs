@@ -90,7 +90,7 @@ fn info_keeps_going_past_a_bad_file_and_still_fails() {
 
 #[test]
 fn pending_subcommands_say_so_and_exit_1() {
-    for sub in ["recon", "skeleton", "cover", "tetra"] {
+    for sub in ["recon", "skeleton", "cover"] {
         let out = sphcover(&[sub, "in.ply", "-o", "out.ply"]);
         assert_eq!(out.status.code(), Some(1), "{sub}");
         assert!(text(&out.stderr).contains("not available"), "{sub}");
@@ -114,4 +114,82 @@ fn output_does_not_depend_on_the_thread_count() {
     let one = sphcover(&["--threads", "1", "info", "--json", path.to_str().unwrap()]);
     let two = sphcover(&["--threads", "2", "info", "--json", path.to_str().unwrap()]);
     assert_eq!(one.stdout, two.stdout);
+}
+
+#[test]
+fn info_reports_a_ct_volume() {
+    let path = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let out = sphcover(&["info", "--json", path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["dims"], serde_json::json!([80, 72, 56]));
+    assert_eq!(v["datatype"], "int16");
+    assert!((v["voxel_size"][0].as_f64().unwrap() - 0.1).abs() < 1e-6);
+}
+
+#[test]
+fn tetra_reproduces_the_reference_dual_complex() {
+    let input = fixture("tetra/random_3k.spheres.txt");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("random.tets");
+    let run = sphcover(&[
+        "tetra",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--shrink",
+        "1",
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let expected = std::fs::read(fixture("tetra/random_3k.tets.txt")).unwrap();
+    assert!(std::fs::read(&out).unwrap() == expected);
+}
+
+#[test]
+fn tetra_on_a_sphere_grid_writes_vtk_and_reports_the_topology() {
+    let input = fixture("grid_spheres.sph");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("grid.vtk");
+    let run = sphcover(&[
+        "tetra",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let stderr = text(&run.stderr);
+    // 4 × 4 × 4 cubes, each split into 6 tetrahedra; the union of balls is contractible.
+    assert!(stderr.contains("384 tetrahedra"), "{stderr}");
+    assert!(stderr.contains("Euler characteristic 1"), "{stderr}");
+    assert!(std::fs::read(&out).unwrap().starts_with(b"# vtk DataFile"));
+}
+
+#[test]
+fn tetra_refuses_to_overwrite_its_input_and_bad_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("s.txt");
+    std::fs::write(&input, "0 0 0 1\n1 0 0 1\n0 1 0 1\n0 0 1 1\n").unwrap();
+    let run = sphcover(&[
+        "tetra",
+        input.to_str().unwrap(),
+        "-o",
+        input.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(text(&run.stderr).contains("overwrite"));
+    assert_eq!(
+        std::fs::read_to_string(&input).unwrap(),
+        "0 0 0 1\n1 0 0 1\n0 1 0 1\n0 0 1 1\n"
+    );
+    let kitten = fixture("real/kitten.ply");
+    let out = dir.path().join("k.vtk");
+    let run = sphcover(&[
+        "tetra",
+        kitten.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(text(&run.stderr).contains("radii"));
+    assert!(!out.exists());
 }

@@ -18,6 +18,8 @@ pub mod partition_of_unity;
 pub mod point_cloud;
 pub mod point_index;
 pub mod surface_cover;
+pub mod volume;
+pub mod volume_cover;
 
 pub use ball_index::BallIndex;
 pub use cover::{Cover, CoverError};
@@ -32,4 +34,9 @@ pub use point_index::{PointIndex, PointIndexError};
 pub use surface_cover::{
     SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings,
     build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,
+};
+pub use volume::{Volume, VolumeError, VoxelValues};
+pub use volume_cover::{
+    Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
+    build_volume_cover,
 };

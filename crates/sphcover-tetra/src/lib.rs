@@ -1,9 +1,74 @@
-//! Tetrahedral meshes of a spherical cover (thesis §3.5).
+//! Tetrahedral meshes of a spherical cover (thesis §3.5): exact predicates, the 3D regular
+//! triangulation of the support centres weighted by `r²`, the dual complex of the union of
+//! balls, [`TetMesh`] with unique edges and ordered edge rings, and marching tetrahedra.
 //!
-//! This crate will hold exact adaptive predicates (orient3d and the lifted power test with
-//! symbolic perturbation), an incremental 3D regular triangulation of support centres weighted
-//! by `r²`, the dual complex of the union of balls (tetrahedra whose orthocentre has negative
-//! power), the `TetMesh` type with unique edges and cyclic edge rings, and marching tetrahedra.
+//! ```
+//! use sphcover_core::DVec3;
+//! use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex, marching_tetrahedra_scalar};
 //!
-//! It depends only on `sphcover-core`. Nothing is implemented yet, so it exposes no API.
+//! // Eight overlapping balls at the corners of a cube, one ball in the middle.
+//! let mut centers = Vec::new();
+//! for i in 0..8 {
+//!     centers.push(DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64));
+//! }
+//! centers.push(DVec3::splat(0.5));
+//! let radii = vec![0.9; centers.len()];
+//! let dc = dual_complex(&centers, &radii, &DualComplexParams { shrink: 1.0, ..Default::default() })?;
+//! assert!(!dc.tets.is_empty());
+//! let mesh = TetMesh::from_dual_complex(&dc);
+//! // The union is a ball: the dual complex is contractible.
+//! assert_eq!(mesh.euler_characteristic(), 1);
+//! // Cut the mesh by a plane through the middle.
+//! let pos: Vec<DVec3> = mesh.vertices.iter().map(|&v| centers[v as usize]).collect();
+//! let val: Vec<f64> = pos.iter().map(|p| p.z - 0.3).collect();
+//! let surface = marching_tetrahedra_scalar(&mesh, &pos, &val, None)?;
+//! assert!(surface.triangles.len() >= 2);
+//! # Ok::<(), sphcover_tetra::TetraError>(())
+//! ```
+//!
+//! # Architecture
+//!
+//! Topology is kept apart from geometry and every handle is a `u32` (the spade layout):
+//!
+//! ```text
+//! expansion ──► predicates ──► regular ──► dual_complex ──► tet_mesh ──► marching
+//!                  ▲              ▲
+//!             (exact signs)  spatial_sort (BRIO + Hilbert order, seeded RNG)
+//! ```
+//!
+//! * [`expansion`]: Shewchuk's exact floating-point expansions, and a [`expansion::Ring`]
+//!   trait so a predicate polynomial is written once and evaluated with a running error bound
+//!   or exactly.
+//! * [`predicates`]: `orient3d`, the lifted power test, the coplanar power-circle test and the
+//!   orthocentre-power sign, each exact and adaptive (static float filter, then an `i128`
+//!   stage for dyadic inputs such as grids and octrees, then expansions), with CGAL's
+//!   lexicographic symbolic perturbation for ties.
+//! * [`spatial_sort`]: the insertion order.
+//! * [`regular`]: [`RegularTriangulation`], incremental Bowyer–Watson with a remembering
+//!   stochastic walk, an infinite vertex, hidden (redundant) points; struct-of-arrays storage
+//!   (`[u32; 4]` vertices and neighbours per tetrahedron, a free list).
+//! * [`dual_complex`](mod@dual_complex): the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
+//!   `σ_t` of thesis §3.5.2.
+//! * [`tet_mesh`]: [`TetMesh`], plain arrays and CSR offsets.
+//! * [`marching`]: marching tetrahedra on a [`TetMesh`].
+//!
+//! Determinism: the same input and seed give the same output, whatever the thread count
+//! (insertion is sequential; only the per-tetrahedron filter runs in parallel, item by item).
 #![deny(missing_docs)]
+
+pub mod dual_complex;
+pub mod error;
+pub mod expansion;
+pub mod marching;
+pub mod mesh_file;
+pub mod predicates;
+pub mod regular;
+pub mod spatial_sort;
+pub mod tet_mesh;
+
+pub use dual_complex::{DualComplex, DualComplexParams, dual_complex, dual_complex_of};
+pub use error::TetraError;
+pub use marching::{IsoSurface, marching_tetrahedra, marching_tetrahedra_scalar};
+pub use mesh_file::{TetMeshFormat, write_tet_mesh};
+pub use regular::{RegularTriangulation, TriangulationParams, VertexStatus};
+pub use tet_mesh::TetMesh;

@@ -14,7 +14,33 @@ use crate::report::Reporter;
 /// in float or with few decimals, so exact unit length cannot be asked for).
 const UNIT_TOLERANCE: f64 = 1e-3;
 
-/// Everything `info` reports about one file.
+/// What `info` reports about one file: a point set or mesh, or a volume.
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+enum Report {
+    Geometry(Summary),
+    Volume(VolumeSummary),
+}
+
+/// Everything `info` reports about a volume (CT image).
+#[derive(Debug, Serialize)]
+struct VolumeSummary {
+    file: String,
+    format: String,
+    datatype: String,
+    dims: [usize; 3],
+    frames: u64,
+    voxels: usize,
+    voxel_size: [f64; 3],
+    affine_source: String,
+    world_bounding_box: BoxSummary,
+    scaling: Option<(f64, f64)>,
+    value_range: Option<(f64, f64)>,
+    non_finite_voxels: usize,
+    description: String,
+}
+
+/// Everything `info` reports about a point set or mesh.
 #[derive(Debug, Serialize)]
 struct Summary {
     file: String,
@@ -86,7 +112,11 @@ pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
     for path in &args.files {
         let stage = reporter.stage(&format!("read {}", path.display()));
         let bar = reporter.progress(None, &format!("reading {}", path.display()));
-        let result = summarise(path);
+        let result = if io::is_volume_path(path) {
+            summarise_volume(path).map(Report::Volume)
+        } else {
+            summarise(path).map(Report::Geometry)
+        };
         bar.finish_and_clear();
         stage.finish();
         match result {
@@ -95,7 +125,10 @@ pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
                     out.push_str(&serde_json::to_string_pretty(&summary)?);
                     out.push('\n');
                 } else {
-                    out.push_str(&render_text(&summary));
+                    out.push_str(&match &summary {
+                        Report::Geometry(g) => render_text(g),
+                        Report::Volume(v) => render_volume_text(v),
+                    });
                 }
             }
             Err(e) => {
@@ -156,6 +189,109 @@ fn summarise(path: &Path) -> anyhow::Result<Summary> {
         non_finite_vertices: info.non_finite.vertices,
         non_finite_values: info.non_finite.coordinates,
     })
+}
+
+fn summarise_volume(path: &Path) -> anyhow::Result<VolumeSummary> {
+    let (volume, info) = io::read_volume(path)?;
+    let dims = volume.dims();
+    let mut bbox = Aabb::EMPTY;
+    for corner in 0..8 {
+        let ijk = [0, 1, 2].map(|a| if corner >> a & 1 == 1 { dims[a] - 1 } else { 0 });
+        bbox.add(volume.voxel_center(ijk));
+    }
+    let non_finite = (0..volume.len())
+        .filter(|&i| !volume.value(i).is_finite())
+        .count();
+    Ok(VolumeSummary {
+        file: path.display().to_string(),
+        format: format!(
+            "NIfTI-{} {}{}",
+            info.version,
+            if info.big_endian {
+                "big-endian"
+            } else {
+                "little-endian"
+            },
+            if info.gzip { ", gzip" } else { "" }
+        ),
+        datatype: info.datatype.name().to_owned(),
+        dims,
+        frames: info.frames,
+        voxels: volume.len(),
+        voxel_size: volume.voxel_size().to_array(),
+        affine_source: format!("{:?}", info.affine_source),
+        world_bounding_box: BoxSummary {
+            min: bbox.min.to_array(),
+            max: bbox.max.to_array(),
+            extent: bbox.extent().to_array(),
+            diagonal: bbox.diagonal(),
+        },
+        scaling: info.scaling,
+        value_range: volume.value_range(),
+        non_finite_voxels: non_finite,
+        description: info.description.clone(),
+    })
+}
+
+fn render_volume_text(v: &VolumeSummary) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "{}", v.file);
+    let _ = writeln!(o, "  format        {} ({})", v.format, v.datatype);
+    let _ = writeln!(
+        o,
+        "  voxels        {} x {} x {} = {}{}",
+        v.dims[0],
+        v.dims[1],
+        v.dims[2],
+        v.voxels,
+        if v.frames > 1 {
+            format!(" (first of {} frames)", v.frames)
+        } else {
+            String::new()
+        }
+    );
+    let _ = writeln!(
+        o,
+        "  voxel size    {} (world axes from {})",
+        fmt_vec(v.voxel_size),
+        v.affine_source
+    );
+    let b = &v.world_bounding_box;
+    let _ = writeln!(
+        o,
+        "  voxel centres {} .. {}",
+        fmt_vec(b.min),
+        fmt_vec(b.max)
+    );
+    if let Some((slope, inter)) = v.scaling {
+        let _ = writeln!(
+            o,
+            "  scaling       value = {} * stored + {}",
+            fmt_num(slope),
+            fmt_num(inter)
+        );
+    }
+    match v.value_range {
+        Some((lo, hi)) => {
+            let _ = writeln!(o, "  values        {} .. {}", fmt_num(lo), fmt_num(hi));
+        }
+        None => {
+            let _ = writeln!(o, "  values        none finite");
+        }
+    }
+    let _ = writeln!(
+        o,
+        "  non-finite    {}",
+        if v.non_finite_voxels == 0 {
+            "none".to_owned()
+        } else {
+            format!("{} voxels", v.non_finite_voxels)
+        }
+    );
+    if !v.description.is_empty() {
+        let _ = writeln!(o, "  description   {}", v.description);
+    }
+    o
 }
 
 fn summarise_normals(normals: &[DVec3]) -> NormalSummary {

@@ -1,4 +1,5 @@
 //! One module per subcommand.
 
 pub mod info;
+pub mod tetra;
 pub mod unavailable;

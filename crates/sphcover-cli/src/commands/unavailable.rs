@@ -9,7 +9,6 @@ fn what(name: &str) -> &'static str {
         "recon" => "surface reconstruction (crate sphcover-recon)",
         "skeleton" => "skeletal-sheet extraction (crate sphcover-skeleton)",
         "cover" => "the cover builders of thesis §3.4 (sphcover-core)",
-        "tetra" => "the regular triangulation and dual complex (crate sphcover-tetra)",
         _ => "this subcommand",
     }
 }

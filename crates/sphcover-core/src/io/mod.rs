@@ -44,6 +44,8 @@ mod atomic;
 mod cover_file;
 mod encode;
 mod error;
+#[cfg(feature = "nifti")]
+mod nifti;
 mod non_finite;
 mod obj;
 mod off;
@@ -62,6 +64,10 @@ use crate::point_cloud::PointCloud;
 pub use atomic::write_atomic;
 pub use cover_file::{CoverFileMeta, parse_cover, read_cover, write_cover};
 pub use error::{IoError, Location, Problem};
+#[cfg(feature = "nifti")]
+pub use nifti::{
+    AffineSource, NiftiDatatype, NiftiInfo, is_volume_path, parse_nifti, read_nifti, read_volume,
+};
 
 /// A file format, named by the file's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

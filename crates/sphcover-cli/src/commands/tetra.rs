@@ -1,0 +1,72 @@
+//! `sphcover tetra`: the tetrahedral mesh of a cover (thesis §3.5), built as the dual complex
+//! of the union of balls on an exact regular triangulation.
+
+use sphcover_core::io::{self, ReadOptions};
+use sphcover_tetra::{DualComplexParams, TetMesh, TetMeshFormat, dual_complex, write_tet_mesh};
+
+use crate::args::TetraArgs;
+use crate::exit::BadInput;
+use crate::report::Reporter;
+
+/// Runs `sphcover tetra`.
+pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    if TetMeshFormat::from_path(&args.output).is_none() {
+        return Err(BadInput(format!(
+            "{}: the output must end in .vtk, .txt or .tets",
+            args.output.display()
+        ))
+        .into());
+    }
+    if !(args.shrink.is_finite() && args.shrink > 0.0) {
+        return Err(BadInput(format!(
+            "--shrink {} must be a positive number",
+            args.shrink
+        ))
+        .into());
+    }
+
+    let stage = reporter.stage("read spheres");
+    let spheres = io::read_spheres(&args.input, &ReadOptions::default())?;
+    stage.finish();
+    reporter.detail(&format!("  {} spheres", spheres.centers.len()));
+
+    let stage = reporter.stage("regular triangulation");
+    let bar = reporter.progress(None, "triangulating");
+    let params = DualComplexParams {
+        shrink: args.shrink,
+        seed: args.seed,
+    };
+    let complex = dual_complex(&spheres.centers, &spheres.radii, &params)
+        .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
+    bar.finish_and_clear();
+    stage.finish();
+
+    let stage = reporter.stage("edges and rings");
+    let mesh = TetMesh::from_dual_complex(&complex);
+    stage.finish();
+
+    let stage = reporter.stage("write");
+    write_tet_mesh(
+        &args.output,
+        &mesh,
+        &spheres.centers,
+        &spheres.radii,
+        std::slice::from_ref(&args.input),
+    )?;
+    stage.finish();
+
+    let t = &complex.triangulation;
+    reporter.summary(&format!(
+        "{} spheres: {} vertices, {} hidden, {} duplicate centres; dual complex: {} tetrahedra, {} edges, {} triangles, Euler characteristic {} -> {}",
+        t.points,
+        mesh.vertices.len(),
+        t.hidden,
+        t.duplicates,
+        mesh.tets.len(),
+        mesh.edges.len(),
+        mesh.num_triangles(),
+        mesh.euler_characteristic(),
+        args.output.display()
+    ));
+    Ok(())
+}

@@ -1,0 +1,829 @@
+//! Building a cover from volume data (thesis §3.4.2; the linear bounding-box variant of
+//! §6.2.3).
+//!
+//! # Algorithm
+//!
+//! Samples are the voxel centres in world coordinates with their values normalised to
+//! `[0, 1]` over the volume's finite value range; non-finite voxels are no samples. *Object
+//! points* are the voxels with value above the threshold.
+//!
+//! 1. Candidates ← object points (all voxels for [`VolumeCoverVariant::BoundingBoxLinear`]),
+//!    all uncovered, in a random order drawn from the seed.
+//! 2. The first uncovered candidate in that order becomes a centre `c` (this picks uniformly
+//!    among the uncovered, as the thesis asks). Its radius is the largest `r ∈ [r_min, r_max]`
+//!    with `E(r) ≤ ε`, where `E(r)` is the RMS residual of the least-squares local function
+//!    (quadratic: 10 coefficients; linear: 4) over all samples within `r`, solved in the
+//!    centred, scaled coordinates `(x − c)/r`. The sample set only changes where `r` crosses
+//!    a shell of voxel centres at equal distance, so the search runs over shells: it grows
+//!    the radius by factors of 1.5 until `E > ε` (or `r_max`), then bisects between the
+//!    last good and the first bad shell (the thesis' bisection, assuming like it that `E`
+//!    grows with `r`). The final radius lies halfway between the accepted shell and the next
+//!    one, so no sample sits on a support's sphere. When even `r_min` misses `ε` (steep
+//!    edges), the search bisects below `r_min`, down to the smallest ball holding
+//!    `min_samples` samples (default 15, MPU's `N_min`; an isotropic grid then keeps the
+//!    19-voxel neighbourhood of radius √2 voxels for the 10 quadratic coefficients). A
+//!    centre whose smallest ball still misses `ε` keeps that ball and is counted in
+//!    [`VolumeCoverStats::above_tolerance`].
+//! 3. Covering check (thesis Fig. 3.12): with `S` the object points (all grid points for the
+//!    linear variant) inside the new ball, a point of `S` is marked covered when it is not a
+//!    vertex of the convex hull of `S`. Computing a 3D hull per support is replaced by an
+//!    exact-where-it-answers test: `p` is not a hull vertex when `p − e` and `p + e` both lie
+//!    in `S` for some lattice step `e` (then `p` is their midpoint). The steps tried are the
+//!    49 primitive integer directions with coordinates in `{−2, …, 2}`. Points the test
+//!    cannot decide stay uncovered, as true hull vertices do, so the test only ever leaves
+//!    *more* candidates, never a gap. The centre itself is always marked covered, which
+//!    guarantees progress (a centre on a corner of the object is a hull vertex).
+//! 4. Repeat until no candidate is uncovered.
+//!
+//! # No object point is left outside the cover
+//!
+//! Every object point ends covered, and is covered only in two ways: as a centre (distance 0
+//! from its own centre), or as the midpoint of two points `p ± e` of the ball's closed
+//! sample set. In the latter case, with `L` the voxel→world linear map,
+//! `‖p − c‖² = (‖p + e − c‖² + ‖p − e − c‖²)/2 − ‖Le‖² ≤ s² − ‖Le‖² < r²` (parallelogram law,
+//! `s ≤ r` the accepted shell): the point lies strictly inside the open ball, where every
+//! kernel weight is positive. Radii are at least `r_min` (by default the voxel diagonal, so
+//! that a ball holds the whole 3×3×3 neighbourhood of its centre) except at steep edges
+//! where that ball misses `ε`; the argument above does not depend on the radius.
+//!
+//! # Compactness
+//!
+//! With the thesis' `ε = 5 %`, a quadratic follows the intensity profile across a plate of
+//! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, so such plates get
+//! about one support per 8 object voxels; an 8-voxel plate at `ε = 10 %` gets one per 40.
+//!
+//! # Radii
+//!
+//! `r_max` defaults to the object's maximum thickness, twice the largest distance from an
+//! object voxel to a background voxel centre (exact Euclidean distance transform with the
+//! voxel edge lengths as spacing; exact for orthogonal voxel axes), capped at
+//! [`VolumeCoverParams::max_radius_voxels`] voxel diagonals to bound the work per support.
+//! A volume with no background voxel uses half its diagonal before the cap.
+//!
+//! # Determinism
+//!
+//! A support's radius and function depend on its centre only, so the fits of the next few
+//! uncovered candidates run in parallel ahead of time; the covering check then runs in
+//! candidate order and drops the speculative fits whose centre got covered meanwhile. The
+//! result is that of the sequential algorithm, bit for bit, whatever the thread count.
+
+mod distance_transform;
+mod fit;
+
+use std::time::{Duration, Instant};
+
+use glam::{DMat3, DVec3};
+use rand::RngCore;
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+
+use crate::cover::{Cover, CoverError};
+use crate::kernel::Kernel;
+use crate::local_function::{LinearFunction, LocalFunctions, QuadraticFunction};
+use crate::volume::Volume;
+use fit::{LINEAR, NormalEquations, QUADRATIC};
+
+/// The threshold that selects the object points `v > T`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Threshold {
+    /// In the volume's own units (e.g. Hounsfield units after `scl_slope`/`scl_inter`).
+    Raw(f64),
+    /// As a fraction of the value range: `T = min + t·(max − min)`, `t ∈ [0, 1)`. `0`
+    /// selects every voxel above the minimum (the thesis' "T = 0 covers everything").
+    Normalised(f64),
+}
+
+impl Default for Threshold {
+    fn default() -> Threshold {
+        Threshold::Normalised(0.5)
+    }
+}
+
+/// Which cover to build.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VolumeCoverVariant {
+    /// Quadratic local functions centred at object points (thesis §3.4.2).
+    #[default]
+    ObjectQuadratic,
+    /// Linear local functions centred anywhere in the grid's bounding box, covering checked
+    /// with every grid point of the ball (thesis §6.2.3, the input of derivative smoothing).
+    BoundingBoxLinear,
+}
+
+/// Parameters of [`build_volume_cover`]. `Default` gives the thesis defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeCoverParams {
+    /// Object points are the voxels with a value above this.
+    pub threshold: Threshold,
+    /// Error tolerance ε as a fraction of the value range (the RMS residual on normalised
+    /// values); thesis default 5 %.
+    pub tolerance: f64,
+    /// Smallest radius in world units; `None`: the voxel diagonal.
+    pub r_min: Option<f64>,
+    /// Largest radius in world units; `None`: the object's maximum thickness from a distance
+    /// transform (see the module documentation).
+    pub r_max: Option<f64>,
+    /// Cap on the default `r_max`, in voxel diagonals (bounds the work per support on thick
+    /// objects; an explicit `r_max` is not capped).
+    pub max_radius_voxels: f64,
+    /// Fewest samples a fit uses; the radius grows beyond `r_min` until it has them.
+    pub min_samples: usize,
+    /// Which cover to build.
+    pub variant: VolumeCoverVariant,
+    /// The weight kernel stored in the cover (thesis default: truncated Gaussian).
+    pub kernel: Kernel,
+    /// Seed of the order in which candidates become centres.
+    pub seed: u64,
+}
+
+impl Default for VolumeCoverParams {
+    fn default() -> VolumeCoverParams {
+        VolumeCoverParams {
+            threshold: Threshold::default(),
+            tolerance: 0.05,
+            r_min: None,
+            r_max: None,
+            max_radius_voxels: 16.0,
+            min_samples: 15,
+            variant: VolumeCoverVariant::default(),
+            kernel: Kernel::TruncatedGaussian,
+            seed: 0,
+        }
+    }
+}
+
+/// What [`build_volume_cover`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VolumeCoverStats {
+    /// Smallest and largest finite voxel value (the normalisation: the cover's functions
+    /// approximate `(v − min)/(max − min)`).
+    pub value_range: (f64, f64),
+    /// The threshold in normalised units.
+    pub threshold_normalised: f64,
+    /// Voxels above the threshold.
+    pub object_points: usize,
+    /// Voxels that were candidates (object points, or every voxel for the linear variant).
+    pub candidates: usize,
+    /// Supports in the cover.
+    pub supports: usize,
+    /// Radius bounds used (world units).
+    pub r_min: f64,
+    /// See `r_min`.
+    pub r_max: f64,
+    /// Maximum thickness from the distance transform, when it was computed (world units).
+    pub thickness: Option<f64>,
+    /// Smallest, mean and largest support radius.
+    pub radius_min: f64,
+    /// See `radius_min`.
+    pub radius_mean: f64,
+    /// See `radius_min`.
+    pub radius_max: f64,
+    /// Largest RMS residual of a support on normalised values (summed directly).
+    pub max_rms: f64,
+    /// Supports whose smallest admissible ball already exceeds ε.
+    pub above_tolerance: usize,
+    /// Fits computed, including speculative ones dropped because their centre got covered.
+    pub fits: usize,
+    /// Time spent in the distance transform.
+    pub time_distance_transform: Duration,
+    /// Time spent fitting and covering.
+    pub time_cover: Duration,
+}
+
+/// Why a volume cover could not be built.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum VolumeCoverError {
+    /// The volume has a single voxel: nothing to fit.
+    #[error("the volume has a single voxel")]
+    SingleVoxel,
+    /// No voxel value is finite.
+    #[error("no voxel value is finite")]
+    NoFiniteValue,
+    /// Every finite voxel has the same value: the normalisation is undefined.
+    #[error("the volume is constant (every voxel is {value})")]
+    ConstantVolume {
+        /// The value.
+        value: f64,
+    },
+    /// The threshold selects no voxel.
+    #[error("threshold {threshold} selects no voxel (values range over [{min}, {max}])")]
+    NoObjectPoint {
+        /// The threshold in the volume's units.
+        threshold: f64,
+        /// Smallest finite value.
+        min: f64,
+        /// Largest finite value.
+        max: f64,
+    },
+    /// A parameter is out of its domain.
+    #[error("parameter {name} = {value} is invalid: {reason}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        reason: &'static str,
+    },
+    /// The volume has more voxels than `u32` indices reach.
+    #[error("{voxels} voxels exceed the u32 index range")]
+    TooManyVoxels {
+        /// Number of voxels.
+        voxels: usize,
+    },
+    /// The cover could not be assembled (a non-finite fit: not expected).
+    #[error(transparent)]
+    Cover(#[from] CoverError),
+}
+
+/// Builds a cover of the object in `volume` (or of the whole grid, for the linear variant)
+/// by balls carrying local least-squares fits of the normalised intensities. See the module
+/// documentation for the algorithm and its guarantees.
+pub fn build_volume_cover(
+    volume: &Volume,
+    params: &VolumeCoverParams,
+) -> Result<(Cover, VolumeCoverStats), VolumeCoverError> {
+    let n = volume.len();
+    if n == 1 {
+        return Err(VolumeCoverError::SingleVoxel);
+    }
+    if u32::try_from(n).is_err() {
+        return Err(VolumeCoverError::TooManyVoxels { voxels: n });
+    }
+    check_params(params)?;
+    let (lo, hi) = volume
+        .value_range()
+        .ok_or(VolumeCoverError::NoFiniteValue)?;
+    if lo == hi {
+        return Err(VolumeCoverError::ConstantVolume { value: lo });
+    }
+    let threshold = match params.threshold {
+        Threshold::Raw(t) => t,
+        Threshold::Normalised(t) => lo + t * (hi - lo),
+    };
+    let is_object = |idx: usize| volume.value(idx) > threshold;
+    let object: Vec<bool> = (0..n).into_par_iter().map(is_object).collect();
+    let object_points = object.iter().filter(|&&o| o).count();
+    if object_points == 0 {
+        return Err(VolumeCoverError::NoObjectPoint {
+            threshold,
+            min: lo,
+            max: hi,
+        });
+    }
+
+    let diagonal = volume.voxel_diagonal();
+    let r_min = params.r_min.unwrap_or(diagonal);
+    let start = Instant::now();
+    let (r_max, thickness) = match params.r_max {
+        Some(r) => (r, None),
+        None => {
+            let t = max_thickness(volume, &object);
+            let cap = params.max_radius_voxels * diagonal;
+            let r = if t.is_finite() {
+                t
+            } else {
+                0.5 * grid_diagonal(volume)
+            };
+            (r.min(cap).max(r_min), t.is_finite().then_some(t))
+        }
+    };
+    if r_max < r_min {
+        return Err(VolumeCoverError::InvalidParameter {
+            name: "r_max",
+            value: r_max,
+            reason: "must be at least r_min",
+        });
+    }
+    let time_distance_transform = start.elapsed();
+
+    let start = Instant::now();
+    let grid = Grid::new(volume, lo, hi, r_min, r_max, &object, params);
+    let mut stats = VolumeCoverStats {
+        value_range: (lo, hi),
+        threshold_normalised: (threshold - lo) / (hi - lo),
+        object_points,
+        r_min,
+        r_max,
+        thickness,
+        time_distance_transform,
+        ..VolumeCoverStats::default()
+    };
+    let supports = match params.variant {
+        VolumeCoverVariant::ObjectQuadratic => grid.cover::<QUADRATIC>(params, &mut stats),
+        VolumeCoverVariant::BoundingBoxLinear => grid.cover::<LINEAR>(params, &mut stats),
+    };
+    stats.supports = supports.len();
+    let centers: Vec<DVec3> = supports
+        .iter()
+        .map(|s| volume.voxel_center(volume.ijk(s.center as usize)))
+        .collect();
+    let radii: Vec<f64> = supports.iter().map(|s| s.radius).collect();
+    stats.radius_min = radii.iter().copied().fold(f64::INFINITY, f64::min);
+    stats.radius_max = radii.iter().copied().fold(0.0, f64::max);
+    stats.radius_mean = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
+    stats.max_rms = supports.iter().map(|s| s.rms).fold(0.0, f64::max);
+    stats.above_tolerance = supports.iter().filter(|s| s.rms > params.tolerance).count();
+    let funcs = match params.variant {
+        VolumeCoverVariant::ObjectQuadratic => {
+            LocalFunctions::from_quadratic(supports.iter().map(|s| s.quadratic()))
+        }
+        VolumeCoverVariant::BoundingBoxLinear => {
+            LocalFunctions::from_linear(supports.iter().map(|s| s.linear()))
+        }
+    };
+    let cover = Cover::new(centers, radii, funcs, params.kernel)?;
+    stats.time_cover = start.elapsed();
+    Ok((cover, stats))
+}
+
+fn check_params(p: &VolumeCoverParams) -> Result<(), VolumeCoverError> {
+    let bad = |name, value, reason| {
+        Err(VolumeCoverError::InvalidParameter {
+            name,
+            value,
+            reason,
+        })
+    };
+    if !(p.tolerance.is_finite() && p.tolerance > 0.0) {
+        return bad("tolerance", p.tolerance, "must be finite and positive");
+    }
+    for (name, r) in [("r_min", p.r_min), ("r_max", p.r_max)] {
+        if let Some(r) = r
+            && !(r.is_finite() && r > 0.0)
+        {
+            return bad(name, r, "must be finite and positive");
+        }
+    }
+    if !(p.max_radius_voxels.is_finite() && p.max_radius_voxels >= 1.0) {
+        return bad(
+            "max_radius_voxels",
+            p.max_radius_voxels,
+            "must be at least 1",
+        );
+    }
+    match p.threshold {
+        Threshold::Raw(t) if t.is_nan() => bad("threshold", t, "must not be NaN"),
+        Threshold::Normalised(t) if !(0.0..1.0).contains(&t) => {
+            bad("threshold", t, "a normalised threshold lies in [0, 1)")
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Twice the largest distance from an object voxel to a background voxel centre; `+∞` with
+/// no background voxel.
+fn max_thickness(volume: &Volume, object: &[bool]) -> f64 {
+    let size = volume.voxel_size();
+    let d2 = distance_transform::squared_distance_to_background(
+        volume.dims(),
+        [size.x, size.y, size.z],
+        |i| !object[i],
+    );
+    let max = d2
+        .par_iter()
+        .zip(object)
+        .filter(|&(_, &o)| o)
+        .map(|(&d, _)| d)
+        .reduce(|| 0.0, f64::max);
+    2.0 * max.sqrt()
+}
+
+fn grid_diagonal(volume: &Volume) -> f64 {
+    let [nx, ny, nz] = volume.dims();
+    let far = DVec3::new(nx as f64 - 1.0, ny as f64 - 1.0, nz as f64 - 1.0);
+    (volume.affine().matrix3 * far).length()
+}
+
+/// A lattice offset from a centre voxel with its position in the frame `d/h`.
+#[derive(Clone, Copy, Debug)]
+struct Offset {
+    step: [i32; 3],
+    p: [f64; 3],
+}
+
+/// One accepted support (or a speculative fit).
+#[derive(Clone, Copy, Debug)]
+struct Support {
+    center: u32,
+    radius: f64,
+    /// Squared distance (frame `d/h`) of the outermost shell inside the ball.
+    shell_d2: f64,
+    /// Number of offsets (in table order) inside the ball.
+    offsets: usize,
+    /// Coefficients in the frame `u = (x − c)/r`, constant term relative to `shift`.
+    coef: [f64; QUADRATIC],
+    shift: f64,
+    rms: f64,
+}
+
+impl Support {
+    fn quadratic(&self) -> QuadraticFunction {
+        let c = &self.coef;
+        let (s1, s2) = (1.0 / self.radius, 1.0 / (self.radius * self.radius));
+        let (xy, yz, xz) = (0.5 * c[7] * s2, 0.5 * c[8] * s2, 0.5 * c[9] * s2);
+        QuadraticFunction {
+            a: DMat3::from_cols(
+                DVec3::new(c[4] * s2, xy, xz),
+                DVec3::new(xy, c[5] * s2, yz),
+                DVec3::new(xz, yz, c[6] * s2),
+            ),
+            b: DVec3::new(c[1], c[2], c[3]) * s1,
+            k: c[0] + self.shift,
+        }
+    }
+
+    fn linear(&self) -> LinearFunction {
+        let c = &self.coef;
+        LinearFunction {
+            alpha: DVec3::new(c[1], c[2], c[3]) / self.radius,
+            beta: c[0] + self.shift,
+        }
+    }
+}
+
+/// The sampling grid and everything shared by the fits.
+struct Grid<'a> {
+    volume: &'a Volume,
+    dims: [i64; 3],
+    lo: f64,
+    inv_range: f64,
+    object: &'a [bool],
+    /// `h`: the unit of the fixed frame (the voxel diagonal).
+    unit: f64,
+    /// The voxel→world linear map divided by `h`.
+    linear: DMat3,
+    /// Lattice offsets within `r_max`, by increasing distance.
+    offsets: Vec<Offset>,
+    /// Shells: `(squared distance in frame d/h, end index in offsets)`, increasing.
+    shells: Vec<(f64, usize)>,
+    r_min: f64,
+    r_max: f64,
+    /// Index of the last shell within `r_min`.
+    first_shell: usize,
+    tolerance: f64,
+    min_samples: usize,
+    /// Lattice steps for the hull test, shortest first.
+    steps: Vec<([i32; 3], DVec3)>,
+    bounding_box: bool,
+}
+
+impl<'a> Grid<'a> {
+    fn new(
+        volume: &'a Volume,
+        lo: f64,
+        hi: f64,
+        r_min: f64,
+        r_max: f64,
+        object: &'a [bool],
+        params: &VolumeCoverParams,
+    ) -> Grid<'a> {
+        let dims = volume.dims().map(|d| d as i64);
+        let unit = volume.voxel_diagonal();
+        let linear = volume.affine().matrix3 * (1.0 / unit);
+        // The box of lattice offsets that can reach r_max: |step_a| ≤ R·‖row a of L⁻¹‖.
+        let inv = linear.inverse();
+        let reach = r_max / unit;
+        let rows = inv.transpose();
+        let ext =
+            [rows.x_axis, rows.y_axis, rows.z_axis].map(|row| (reach * row.length()).ceil() as i32);
+        let mut offsets = Vec::new();
+        let r2 = reach * reach;
+        for k in -ext[2]..=ext[2] {
+            for j in -ext[1]..=ext[1] {
+                for i in -ext[0]..=ext[0] {
+                    let p = linear * DVec3::new(i as f64, j as f64, k as f64);
+                    if p.length_squared() <= r2 {
+                        offsets.push(Offset {
+                            step: [i, j, k],
+                            p: p.to_array(),
+                        });
+                    }
+                }
+            }
+        }
+        let d2 = |o: &Offset| o.p[0] * o.p[0] + o.p[1] * o.p[1] + o.p[2] * o.p[2];
+        offsets.sort_by(|a, b| {
+            d2(a)
+                .total_cmp(&d2(b))
+                .then_with(|| a.step[2].cmp(&b.step[2]))
+                .then_with(|| a.step[1].cmp(&b.step[1]))
+                .then_with(|| a.step[0].cmp(&b.step[0]))
+        });
+        // Offsets at the same true distance can differ in the last bits of their computed
+        // distance (summation order): a shell gathers every offset within a relative 1e-9
+        // of its first one, and keeps the largest computed distance.
+        let mut shells: Vec<(f64, usize)> = Vec::new();
+        let mut shell_start = f64::NEG_INFINITY;
+        for (idx, o) in offsets.iter().enumerate() {
+            let d = d2(o);
+            match shells.last_mut() {
+                Some(last) if d <= shell_start * (1.0 + 1e-9) => *last = (d, idx + 1),
+                _ => {
+                    shell_start = d;
+                    shells.push((d, idx + 1));
+                }
+            }
+        }
+        let rmin2 = (r_min / unit) * (r_min / unit);
+        let first_shell = shells.iter().rposition(|&(d, _)| d <= rmin2).unwrap_or(0);
+        let mut steps: Vec<([i32; 3], DVec3)> = Vec::new();
+        for k in -2i32..=2 {
+            for j in -2i32..=2 {
+                for i in -2i32..=2 {
+                    let s = [i, j, k];
+                    let first_nonzero = s.iter().copied().find(|&c| c != 0);
+                    let primitive = gcd(gcd(i.abs(), j.abs()), k.abs()) == 1;
+                    if first_nonzero.is_some_and(|c| c > 0) && primitive {
+                        steps.push((s, linear * DVec3::new(i as f64, j as f64, k as f64)));
+                    }
+                }
+            }
+        }
+        steps.sort_by(|a, b| {
+            a.1.length_squared()
+                .total_cmp(&b.1.length_squared())
+                .then_with(|| a.0.cmp(&b.0))
+        });
+        Grid {
+            volume,
+            dims,
+            lo,
+            inv_range: 1.0 / (hi - lo),
+            object,
+            unit,
+            linear,
+            offsets,
+            shells,
+            r_min,
+            r_max,
+            first_shell,
+            tolerance: params.tolerance,
+            min_samples: params.min_samples,
+            steps,
+            bounding_box: params.variant == VolumeCoverVariant::BoundingBoxLinear,
+        }
+    }
+
+    /// The voxel at `base + step`, if inside the grid.
+    #[inline]
+    fn neighbour(&self, base: [i64; 3], step: [i32; 3]) -> Option<usize> {
+        let i = base[0] + i64::from(step[0]);
+        let j = base[1] + i64::from(step[1]);
+        let k = base[2] + i64::from(step[2]);
+        let [nx, ny, nz] = self.dims;
+        if i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz {
+            return None;
+        }
+        Some((i + nx * (j + ny * k)) as usize)
+    }
+
+    /// The normalised value of a voxel, `None` when not finite.
+    #[inline]
+    fn sample(&self, idx: usize) -> Option<f64> {
+        let v = (self.volume.value(idx) - self.lo) * self.inv_range;
+        v.is_finite().then_some(v)
+    }
+
+    fn base(&self, idx: usize) -> [i64; 3] {
+        self.volume.ijk(idx).map(|c| c as i64)
+    }
+
+    /// The ball radius for shell `s`: halfway to the next shell, within `[r_min, r_max]`.
+    fn radius_of_shell(&self, s: usize) -> f64 {
+        let here = self.shells[s].0.sqrt() * self.unit;
+        let r = match self.shells.get(s + 1) {
+            Some(&(next, _)) => 0.5 * (here + next.sqrt() * self.unit),
+            None => self.r_max,
+        };
+        let r = if s >= self.first_shell {
+            r.max(self.r_min)
+        } else {
+            r
+        };
+        r.min(self.r_max).max(here)
+    }
+
+    /// Fits the support centred at voxel `center` (a pure function of `center`).
+    fn fit<const N: usize>(&self, center: usize) -> Support {
+        let base = self.base(center);
+        let shift = self.sample(center).unwrap_or(0.0);
+        let mut acc = NormalEquations::<N>::new();
+        let mut next_offset = 0;
+        // Accumulates shells up to `s` into `acc` (which holds shells below `next_offset`).
+        let extend = |acc: &mut NormalEquations<N>, next_offset: &mut usize, s: usize| {
+            let end = self.shells[s].1;
+            for o in &self.offsets[*next_offset..end] {
+                if let Some(idx) = self.neighbour(base, o.step)
+                    && let Some(v) = self.sample(idx)
+                {
+                    acc.add(o.p, v - shift);
+                }
+            }
+            *next_offset = end;
+        };
+        let last = self.shells.len() - 1;
+        // The smallest ball with min_samples samples, and the start: r_min or that ball.
+        let mut floor = 0;
+        extend(&mut acc, &mut next_offset, floor);
+        while acc.count() < self.min_samples && floor < last {
+            floor += 1;
+            extend(&mut acc, &mut next_offset, floor);
+        }
+        let floor_acc = acc;
+        let s = floor.max(self.first_shell);
+        extend(&mut acc, &mut next_offset, s);
+        let solve = |acc: &NormalEquations<N>, s: usize| {
+            let r = self.radius_of_shell(s);
+            acc.solve(self.unit / r)
+                .map(|(c, e)| (c, e, r))
+                .unwrap_or(([0.0; N], 0.0, r))
+        };
+        // The largest good shell between a good `good.0` and a bad `hi` (E assumed to grow
+        // with r).
+        let bisect = |mut good: (usize, ([f64; N], f64, f64), NormalEquations<N>),
+                      mut hi: usize| {
+            while hi - good.0 > 1 {
+                let mid = good.0 + (hi - good.0) / 2;
+                let mut trial = good.2;
+                let mut trial_next = self.shells[good.0].1;
+                extend(&mut trial, &mut trial_next, mid);
+                let res = solve(&trial, mid);
+                if res.1 <= self.tolerance {
+                    good = (mid, res, trial);
+                } else {
+                    hi = mid;
+                }
+            }
+            good
+        };
+        let mut good = (s, solve(&acc, s), acc);
+        if good.1.1 > self.tolerance && s > floor {
+            // Even r_min misses ε: bisect below it, down to the smallest ball with
+            // min_samples samples (kept, over ε, when that misses too).
+            good = (floor, solve(&floor_acc, floor), floor_acc);
+            if good.1.1 <= self.tolerance {
+                good = bisect(good, s);
+            }
+        } else if good.1.1 <= self.tolerance {
+            // Gallop outward by radius factors of 1.5 until the error exceeds ε.
+            let mut bad = None;
+            while good.0 < last {
+                let target = self.radius_of_shell(good.0) * 1.5 / self.unit;
+                let t2 = target * target;
+                let mut probe = good.0 + 1;
+                while probe < last && self.shells[probe + 1].0 <= t2 {
+                    probe += 1;
+                }
+                extend(&mut acc, &mut next_offset, probe);
+                let res = solve(&acc, probe);
+                if res.1 <= self.tolerance {
+                    good = (probe, res, acc);
+                } else {
+                    bad = Some(probe);
+                    break;
+                }
+            }
+            // Bisect between the last good and the first bad shell.
+            if let Some(hi) = bad {
+                good = bisect(good, hi);
+            }
+        }
+        let (shell, (c, _, radius), _) = good;
+        let mut coef = [0.0; QUADRATIC];
+        coef[..N].copy_from_slice(&c);
+        let end = self.shells[shell].1;
+        let rms = self.direct_rms::<N>(base, end, &c, radius, shift);
+        Support {
+            center: center as u32,
+            radius,
+            shell_d2: self.shells[shell].0,
+            offsets: end,
+            coef,
+            shift,
+            rms,
+        }
+    }
+
+    /// RMS residual summed sample by sample (what the statistics report).
+    fn direct_rms<const N: usize>(
+        &self,
+        base: [i64; 3],
+        end: usize,
+        c: &[f64; N],
+        radius: f64,
+        shift: f64,
+    ) -> f64 {
+        let scale = self.unit / radius;
+        let (mut sum, mut count) = (0.0, 0usize);
+        for o in &self.offsets[..end] {
+            if let Some(idx) = self.neighbour(base, o.step)
+                && let Some(v) = self.sample(idx)
+            {
+                let u = [o.p[0] * scale, o.p[1] * scale, o.p[2] * scale];
+                let r = fit::evaluate(c, u) - (v - shift);
+                sum += r * r;
+                count += 1;
+            }
+        }
+        (sum / count.max(1) as f64).sqrt()
+    }
+
+    /// Marks the points of the new support's `S` that are midpoints of two other points of
+    /// `S`, and the centre, as covered.
+    fn mark_covered(&self, s: &Support, covered: &mut [bool]) {
+        let base = self.base(s.center as usize);
+        covered[s.center as usize] = true;
+        let in_set = |o: [i32; 3]| -> bool {
+            let Some(idx) = self.neighbour(base, o) else {
+                return false;
+            };
+            if !(self.bounding_box || self.object[idx]) {
+                return false;
+            }
+            let p = self.linear * DVec3::new(o[0] as f64, o[1] as f64, o[2] as f64);
+            p.length_squared() <= s.shell_d2
+        };
+        for o in &self.offsets[..s.offsets] {
+            let Some(idx) = self.neighbour(base, o.step) else {
+                continue;
+            };
+            if covered[idx] || !(self.bounding_box || self.object[idx]) {
+                continue;
+            }
+            let interior = self.steps.iter().any(|(e, _)| {
+                let plus = [o.step[0] + e[0], o.step[1] + e[1], o.step[2] + e[2]];
+                let minus = [o.step[0] - e[0], o.step[1] - e[1], o.step[2] - e[2]];
+                in_set(plus) && in_set(minus)
+            });
+            if interior {
+                covered[idx] = true;
+            }
+        }
+    }
+
+    /// The covering loop; returns the accepted supports in order.
+    fn cover<const N: usize>(
+        &self,
+        params: &VolumeCoverParams,
+        stats: &mut VolumeCoverStats,
+    ) -> Vec<Support> {
+        let n = self.volume.len();
+        let mut order: Vec<u32> = if self.bounding_box {
+            (0..n as u32).collect()
+        } else {
+            (0..n as u32).filter(|&i| self.object[i as usize]).collect()
+        };
+        stats.candidates = order.len();
+        shuffle(&mut order, params.seed);
+        let mut covered = vec![false; n];
+        let mut supports = Vec::new();
+        let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
+        let mut pos = 0;
+        let mut batch = Vec::with_capacity(batch_size);
+        while pos < order.len() {
+            batch.clear();
+            while pos < order.len() && batch.len() < batch_size {
+                let c = order[pos] as usize;
+                pos += 1;
+                if !covered[c] {
+                    batch.push(c);
+                }
+            }
+            let fits: Vec<Support> = batch.par_iter().map(|&c| self.fit::<N>(c)).collect();
+            stats.fits += fits.len();
+            for s in fits {
+                if covered[s.center as usize] {
+                    continue;
+                }
+                self.mark_covered(&s, &mut covered);
+                supports.push(s);
+            }
+        }
+        supports
+    }
+}
+
+fn gcd(a: i32, b: i32) -> i32 {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// Fisher–Yates with Lemire's unbiased bounded integers on PCG-64: portable across `rand`
+/// versions, unlike `SliceRandom::shuffle`.
+fn shuffle(items: &mut [u32], seed: u64) {
+    let mut rng = Pcg64::new(
+        0xcafe_f00d_d15e_a5e5 ^ u128::from(seed),
+        0x0a02_bdbf_7bb3_c0a7_ac28_fa16_a64a_bf96,
+    );
+    for i in (1..items.len()).rev() {
+        let bound = i as u64 + 1;
+        let j = loop {
+            let m = u128::from(rng.next_u64()) * u128::from(bound);
+            let low = m as u64;
+            if low >= bound.wrapping_neg() % bound {
+                break (m >> 64) as usize;
+            }
+        };
+        items.swap(i, j);
+    }
+}

@@ -1,0 +1,36 @@
+//! Criterion benchmark: dual complex (triangulation + filter) of an adaptive octree cover of
+//! a torus. `SPHCOVER_BENCH_LARGE=1` adds the 1M-sphere case (about 10 s per iteration on
+//! a loaded 2-core machine).
+
+#[path = "../examples/common/octree_torus.rs"]
+mod octree_torus;
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use octree_torus::octree_torus_cover_of_size;
+use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex};
+
+fn bench(c: &mut Criterion) {
+    let mut sizes = vec![100_000usize];
+    if std::env::var_os("SPHCOVER_BENCH_LARGE").is_some() {
+        sizes.push(1_000_000);
+    }
+    let mut group = c.benchmark_group("octree_torus");
+    group.sample_size(10);
+    for n in sizes {
+        let (_, _, centers, radii) = octree_torus_cover_of_size(n);
+        let params = DualComplexParams::default();
+        group.bench_with_input(
+            BenchmarkId::new("dual_complex", centers.len()),
+            &(&centers, &radii),
+            |b, (c, r)| b.iter(|| dual_complex(c, r, &params).expect("cover")),
+        );
+        let dc = dual_complex(&centers, &radii, &params).expect("cover");
+        group.bench_with_input(BenchmarkId::new("tet_mesh", centers.len()), &dc, |b, dc| {
+            b.iter(|| TetMesh::from_dual_complex(dc))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

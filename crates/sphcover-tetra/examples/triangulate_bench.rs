@@ -1,0 +1,94 @@
+//! Times the dual complex of an adaptive octree cover of a torus.
+//!
+//! `cargo run --release -p sphcover-tetra --example triangulate_bench -- N [shrink]` builds the
+//! smallest octree cover with at least `N` supports, triangulates it (radius shrink
+//! `shrink`, default 0.75), filters the dual complex, builds the `TetMesh`, and prints the
+//! times, the counts, the process CPU time and the peak resident memory (VmHWM).
+
+#[path = "common/octree_torus.rs"]
+mod octree_torus;
+
+use std::time::Instant;
+
+use octree_torus::octree_torus_cover_of_size;
+use sphcover_tetra::{RegularTriangulation, TetMesh, TriangulationParams, dual_complex_of};
+
+fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// User + system CPU seconds of this process (`/proc/self/stat`, clock ticks of 1/100 s).
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = stat.rsplit_once(')')?.1;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
+    let shrink: f64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(0.75);
+    let (depth, band, centers, radii) = octree_torus_cover_of_size(n);
+    let base_memory = peak_memory_bytes().unwrap_or(0);
+    println!(
+        "octree torus cover: depth {depth}, band {band:.3}, {} supports, shrink {shrink}",
+        centers.len()
+    );
+    let points: Vec<[f64; 3]> = centers.iter().map(|c| c.to_array()).collect();
+    let weights: Vec<f64> = radii.iter().map(|r| (r * shrink) * (r * shrink)).collect();
+    let c0 = cpu_seconds().unwrap_or(0.0);
+    let t0 = Instant::now();
+    let tri = RegularTriangulation::new(&points, &weights, &TriangulationParams::default())
+        .expect("triangulation");
+    let t1 = Instant::now();
+    let c1 = cpu_seconds().unwrap_or(0.0);
+    let dc = dual_complex_of(&tri);
+    let t2 = Instant::now();
+    let c2 = cpu_seconds().unwrap_or(0.0);
+    let s = tri.stats();
+    println!(
+        "triangulation: {:.3} s ({} vertices, {} hidden, {} finite tets, {:.1} walk steps/point, {:.1} conflict tets/point)",
+        (t1 - t0).as_secs_f64(),
+        s.vertices,
+        s.hidden,
+        s.finite_tets,
+        s.walk_steps as f64 / s.points as f64,
+        s.conflict_tets as f64 / s.points as f64
+    );
+    println!(
+        "filter: {:.3} s ({} dual tets)",
+        (t2 - t1).as_secs_f64(),
+        dc.tets.len()
+    );
+    println!(
+        "triangulate + filter: {:.3} s wall, {:.2} s CPU (triangulation {:.2} s CPU, filter {:.2} s CPU)",
+        (t2 - t0).as_secs_f64(),
+        c2 - c0,
+        c1 - c0,
+        c2 - c1
+    );
+    drop(tri);
+    let t3 = Instant::now();
+    let mesh = TetMesh::from_dual_complex(&dc);
+    println!(
+        "tet mesh: {:.3} s ({} vertices, {} edges, {} tets)",
+        t3.elapsed().as_secs_f64(),
+        mesh.vertices.len(),
+        mesh.edges.len(),
+        mesh.tets.len()
+    );
+    println!("tet mesh CPU: {:.2} s", cpu_seconds().unwrap_or(0.0) - c2);
+    if let Some(peak) = peak_memory_bytes() {
+        println!(
+            "peak memory {:.1} MB ({:.0} bytes per sphere above the cover itself)",
+            peak as f64 / 1e6,
+            (peak - base_memory) as f64 / centers.len() as f64
+        );
+    }
+}

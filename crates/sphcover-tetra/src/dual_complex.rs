@@ -1,0 +1,153 @@
+//! The dual complex of a cover: the tetrahedra of the regular triangulation of the support
+//! centres (weights `r²`) whose orthocentre has non-positive power (thesis §3.5, SPEC §7).
+//!
+//! Thesis definition: lift each ball to a 4D ball of the same centre and radius; four
+//! supports form a tetrahedron when their 4D spheres share a point inside no other 4D sphere.
+//! The shared points are `(x*, ±u)` with `x*` the orthocentre and `u² = −power(x*)`, and
+//! "inside no other sphere" is the emptiness of the regular triangulation. So the
+//! tetrahedra are the finite cells of the regular triangulation with `power(x*) ≤ 0`.
+//!
+//! Boundary case: we keep `power(x*) = 0` (the four balls meet in a single point), as the
+//! reference construction does (CGAL's regular triangulation filtered by `power ≤ 0`); the
+//! sign is decided exactly.
+//!
+//! The radius shrink `σ_t` (thesis §3.5.2, default 0.75) triangulates with radii `σ_t·r`:
+//! fewer supports are hidden and tetrahedra near the boundary are less skinny; vertices stay
+//! at the true centres.
+
+use rayon::prelude::*;
+use sphcover_core::DVec3;
+
+use crate::error::TetraError;
+use crate::predicates::{Point, orthocentre_power_sign};
+use crate::regular::{
+    INFINITE_VERTEX, NO_TET, RegularTriangulation, TriangulationParams, TriangulationStats,
+    VertexStatus,
+};
+
+/// Options of [`dual_complex`].
+#[derive(Clone, Debug)]
+pub struct DualComplexParams {
+    /// Radius shrink `σ_t`: triangulate with radii `σ_t·r` (thesis §3.5.2). `1.0` disables it.
+    pub shrink: f64,
+    /// Seed of the triangulation's insertion order and walk.
+    pub seed: u64,
+}
+
+impl Default for DualComplexParams {
+    fn default() -> Self {
+        Self {
+            shrink: 0.75,
+            seed: TriangulationParams::default().seed,
+        }
+    }
+}
+
+/// The tetrahedra of the dual complex of a cover.
+#[derive(Clone, Debug)]
+pub struct DualComplex {
+    /// Tetrahedra as support indices, positively oriented ([`crate::predicates::orient3d`]
+    /// of the centres is positive), in the triangulation's slot order.
+    pub tets: Vec<[u32; 4]>,
+    /// For each tetrahedron, the index in `tets` of the neighbour across the face opposite
+    /// vertex `i`, or [`NO_TET`] when that face is on the boundary of the complex.
+    pub neighbors: Vec<[u32; 4]>,
+    /// Per support: what became of it in the triangulation (hidden supports have no power
+    /// cell and appear in no tetrahedron).
+    pub status: Vec<VertexStatus>,
+    /// Counters of the triangulation.
+    pub triangulation: TriangulationStats,
+}
+
+impl DualComplex {
+    /// Per support: `true` when it is not a vertex of the triangulation (hidden or a
+    /// duplicated centre).
+    pub fn hidden(&self) -> Vec<bool> {
+        self.status
+            .iter()
+            .map(|s| *s != VertexStatus::Vertex)
+            .collect()
+    }
+}
+
+/// Builds the dual complex of the cover `(centers, radii)` with the radius shrink and seed of
+/// `params`.
+pub fn dual_complex(
+    centers: &[DVec3],
+    radii: &[f64],
+    params: &DualComplexParams,
+) -> Result<DualComplex, TetraError> {
+    if !(params.shrink.is_finite() && params.shrink > 0.0) {
+        return Err(TetraError::InvalidShrink(params.shrink));
+    }
+    if centers.len() != radii.len() {
+        return Err(TetraError::LengthMismatch {
+            points: centers.len(),
+            weights: radii.len(),
+        });
+    }
+    if let Some(i) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
+        return Err(TetraError::InvalidWeight { index: i });
+    }
+    let points: Vec<Point> = centers.iter().map(|c| c.to_array()).collect();
+    let weights: Vec<f64> = radii
+        .iter()
+        .map(|r| {
+            let s = r * params.shrink;
+            s * s
+        })
+        .collect();
+    let tri = RegularTriangulation::new(
+        &points,
+        &weights,
+        &TriangulationParams { seed: params.seed },
+    )?;
+    Ok(dual_complex_of(&tri))
+}
+
+/// The dual complex of an existing triangulation: its finite tetrahedra whose orthocentre has
+/// non-positive power with respect to the triangulation's own weights.
+pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
+    let slots = tri.tet_slots();
+
+    // Decide each slot independently (deterministic whatever the thread count).
+    let keep: Vec<bool> = slots
+        .par_iter()
+        .with_min_len(4096)
+        .map(|cell| {
+            if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
+                return false;
+            }
+            let p = cell.map(|v| tri.point_of(v));
+            let w = cell.map(|v| tri.weight(v));
+            orthocentre_power_sign([&p[0], &p[1], &p[2], &p[3]], w) <= 0
+        })
+        .collect();
+    let mut index = vec![NO_TET; slots.len()];
+    let mut tets = Vec::new();
+    for (t, &k) in keep.iter().enumerate() {
+        if k {
+            index[t] = tets.len() as u32;
+            tets.push(slots[t]);
+        }
+    }
+    let nb = tri.neighbor_slots();
+    let neighbors: Vec<[u32; 4]> = (0..slots.len())
+        .filter(|&t| keep[t])
+        .map(|t| {
+            nb[t].map(|n| {
+                if keep[n as usize] {
+                    index[n as usize]
+                } else {
+                    NO_TET
+                }
+            })
+        })
+        .collect();
+    DualComplex {
+        tets,
+        neighbors,
+        status: tri.vertex_status().to_vec(),
+        triangulation: tri.stats().clone(),
+    }
+}

@@ -1,0 +1,179 @@
+//! Insertion order: a biased randomized insertion order (BRIO, Amenta, Choi and Rote 2003)
+//! whose rounds are each sorted along a 3D Hilbert curve.
+//!
+//! Randomized rounds keep the expected cost of incremental construction `O(n log n)`; the
+//! Hilbert order inside a round makes consecutive points close, so the walk from the
+//! previous insertion is short and memory accesses stay local.
+
+use crate::predicates::Point;
+
+/// A small, fast, seeded generator (SplitMix64); the insertion order and the walk only need
+/// decorrelation, not statistical quality, and must be identical on every platform.
+#[derive(Clone, Debug)]
+pub struct SplitMix64(u64);
+
+impl SplitMix64 {
+    /// A generator started from `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+
+    /// The next 64 random bits.
+    #[inline]
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// A uniform integer in `0..n` (`n > 0`), by multiply-shift.
+    #[inline]
+    pub fn below(&mut self, n: u64) -> u64 {
+        ((self.next_u64() as u128 * n as u128) >> 64) as u64
+    }
+}
+
+/// Bits per axis of the Hilbert key (63-bit keys).
+const HILBERT_BITS: u32 = 21;
+
+/// The Hilbert index of a point with integer coordinates below `2^HILBERT_BITS`
+/// (Skilling, "Programming the Hilbert curve", 2004).
+pub fn hilbert_index(mut x: [u32; 3]) -> u64 {
+    let m = 1u32 << (HILBERT_BITS - 1);
+    let mut q = m;
+    while q > 1 {
+        let p = q - 1;
+        for i in 0..3 {
+            if x[i] & q != 0 {
+                x[0] ^= p;
+            } else {
+                let t = (x[0] ^ x[i]) & p;
+                x[0] ^= t;
+                x[i] ^= t;
+            }
+        }
+        q >>= 1;
+    }
+    for i in 1..3 {
+        x[i] ^= x[i - 1];
+    }
+    let mut t = 0;
+    let mut q = m;
+    while q > 1 {
+        if x[2] & q != 0 {
+            t ^= q - 1;
+        }
+        q >>= 1;
+    }
+    for xi in &mut x {
+        *xi ^= t;
+    }
+    let mut h = 0u64;
+    for b in (0..HILBERT_BITS).rev() {
+        for xi in &x {
+            h = (h << 1) | ((xi >> b) & 1) as u64;
+        }
+    }
+    h
+}
+
+/// Sorts `indices` in place along the Hilbert curve of the bounding box of `points`
+/// (ties by index, so the order is deterministic).
+pub fn hilbert_sort(points: &[Point], indices: &mut [u32]) {
+    if indices.len() < 2 {
+        return;
+    }
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for &i in indices.iter() {
+        let p = points[i as usize];
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f64, f64::max);
+    let scale = if extent > 0.0 {
+        ((1u64 << HILBERT_BITS) - 1) as f64 / extent
+    } else {
+        0.0
+    };
+    let mut keyed: Vec<(u64, u32)> = indices
+        .iter()
+        .map(|&i| {
+            let p = points[i as usize];
+            let q: [u32; 3] = std::array::from_fn(|k| ((p[k] - lo[k]) * scale) as u32);
+            (hilbert_index(q), i)
+        })
+        .collect();
+    keyed.sort_unstable();
+    for (slot, (_, i)) in indices.iter_mut().zip(keyed) {
+        *slot = i;
+    }
+}
+
+/// The BRIO order of `indices`: shuffled with `seed`, split into rounds of doubling size
+/// (the last holds half the points), each round Hilbert-sorted.
+pub fn brio_order(points: &[Point], indices: &mut [u32], seed: u64) {
+    let n = indices.len();
+    let mut rng = SplitMix64::new(seed);
+    for i in (1..n).rev() {
+        let j = rng.below(i as u64 + 1) as usize;
+        indices.swap(i, j);
+    }
+    const FIRST_ROUND: usize = 256;
+    let mut ends = Vec::new();
+    let mut end = n;
+    while end > FIRST_ROUND {
+        ends.push(end);
+        end /= 2;
+    }
+    ends.push(end);
+    ends.reverse();
+    let mut start = 0;
+    for end in ends {
+        hilbert_sort(points, &mut indices[start..end]);
+        start = end;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hilbert_neighbours_are_adjacent_cells() {
+        // On a 4³ grid, consecutive Hilbert indices are face-adjacent cells.
+        let mut cells: Vec<(u64, [u32; 3])> = Vec::new();
+        for x in 0..4u32 {
+            for y in 0..4u32 {
+                for z in 0..4u32 {
+                    let s = 1 << (HILBERT_BITS - 2);
+                    cells.push((hilbert_index([x * s, y * s, z * s]), [x, y, z]));
+                }
+            }
+        }
+        cells.sort();
+        for w in cells.windows(2) {
+            let d: u32 = (0..3).map(|k| w[0].1[k].abs_diff(w[1].1[k])).sum();
+            assert_eq!(d, 1, "{:?} -> {:?}", w[0].1, w[1].1);
+        }
+    }
+
+    #[test]
+    fn brio_is_a_permutation_and_deterministic() {
+        let pts: Vec<Point> = (0..1000)
+            .map(|i| [(i * 7 % 13) as f64, (i * 11 % 17) as f64, i as f64])
+            .collect();
+        let mut a: Vec<u32> = (0..1000).collect();
+        let mut b = a.clone();
+        brio_order(&pts, &mut a, 7);
+        brio_order(&pts, &mut b, 7);
+        assert_eq!(a, b);
+        let mut s = a.clone();
+        s.sort();
+        assert_eq!(s, (0..1000).collect::<Vec<u32>>());
+    }
+}
