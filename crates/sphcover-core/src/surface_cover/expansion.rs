@@ -25,8 +25,9 @@
 //! `max_growth ×` the initial radius and the root cube's diagonal; a failed trial bounds a
 //! bisection (on the logarithm of the radius) that stops when the bracket is narrower than
 //! the growth tolerance. Each trial radius refits from scratch (the kernel weights depend on
-//! the radius); the points are gathered once per doubling, sorted by distance, so every
-//! smaller trial ball is a prefix of that list.
+//! the radius) over the points gathered once per doubling: the kernel gives the points
+//! outside a smaller trial ball weight 0, and the error pass skips them. (Sorting the points
+//! by distance, to make each trial ball a prefix, cost more than these extra passes.)
 
 use super::SurfaceCoverParams;
 use super::fit::{Candidates, Fit, Samples};
@@ -83,9 +84,9 @@ fn grow(
     let mut hi = None;
     while lo < cap {
         let trial = (2.0 * lo).min(cap);
-        cand.gather_sorted(samples, leaf.center, trial);
+        cand.gather(samples, leaf.center, trial);
         best.fits += 1;
-        match cand.fit(cand.len(), trial, params.kernel, eps) {
+        match cand.fit(trial, params.kernel, eps) {
             Some(fit) if fit.error <= eps => {
                 lo = trial;
                 best.radius = trial;
@@ -105,7 +106,7 @@ fn grow(
             break;
         }
         best.fits += 1;
-        match cand.fit(cand.prefix(mid), mid, params.kernel, eps) {
+        match cand.fit(mid, params.kernel, eps) {
             Some(fit) if fit.error <= eps => {
                 lo = mid;
                 best.radius = mid;

@@ -57,7 +57,6 @@ pub(crate) struct Candidates {
     normals: Vec<DVec3>,
     dist2: Vec<f64>,
     confidence: Vec<f64>,
-    order: Vec<(f64, u32)>,
 }
 
 impl Candidates {
@@ -73,24 +72,6 @@ impl Candidates {
         samples.index.for_each_slot_within(c, r, |s, d2| {
             self.push(samples, s, points[s] - c, d2);
         });
-    }
-
-    /// Gathers the points with `‖p − c‖² < r²`, ordered by ascending `(distance², slot)`, so
-    /// the points in any smaller concentric ball are a prefix (see [`Candidates::prefix`]).
-    pub fn gather_sorted(&mut self, samples: &Samples, c: DVec3, r: f64) {
-        self.clear();
-        let mut order = std::mem::take(&mut self.order);
-        order.clear();
-        samples
-            .index
-            .for_each_slot_within(c, r, |s, d2| order.push((d2, s as u32)));
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let points = samples.index.slot_points();
-        for &(d2, s) in &order {
-            let s = s as usize;
-            self.push(samples, s, points[s] - c, d2);
-        }
-        self.order = order;
     }
 
     fn clear(&mut self) {
@@ -110,22 +91,15 @@ impl Candidates {
         }
     }
 
-    /// Number of leading candidates with `distance² < r²` (after [`Candidates::gather_sorted`]).
-    pub fn prefix(&self, r: f64) -> usize {
+    /// Fits the candidates inside the ball of radius `r` (at most the gather radius) with
+    /// kernel radius `r`. Candidates outside get weight 0 from the kernel and are skipped by
+    /// the error pass, so one gather at the largest radius serves every smaller trial. The
+    /// error pass stops as soon as `E` exceeds `limit` (pass `f64::INFINITY` for the exact
+    /// error). `None` when no candidate lies inside.
+    pub fn fit(&self, r: f64, kernel: Kernel, limit: f64) -> Option<Fit> {
+        let len = self.len();
         let r2 = r * r;
-        self.dist2.partition_point(|&d2| d2 < r2)
-    }
-
-    /// Fits the first `len` candidates with kernel radius `r`. The error pass stops as soon
-    /// as `E` exceeds `limit` (pass `f64::INFINITY` for the exact error), scanning from the
-    /// last candidate backwards: after a sorted gather those are the farthest points, where
-    /// a plane fit fails first. `None` when there is no candidate.
-    pub fn fit(&self, len: usize, r: f64, kernel: Kernel, limit: f64) -> Option<Fit> {
-        let len = len.min(self.len());
-        if len == 0 {
-            return None;
-        }
-        let inv_r2 = 1.0 / (r * r);
+        let inv_r2 = 1.0 / r2;
         let offsets = &self.offsets[..len];
         let normals = &self.normals[..len];
         let dist2 = &self.dist2[..len];
@@ -156,15 +130,15 @@ impl Candidates {
             // or no point carries weight: take the nearest point's plane. Its error decides
             // whether the support is refined.
             let j = (0..len)
-                .min_by(|&a, &b| dist2[a].total_cmp(&dist2[b]).then(a.cmp(&b)))
-                .unwrap_or(0);
+                .filter(|&j| dist2[j] < r2)
+                .min_by(|&a, &b| dist2[a].total_cmp(&dist2[b]).then(a.cmp(&b)))?;
             (normals[j], offsets[j])
         };
         let level = normal.dot(centroid);
         let mut error: f64 = 0.0;
         let weighted = !self.confidence.is_empty();
-        for j in (0..len).rev() {
-            if weighted && self.confidence[j] <= 0.0 {
+        for j in 0..len {
+            if dist2[j] >= r2 || (weighted && self.confidence[j] <= 0.0) {
                 continue;
             }
             let e = (level - normal.dot(offsets[j])).abs();
