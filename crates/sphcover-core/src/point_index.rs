@@ -118,12 +118,15 @@ impl PointIndex {
             return;
         }
         let r2 = r * r;
-        let mut stack = [0u32; 64];
+        // Each entry carries the per-axis distances from `x` to the node's cell, whose
+        // squared length bounds the distance to every point below (Arya & Mount's
+        // incremental distance: tighter than the largest single-axis gap).
+        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
         let mut top = 1usize;
-        stack[0] = 0;
         while top > 0 {
             top -= 1;
-            let n = stack[top] as usize;
+            let (n, gap) = stack[top];
+            let n = n as usize;
             let node = self.nodes[n];
             if node.right == 0 {
                 for s in node.lo as usize..node.hi as usize {
@@ -134,18 +137,21 @@ impl PointIndex {
                 }
                 continue;
             }
-            let delta = x[node.axis as usize] - node.split;
+            let axis = node.axis as usize;
+            let delta = x[axis] - node.split;
             let (near, far) = if delta < 0.0 {
                 (n + 1, n + node.right as usize)
             } else {
                 (n + node.right as usize, n + 1)
             };
-            // Points on the far side are at least |delta| away along the axis.
-            if delta * delta < r2 {
-                stack[top] = far as u32;
+            let mut far_gap = gap;
+            far_gap[axis] = delta.abs();
+            // Points on the far side are at least `far_gap` away, axis by axis.
+            if far_gap.length_squared() < r2 {
+                stack[top] = (far as u32, far_gap);
                 top += 1;
             }
-            stack[top] = near as u32;
+            stack[top] = (near as u32, gap);
             top += 1;
         }
     }
@@ -182,12 +188,13 @@ impl PointIndex {
         }
         // `out` is kept sorted ascending; k is small in every use (tens), so insertion into a
         // sorted vector beats a heap and yields the final order directly.
-        let mut stack: [(u32, f64); 64] = [(0, 0.0); 64];
+        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
-            let (n, bound) = stack[top];
-            if out.len() == k && bound > out[k - 1].0 {
+            let (n, gap) = stack[top];
+            // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
+            if out.len() == k && gap.length_squared() > out[k - 1].0 {
                 continue;
             }
             let node = self.nodes[n as usize];
@@ -206,17 +213,19 @@ impl PointIndex {
                 }
                 continue;
             }
-            let delta = x[node.axis as usize] - node.split;
+            let axis = node.axis as usize;
+            let delta = x[axis] - node.split;
             let n = n as usize;
             let (near, far) = if delta < 0.0 {
                 (n + 1, n + node.right as usize)
             } else {
                 (n + node.right as usize, n + 1)
             };
-            // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
-            stack[top] = (far as u32, bound.max(delta * delta));
+            let mut far_gap = gap;
+            far_gap[axis] = delta.abs();
+            stack[top] = (far as u32, far_gap);
             top += 1;
-            stack[top] = (near as u32, bound);
+            stack[top] = (near as u32, gap);
             top += 1;
         }
     }
