@@ -16,7 +16,9 @@ pub mod local_function;
 pub mod mesh;
 pub mod partition_of_unity;
 pub mod point_cloud;
+pub mod point_index;
 pub mod sphere_intersection_graph;
+pub mod surface_cover;
 pub mod synthetic;
 pub mod volume;
 pub mod volume_cover;
@@ -30,7 +32,12 @@ pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, Quadrati
 pub use mesh::TriMesh;
 pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
+pub use point_index::{PointIndex, PointIndexError};
 pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
+pub use surface_cover::{
+    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings,
+    build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,
+};
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
     Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,

@@ -41,6 +41,7 @@
 //! * Every writer goes through [`write_atomic`]: the output appears complete or not at all.
 
 mod atomic;
+mod cover_file;
 mod encode;
 mod error;
 #[cfg(feature = "nifti")]
@@ -61,6 +62,7 @@ use crate::mesh::TriMesh;
 use crate::point_cloud::PointCloud;
 
 pub use atomic::write_atomic;
+pub use cover_file::{CoverFileMeta, parse_cover, read_cover, write_cover};
 pub use error::{IoError, Location, Problem};
 #[cfg(feature = "nifti")]
 pub use nifti::{

@@ -173,6 +173,71 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
     })
 }
 
+/// The values of the scalar properties `wanted` (property indices) of every record of
+/// element `target`, one column per wanted property, with the location of each record. The
+/// other elements are walked over with the same checks as [`read`]. For readers of PLY
+/// layouts of their own (the cover file).
+pub(crate) fn read_element_columns(
+    bytes: &[u8],
+    header: &Header,
+    target: usize,
+    wanted: &[usize],
+) -> Result<(Vec<Vec<f64>>, VertexOrigins), Failure> {
+    let element = &header.elements[target];
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); wanted.len()];
+    match header.encoding {
+        Encoding::Ascii => {
+            let mut cursor = LineCursor::new(bytes, header.body_start, header.end_line + 1);
+            let mut lines = Vec::new();
+            for (e, el) in header.elements.iter().enumerate() {
+                if el.properties.is_empty() {
+                    continue;
+                }
+                let mut mask = vec![false; el.properties.len()];
+                if e == target {
+                    for &k in wanted {
+                        mask[k] = true;
+                    }
+                    walk_ascii(&mut cursor, el, &mask, None, |_, line, scalars, _| {
+                        lines.push(line);
+                        for (column, &k) in columns.iter_mut().zip(wanted) {
+                            column.push(scalars[k]);
+                        }
+                        Ok(())
+                    })?;
+                } else {
+                    walk_ascii(&mut cursor, el, &mask, None, |_, _, _, _| Ok(()))?;
+                }
+            }
+            Ok((columns, VertexOrigins::Lines(lines)))
+        }
+        Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
+            let big = header.encoding == Encoding::BinaryBigEndian;
+            let mut pos = header.body_start;
+            let mut starts = Vec::new();
+            for (e, el) in header.elements.iter().enumerate() {
+                if el.properties.is_empty() {
+                    // Records without properties occupy no bytes.
+                    continue;
+                }
+                let mut fields = vec![(0usize, 0usize); el.properties.len()];
+                if e == target {
+                    pos = walk_binary(bytes, pos, el, big, &mut fields, |_, start, fields| {
+                        starts.push(start as u64);
+                        for (column, &k) in columns.iter_mut().zip(wanted) {
+                            column.push(field_value(bytes, element, fields, k, big));
+                        }
+                        Ok(())
+                    })?;
+                } else {
+                    pos = walk_binary(bytes, pos, el, big, &mut fields, |_, _, _| Ok(()))?;
+                }
+            }
+            Ok((columns, VertexOrigins::Bytes(starts)))
+        }
+    }
+}
+
 fn truncated(at: Location, element: &Element, index: u64) -> Failure {
     Failure::new(
         at,

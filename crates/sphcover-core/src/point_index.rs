@@ -1,0 +1,297 @@
+//! A static k-d tree over points: fixed-radius and k-nearest queries.
+//!
+//! Built once (in parallel, with a result that does not depend on the thread count) and
+//! queried from many threads through `&self`. The tree keeps its own copy of the points,
+//! permuted so that every leaf bucket is a contiguous run of memory; [`PointIndex::order`]
+//! maps these *slots* back to the caller's indices, so a caller that queries heavily can
+//! permute its own per-point data the same way and read it sequentially too.
+//!
+//! # Query conventions
+//!
+//! * A point `p` is *within* radius `r` of `x` when `‖p − x‖² < r²`, both sides computed in
+//!   `f64` exactly as written: the open ball, like the supports of a cover.
+//! * [`PointIndex::within`] and [`PointIndex::nearest_k`] report caller indices in a defined
+//!   order (ascending index; ascending `(distance², index)`), so results never depend on the
+//!   tree's internals. The `for_each_*` visitors report in tree order, which is fixed for a
+//!   given input and therefore deterministic too.
+//! * Non-finite points are not indexed: no query ever reports them.
+
+use glam::DVec3;
+
+/// Points per leaf bucket at most.
+const BUCKET: usize = 12;
+/// Subtrees with at least this many points are built on two threads.
+const PARALLEL_BUILD: usize = 1 << 14;
+
+/// Why a point index could not be built.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum PointIndexError {
+    /// More points than `u32` indices can name.
+    #[error("{count} points exceed the u32 index range")]
+    TooManyPoints {
+        /// Number of points given.
+        count: usize,
+    },
+}
+
+/// A node of the tree in pre-order; the left child follows its parent directly.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    /// Split coordinate (inner nodes).
+    split: f64,
+    /// First slot of the node's points.
+    lo: u32,
+    /// One past the last slot.
+    hi: u32,
+    /// Offset from this node to its right child; 0 for a leaf.
+    right: u32,
+    /// Split axis (inner nodes).
+    axis: u8,
+}
+
+/// A static k-d tree over a set of points (see the module docs for the query conventions).
+#[derive(Clone, Debug)]
+pub struct PointIndex {
+    /// Indexed points in slot order.
+    points: Vec<DVec3>,
+    /// Caller index of each slot.
+    order: Vec<u32>,
+    nodes: Vec<Node>,
+    /// Number of points given to [`PointIndex::new`], finite or not.
+    input_len: usize,
+}
+
+impl PointIndex {
+    /// Builds the index over `points` (non-finite points are left out). The tree depends only
+    /// on the input, never on the number of threads.
+    pub fn new(points: &[DVec3]) -> Result<PointIndex, PointIndexError> {
+        if u32::try_from(points.len()).is_err() {
+            return Err(PointIndexError::TooManyPoints {
+                count: points.len(),
+            });
+        }
+        let mut items: Vec<(DVec3, u32)> = points
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.is_finite())
+            .map(|(i, &p)| (p, i as u32))
+            .collect();
+        let nodes = build(&mut items, 0);
+        let (points_sorted, order) = items.into_iter().unzip();
+        Ok(PointIndex {
+            points: points_sorted,
+            order,
+            nodes,
+            input_len: points.len(),
+        })
+    }
+
+    /// Number of indexed (finite) points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when no point is indexed.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Number of points given at construction, including non-finite ones left out.
+    pub fn input_len(&self) -> usize {
+        self.input_len
+    }
+
+    /// The caller index of each slot: slot `s` holds point `order()[s]`.
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// The indexed points in slot order.
+    pub fn slot_points(&self) -> &[DVec3] {
+        &self.points
+    }
+
+    /// Calls `visit(slot, distance²)` for every indexed point with `‖p − x‖² < r²`, in tree
+    /// order. Nothing is reported for a non-finite `x` or a radius that is not positive.
+    pub fn for_each_slot_within(&self, x: DVec3, r: f64, mut visit: impl FnMut(usize, f64)) {
+        if self.nodes.is_empty() || !x.is_finite() || r.is_nan() || r <= 0.0 {
+            return;
+        }
+        let r2 = r * r;
+        // Each entry carries the per-axis distances from `x` to the node's cell, whose
+        // squared length bounds the distance to every point below (Arya & Mount's
+        // incremental distance: tighter than the largest single-axis gap).
+        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let (n, gap) = stack[top];
+            let n = n as usize;
+            let node = self.nodes[n];
+            if node.right == 0 {
+                for s in node.lo as usize..node.hi as usize {
+                    let d2 = (self.points[s] - x).length_squared();
+                    if d2 < r2 {
+                        visit(s, d2);
+                    }
+                }
+                continue;
+            }
+            let axis = node.axis as usize;
+            let delta = x[axis] - node.split;
+            let (near, far) = if delta < 0.0 {
+                (n + 1, n + node.right as usize)
+            } else {
+                (n + node.right as usize, n + 1)
+            };
+            let mut far_gap = gap;
+            far_gap[axis] = delta.abs();
+            // Points on the far side are at least `far_gap` away, axis by axis.
+            if far_gap.length_squared() < r2 {
+                stack[top] = (far as u32, far_gap);
+                top += 1;
+            }
+            stack[top] = (near as u32, gap);
+            top += 1;
+        }
+    }
+
+    /// Calls `visit(index, point)` for every indexed point with `‖p − x‖² < r²`, in tree
+    /// order.
+    pub fn for_each_within(&self, x: DVec3, r: f64, mut visit: impl FnMut(u32, DVec3)) {
+        self.for_each_slot_within(x, r, |s, _| visit(self.order[s], self.points[s]));
+    }
+
+    /// The indices of the points with `‖p − x‖² < r²`, ascending, into `out` (cleared
+    /// first).
+    pub fn within(&self, x: DVec3, r: f64, out: &mut Vec<u32>) {
+        out.clear();
+        self.for_each_slot_within(x, r, |s, _| out.push(self.order[s]));
+        out.sort_unstable();
+    }
+
+    /// The `k` nearest indexed points to `x` (fewer when fewer are indexed), ordered by
+    /// ascending `(‖p − x‖², index)` — so ties in distance go to the lower index — into `out`
+    /// (cleared first). Nothing for a non-finite `x`.
+    pub fn nearest_k(&self, x: DVec3, k: usize, out: &mut Vec<u32>) {
+        out.clear();
+        let mut best = Vec::with_capacity(k.min(self.len()));
+        self.nearest_k_with_distances(x, k, &mut best);
+        out.extend(best.iter().map(|&(_, i)| i));
+    }
+
+    /// As [`PointIndex::nearest_k`], with the squared distances: `(‖p − x‖², index)` pairs.
+    pub fn nearest_k_with_distances(&self, x: DVec3, k: usize, out: &mut Vec<(f64, u32)>) {
+        out.clear();
+        if k == 0 || self.nodes.is_empty() || !x.is_finite() {
+            return;
+        }
+        // `out` is kept sorted ascending; k is small in every use (tens), so insertion into a
+        // sorted vector beats a heap and yields the final order directly.
+        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let (n, gap) = stack[top];
+            // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
+            if out.len() == k && gap.length_squared() > out[k - 1].0 {
+                continue;
+            }
+            let node = self.nodes[n as usize];
+            if node.right == 0 {
+                for s in node.lo as usize..node.hi as usize {
+                    let d2 = (self.points[s] - x).length_squared();
+                    let key = (d2, self.order[s]);
+                    if out.len() == k && !less(key, out[k - 1]) {
+                        continue;
+                    }
+                    let at = out.partition_point(|&e| less(e, key));
+                    if out.len() == k {
+                        out.pop();
+                    }
+                    out.insert(at, key);
+                }
+                continue;
+            }
+            let axis = node.axis as usize;
+            let delta = x[axis] - node.split;
+            let n = n as usize;
+            let (near, far) = if delta < 0.0 {
+                (n + 1, n + node.right as usize)
+            } else {
+                (n + node.right as usize, n + 1)
+            };
+            let mut far_gap = gap;
+            far_gap[axis] = delta.abs();
+            stack[top] = (far as u32, far_gap);
+            top += 1;
+            stack[top] = (near as u32, gap);
+            top += 1;
+        }
+    }
+}
+
+/// Lexicographic `(distance², index)` order.
+#[inline]
+fn less(a: (f64, u32), b: (f64, u32)) -> bool {
+    a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
+}
+
+/// Builds the subtree over `items` (slots `base..base + items.len()`), returning its nodes in
+/// pre-order with relative child offsets, so subtrees built on other threads concatenate.
+fn build(items: &mut [(DVec3, u32)], base: usize) -> Vec<Node> {
+    let n = items.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let leaf = Node {
+        split: 0.0,
+        lo: base as u32,
+        hi: (base + n) as u32,
+        right: 0,
+        axis: 0,
+    };
+    if n <= BUCKET {
+        return vec![leaf];
+    }
+    let (lo, hi) = items.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), (p, _)| (lo.min(*p), hi.max(*p)),
+    );
+    let extent = hi - lo;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    if extent[axis] == 0.0 {
+        // All points coincide: splitting cannot separate them.
+        return vec![leaf];
+    }
+    let mid = n / 2;
+    // Ties in the coordinate are broken by index, so the partition is a pure function of
+    // the input.
+    items.select_nth_unstable_by(mid, |a, b| {
+        a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1))
+    });
+    let split = items[mid].0[axis];
+    let (left, right) = items.split_at_mut(mid);
+    let (left_nodes, right_nodes) = if n >= PARALLEL_BUILD {
+        rayon::join(|| build(left, base), || build(right, base + mid))
+    } else {
+        (build(left, base), build(right, base + mid))
+    };
+    let mut nodes = Vec::with_capacity(1 + left_nodes.len() + right_nodes.len());
+    nodes.push(Node {
+        split,
+        lo: base as u32,
+        hi: (base + n) as u32,
+        right: (1 + left_nodes.len()) as u32,
+        axis: axis as u8,
+    });
+    nodes.extend(left_nodes);
+    nodes.extend(right_nodes);
+    nodes
+}

@@ -1,0 +1,158 @@
+//! The local linear fit of a support to oriented points (thesis eq. 3.2) and its error.
+//!
+//! With kernel weights `w_j = ψ(‖p_j − c‖ / r)` (times the point's confidence, when given):
+//!
+//! ```text
+//! n̄ = Σ w_j n_j / ‖Σ w_j n_j‖,   p̄ = Σ w_j p_j / Σ w_j,   g(x) = n̄·(p̄ − x)
+//! ```
+//!
+//! so `α = −n̄` and `β = n̄·(p̄ − c)` in the centred form, positive inside for outward
+//! normals. The error is `E = max_j |g(p_j)|` over the points in the open ball (points of
+//! zero confidence excluded). Both are single passes over the candidate points, kept as
+//! offsets from the centre (struct of arrays) so the passes read memory sequentially and the
+//! sums stay well conditioned for small balls far from the origin.
+
+use crate::kernel::Kernel;
+use crate::local_function::LinearFunction;
+use crate::point_index::PointIndex;
+use glam::DVec3;
+
+/// The oriented points of the build, in the slot order of the point index.
+#[derive(Debug)]
+pub(crate) struct Samples {
+    /// The point index (owns the positions in slot order).
+    pub index: PointIndex,
+    /// Unit normals in slot order.
+    pub normals: Vec<DVec3>,
+    /// Confidences in slot order, when given.
+    pub confidence: Option<Vec<f64>>,
+}
+
+/// The result of a fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Fit {
+    /// Unit mean normal `n̄`.
+    pub normal: DVec3,
+    /// Weighted centroid offset `p̄ − c`.
+    pub centroid: DVec3,
+    /// `E = max |g(p_j)|`, or a value above the early-exit limit when it was exceeded.
+    pub error: f64,
+}
+
+impl Fit {
+    /// The local function in centred form.
+    pub fn linear(&self) -> LinearFunction {
+        LinearFunction {
+            alpha: -self.normal,
+            beta: self.normal.dot(self.centroid),
+        }
+    }
+}
+
+/// Candidate points of one support: offsets from the centre, normals, squared distances and
+/// confidences, one entry per point in the ball of the last gather.
+#[derive(Debug, Default)]
+pub(crate) struct Candidates {
+    offsets: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    dist2: Vec<f64>,
+    confidence: Vec<f64>,
+}
+
+impl Candidates {
+    /// Number of candidates.
+    pub fn len(&self) -> usize {
+        self.dist2.len()
+    }
+
+    /// Gathers the points with `‖p − c‖² < r²`, in tree order.
+    pub fn gather(&mut self, samples: &Samples, c: DVec3, r: f64) {
+        self.clear();
+        let points = samples.index.slot_points();
+        samples.index.for_each_slot_within(c, r, |s, d2| {
+            self.push(samples, s, points[s] - c, d2);
+        });
+    }
+
+    fn clear(&mut self) {
+        self.offsets.clear();
+        self.normals.clear();
+        self.dist2.clear();
+        self.confidence.clear();
+    }
+
+    #[inline]
+    fn push(&mut self, samples: &Samples, s: usize, offset: DVec3, d2: f64) {
+        self.offsets.push(offset);
+        self.normals.push(samples.normals[s]);
+        self.dist2.push(d2);
+        if let Some(conf) = &samples.confidence {
+            self.confidence.push(conf[s]);
+        }
+    }
+
+    /// Fits the candidates inside the ball of radius `r` (at most the gather radius) with
+    /// kernel radius `r`. Candidates outside get weight 0 from the kernel and are skipped by
+    /// the error pass, so one gather at the largest radius serves every smaller trial. The
+    /// error pass stops as soon as `E` exceeds `limit` (pass `f64::INFINITY` for the exact
+    /// error). `None` when no candidate lies inside.
+    pub fn fit(&self, r: f64, kernel: Kernel, limit: f64) -> Option<Fit> {
+        let len = self.len();
+        let r2 = r * r;
+        let inv_r2 = 1.0 / r2;
+        let offsets = &self.offsets[..len];
+        let normals = &self.normals[..len];
+        let dist2 = &self.dist2[..len];
+        let mut sum_w = 0.0;
+        let mut sum_p = DVec3::ZERO;
+        let mut sum_n = DVec3::ZERO;
+        if self.confidence.is_empty() {
+            for j in 0..len {
+                let w = kernel.value_sq(dist2[j] * inv_r2);
+                sum_w += w;
+                sum_p += w * offsets[j];
+                sum_n += w * normals[j];
+            }
+        } else {
+            let conf = &self.confidence[..len];
+            for j in 0..len {
+                let w = kernel.value_sq(dist2[j] * inv_r2) * conf[j];
+                sum_w += w;
+                sum_p += w * offsets[j];
+                sum_n += w * normals[j];
+            }
+        }
+        let length = sum_n.length();
+        let (normal, centroid) = if sum_w > 0.0 && length > 0.0 && length.is_finite() {
+            (sum_n / length, sum_p / sum_w)
+        } else {
+            // The weighted normals cancel (two sheets facing each other with equal weight)
+            // or no point carries weight: take the nearest point's plane. Its error decides
+            // whether the support is refined.
+            let j = (0..len)
+                .filter(|&j| dist2[j] < r2)
+                .min_by(|&a, &b| dist2[a].total_cmp(&dist2[b]).then(a.cmp(&b)))?;
+            (normals[j], offsets[j])
+        };
+        let level = normal.dot(centroid);
+        let mut error: f64 = 0.0;
+        let weighted = !self.confidence.is_empty();
+        for j in 0..len {
+            if dist2[j] >= r2 || (weighted && self.confidence[j] <= 0.0) {
+                continue;
+            }
+            let e = (level - normal.dot(offsets[j])).abs();
+            if e > error {
+                error = e;
+                if error > limit {
+                    break;
+                }
+            }
+        }
+        Some(Fit {
+            normal,
+            centroid,
+            error,
+        })
+    }
+}

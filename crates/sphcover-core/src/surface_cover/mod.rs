@@ -1,0 +1,446 @@
+//! Building a cover from oriented surface points (thesis §3.4.1).
+//!
+//! Input: points in the unit frame (bounding box centred at the origin, longest edge 1; see
+//! [`Normalisation`]) with outward normals and optionally a confidence per point. Output: a
+//! [`Cover`] with linear local functions `g_i(x) = n̄_i·(p̄_i − x)` (positive inside) whose
+//! partition-of-unity blend approximates the signed distance to the sampled surface.
+//!
+//! Two stages:
+//!
+//! 1. **Initial cover** (`octree.rs`): an adaptive, 2:1-balanced octree over the root cube
+//!    (the unit cube around the origin enlarged by [`SurfaceCoverParams::box_margin`] on every
+//!    side); each leaf carries a support at its centre with radius `0.75 ×` its diagonal,
+//!    grown to reach `n_min` points when it holds fewer; octants are subdivided while the fit
+//!    error `E_i = max_j |g_i(p_j)|` exceeds ε, up to the maximum depth.
+//! 2. **Expansion** (`expansion.rs`, optional): supports in seeded random order grow as far
+//!    as `E_i ≤ ε` allows, and supports lying entirely inside a grown ball are deleted.
+//!
+//! The local fit (`fit.rs`) is thesis eq. 3.2 with the kernel's weights. Every stage runs in
+//! parallel with rayon, and the cover is bit-identical for the same input, parameters and
+//! seed whatever the thread count.
+//!
+//! # Example
+//!
+//! ```
+//! use sphcover_core::{DVec3, PuEvaluator, SurfaceCoverParams, build_surface_cover};
+//!
+//! // 2000 points on a sphere of radius 0.4 with outward normals (a Fibonacci lattice).
+//! let n = 2000;
+//! let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+//! let normals: Vec<DVec3> = (0..n)
+//!     .map(|i| {
+//!         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+//!         let s = (1.0 - z * z).sqrt();
+//!         let a = golden * i as f64;
+//!         DVec3::new(s * a.cos(), s * a.sin(), z)
+//!     })
+//!     .collect();
+//! let points: Vec<DVec3> = normals.iter().map(|&u| 0.4 * u).collect();
+//!
+//! let params = SurfaceCoverParams { eps: 1e-2, ..SurfaceCoverParams::default() };
+//! let (cover, stats) = build_surface_cover(&points, &normals, &params)?;
+//! assert_eq!(stats.supports_after_expansion, cover.len());
+//!
+//! // Positive inside, negative outside, near zero on the surface.
+//! let f = PuEvaluator::new(&cover, 1.0)?;
+//! assert!(f.value(DVec3::ZERO).unwrap() > 0.2);
+//! assert!(f.value(DVec3::new(0.45, 0.0, 0.0)).unwrap() < 0.0);
+//! assert!(f.value(points[0]).unwrap().abs() <= 2.0 * params.eps);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod expansion;
+mod fit;
+mod octree;
+
+use crate::cover::{Cover, CoverError};
+use crate::geometry::Normalisation;
+use crate::kernel::Kernel;
+use crate::local_function::LocalFunctions;
+use crate::point_cloud::PointCloud;
+use crate::point_index::{PointIndex, PointIndexError};
+use fit::Samples;
+use glam::DVec3;
+use std::time::{Duration, Instant};
+
+pub use octree::MAX_DEPTH;
+
+/// Parameters of [`build_surface_cover`]. Lengths are in the unit frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceCoverParams {
+    /// Error tolerance ε of the local fits (thesis tables: 2.5e-3 … 1e-3).
+    pub eps: f64,
+    /// Fewest points a support's ball must hold; smaller balls grow to reach them (MPU: 15).
+    pub n_min: usize,
+    /// Deepest octree level (the root is level 0), at most [`MAX_DEPTH`].
+    pub max_depth: u32,
+    /// Weight kernel of the fits and of the cover.
+    pub kernel: Kernel,
+    /// Seed of the random expansion order.
+    pub seed: u64,
+    /// Whether to run the expansion and elimination stage.
+    pub expansion: bool,
+    /// Margin added on every side of the unit cube to make the octree's root cube, in unit
+    /// lengths (0.05 makes a root cube of side 1.1). Points must lie inside the root cube.
+    pub box_margin: f64,
+    /// Largest factor by which expansion may grow a radius (≥ 1). The root cube's diagonal
+    /// bounds every grown radius too.
+    pub max_growth: f64,
+    /// Relative width at which the bisection for a grown radius stops (in `(0, 1]`): the
+    /// radius found is within this factor of the largest radius with `E ≤ ε`.
+    pub growth_tolerance: f64,
+}
+
+impl Default for SurfaceCoverParams {
+    fn default() -> SurfaceCoverParams {
+        SurfaceCoverParams {
+            eps: 2.5e-3,
+            n_min: 15,
+            max_depth: 12,
+            kernel: Kernel::QuadraticBSpline,
+            seed: 0,
+            expansion: true,
+            box_margin: 0.05,
+            max_growth: 8.0,
+            growth_tolerance: 0.05,
+        }
+    }
+}
+
+/// Why a surface cover could not be built.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SurfaceCoverError {
+    /// The input has no normals; the surface builder fits planes to oriented points.
+    #[error(
+        "the surface cover builder needs a normal per point (outward); the input has none — estimate and orient normals first"
+    )]
+    MissingNormals,
+    /// A per-point array does not have one entry per point.
+    #[error("{array} has {found} entries, expected one per point ({expected})")]
+    LengthMismatch {
+        /// `normals` or `confidence`.
+        array: &'static str,
+        /// Number of points.
+        expected: usize,
+        /// Length of the array.
+        found: usize,
+    },
+    /// A parameter is out of its range.
+    #[error("parameter {name} = {value} is invalid: {requirement}")]
+    InvalidParameter {
+        /// Field name in [`SurfaceCoverParams`].
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What the value must satisfy.
+        requirement: &'static str,
+    },
+    /// A point has a NaN or infinite coordinate.
+    #[error("point {index} ({point}) is not finite")]
+    NonFinitePoint {
+        /// Index of the point.
+        index: usize,
+        /// The point.
+        point: DVec3,
+    },
+    /// A point lies outside the root cube: the input is not in the unit frame.
+    #[error(
+        "point {index} ({point}) lies outside the root cube |x|,|y|,|z| ≤ {half_side}: normalise the input to the unit frame first (build_surface_cover_from_cloud does)"
+    )]
+    NotNormalised {
+        /// Index of the point.
+        index: usize,
+        /// The point.
+        point: DVec3,
+        /// Half the side of the root cube.
+        half_side: f64,
+    },
+    /// A confidence is negative or not finite.
+    #[error("confidence of point {index} is {value}; expected a finite value ≥ 0")]
+    InvalidConfidence {
+        /// Index of the point.
+        index: usize,
+        /// The value given.
+        value: f64,
+    },
+    /// No point with a usable normal (and positive confidence) is left.
+    #[error(
+        "no usable point: {points} points given, {skipped_normals} with a zero or non-finite normal"
+    )]
+    NoUsablePoints {
+        /// Number of points given.
+        points: usize,
+        /// Points skipped for their normals.
+        skipped_normals: usize,
+    },
+    /// More points or supports than `u32` indices reach.
+    #[error(transparent)]
+    TooMany(#[from] PointIndexError),
+    /// The cover assembled from the fits was rejected (a bug, reported rather than hidden).
+    #[error("internal error assembling the cover: {0}")]
+    Cover(#[from] CoverError),
+}
+
+/// Wall-clock time of each stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SurfaceCoverTimings {
+    /// Validating the input and building the point index.
+    pub index: Duration,
+    /// The adaptive, balanced octree with its fits.
+    pub octree: Duration,
+    /// Growing every support (parallel).
+    pub growth: Duration,
+    /// The sequential elimination pass.
+    pub elimination: Duration,
+    /// Everything.
+    pub total: Duration,
+}
+
+/// What [`build_surface_cover`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SurfaceCoverStats {
+    /// Points given.
+    pub input_points: usize,
+    /// Points used (with a usable normal).
+    pub used_points: usize,
+    /// Points skipped because their normal is zero or not finite.
+    pub skipped_normals: usize,
+    /// Octants fitted at each level (index = level), leaves and subdivided ones.
+    pub octants_per_level: Vec<usize>,
+    /// Leaves at each level (index = level): the supports before expansion.
+    pub leaves_per_level: Vec<usize>,
+    /// Leaves whose own ball held fewer than `n_min` points, so the radius grew to reach
+    /// them.
+    pub grown_leaves: usize,
+    /// Leaves whose own ball held no point (never subdivided).
+    pub empty_leaves: usize,
+    /// Octants created to restore the 2:1 balance.
+    pub balance_octants: usize,
+    /// Supports before expansion (octree leaves).
+    pub supports_before_expansion: usize,
+    /// Supports in the cover.
+    pub supports_after_expansion: usize,
+    /// Supports whose radius grew in expansion.
+    pub grown_supports: usize,
+    /// Local fits computed (octants plus expansion trials).
+    pub fits: u64,
+    /// Supports of the cover whose fit error exceeds ε (leaves at the maximum depth).
+    pub supports_over_eps: usize,
+    /// Largest fit error among the cover's supports.
+    pub max_error: f64,
+    /// Time per stage.
+    pub timings: SurfaceCoverTimings,
+}
+
+/// Builds the cover of oriented points given in the unit frame (thesis §3.4.1).
+///
+/// `normals` point outward and need not be unit length (they are normalised); points whose
+/// normal is zero or not finite are skipped and counted in
+/// [`SurfaceCoverStats::skipped_normals`].
+pub fn build_surface_cover(
+    points: &[DVec3],
+    normals: &[DVec3],
+    params: &SurfaceCoverParams,
+) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
+    build_surface_cover_with_confidence(points, normals, None, params)
+}
+
+/// As [`build_surface_cover`], with a confidence per point: each fit weight is multiplied by
+/// the point's confidence, and points of zero confidence neither weigh in nor count in the
+/// error (they are left out entirely).
+pub fn build_surface_cover_with_confidence(
+    points: &[DVec3],
+    normals: &[DVec3],
+    confidence: Option<&[f64]>,
+    params: &SurfaceCoverParams,
+) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
+    let start = Instant::now();
+    check_params(params)?;
+    let n = points.len();
+    if normals.len() != n {
+        return Err(SurfaceCoverError::LengthMismatch {
+            array: "normals",
+            expected: n,
+            found: normals.len(),
+        });
+    }
+    if let Some(c) = confidence {
+        if c.len() != n {
+            return Err(SurfaceCoverError::LengthMismatch {
+                array: "confidence",
+                expected: n,
+                found: c.len(),
+            });
+        }
+        if let Some(index) = c.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(SurfaceCoverError::InvalidConfidence {
+                index,
+                value: c[index],
+            });
+        }
+    }
+    let half_side = 0.5 + params.box_margin;
+    for (index, &point) in points.iter().enumerate() {
+        if !point.is_finite() {
+            return Err(SurfaceCoverError::NonFinitePoint { index, point });
+        }
+        if point.abs().max_element() > half_side {
+            return Err(SurfaceCoverError::NotNormalised {
+                index,
+                point,
+                half_side,
+            });
+        }
+    }
+
+    let mut stats = SurfaceCoverStats {
+        input_points: n,
+        ..SurfaceCoverStats::default()
+    };
+    let mut kept_points = Vec::with_capacity(n);
+    let mut kept_normals = Vec::with_capacity(n);
+    let mut kept_conf = confidence.map(|_| Vec::with_capacity(n));
+    for i in 0..n {
+        let length = normals[i].length();
+        if !(length > 0.0 && length.is_finite()) {
+            stats.skipped_normals += 1;
+            continue;
+        }
+        if let Some(c) = confidence
+            && c[i] == 0.0
+        {
+            continue;
+        }
+        kept_points.push(points[i]);
+        kept_normals.push(normals[i] / length);
+        if let (Some(kept), Some(c)) = (kept_conf.as_mut(), confidence) {
+            kept.push(c[i]);
+        }
+    }
+    stats.used_points = kept_points.len();
+    if kept_points.is_empty() {
+        return Err(SurfaceCoverError::NoUsablePoints {
+            points: n,
+            skipped_normals: stats.skipped_normals,
+        });
+    }
+    let index = PointIndex::new(&kept_points)?;
+    let samples = Samples {
+        normals: index
+            .order()
+            .iter()
+            .map(|&i| kept_normals[i as usize])
+            .collect(),
+        confidence: kept_conf.map(|c| index.order().iter().map(|&i| c[i as usize]).collect()),
+        index,
+    };
+    drop(kept_points);
+    drop(kept_normals);
+    let t_index = Instant::now();
+    stats.timings.index = t_index - start;
+
+    let geometry = octree::Geometry {
+        min: -half_side,
+        side: 2.0 * half_side,
+    };
+    let leaves = octree::build(&samples, params, geometry, &mut stats);
+    stats.supports_before_expansion = leaves.len();
+    stats.grown_leaves = leaves.iter().filter(|l| l.grown).count();
+    stats.empty_leaves = leaves.iter().filter(|l| l.empty).count();
+    let t_octree = Instant::now();
+    stats.timings.octree = t_octree - t_index;
+
+    let mut centers: Vec<DVec3> = leaves.iter().map(|l| l.center).collect();
+    let mut radii: Vec<f64> = leaves.iter().map(|l| l.radius).collect();
+    let mut fits: Vec<fit::Fit> = leaves.iter().map(|l| l.fit).collect();
+    if params.expansion {
+        let max_radius = 2.0 * half_side * 3f64.sqrt();
+        let grown = expansion::grow_all(&leaves, &samples, params, max_radius);
+        stats.fits += grown.iter().map(|g| u64::from(g.fits)).sum::<u64>();
+        let t_growth = Instant::now();
+        stats.timings.growth = t_growth - t_octree;
+        let (alive, radius) = expansion::eliminate(&centers, &radii, &grown, params.seed)?;
+        let mut kept = 0;
+        for i in 0..leaves.len() {
+            if alive[i] {
+                if radius[i] > radii[i] {
+                    stats.grown_supports += 1;
+                }
+                centers[kept] = centers[i];
+                radii[kept] = radius[i];
+                fits[kept] = grown[i].fit;
+                kept += 1;
+            }
+        }
+        centers.truncate(kept);
+        radii.truncate(kept);
+        fits.truncate(kept);
+        stats.timings.elimination = t_growth.elapsed();
+    }
+    stats.supports_after_expansion = centers.len();
+    stats.supports_over_eps = fits.iter().filter(|f| f.error > params.eps).count();
+    stats.max_error = fits.iter().map(|f| f.error).fold(0.0, f64::max);
+    let funcs = LocalFunctions::from_linear(fits.iter().map(fit::Fit::linear));
+    let cover = Cover::new(centers, radii, funcs, params.kernel)?;
+    stats.timings.total = start.elapsed();
+    Ok((cover, stats))
+}
+
+/// Normalises a copy of `cloud` to the unit frame (thesis §3.4.1) and builds its cover; uses
+/// the cloud's confidence when it has one. Returns the cover (in the unit frame), the
+/// normalisation that maps it back to input coordinates, and the statistics.
+pub fn build_surface_cover_from_cloud(
+    cloud: &PointCloud,
+    params: &SurfaceCoverParams,
+) -> Result<(Cover, Normalisation, SurfaceCoverStats), SurfaceCoverError> {
+    let normals = cloud
+        .normals
+        .as_deref()
+        .ok_or(SurfaceCoverError::MissingNormals)?;
+    if let Some(index) = cloud.positions.iter().position(|p| !p.is_finite()) {
+        return Err(SurfaceCoverError::NonFinitePoint {
+            index,
+            point: cloud.positions[index],
+        });
+    }
+    let normalisation =
+        Normalisation::of_points(&cloud.positions).ok_or(SurfaceCoverError::NoUsablePoints {
+            points: cloud.len(),
+            skipped_normals: 0,
+        })?;
+    let mut unit = cloud.positions.clone();
+    normalisation.points_to_unit(&mut unit);
+    // Rounding may put a coordinate a hair past ±0.5; the root cube's margin absorbs it.
+    let (cover, stats) =
+        build_surface_cover_with_confidence(&unit, normals, cloud.confidence.as_deref(), params)?;
+    Ok((cover, normalisation, stats))
+}
+
+fn check_params(p: &SurfaceCoverParams) -> Result<(), SurfaceCoverError> {
+    let invalid = |name, value, requirement| {
+        Err(SurfaceCoverError::InvalidParameter {
+            name,
+            value,
+            requirement,
+        })
+    };
+    if !(p.eps.is_finite() && p.eps > 0.0) {
+        return invalid("eps", p.eps, "a finite positive number");
+    }
+    if p.n_min == 0 {
+        return invalid("n_min", 0.0, "at least 1");
+    }
+    if p.max_depth > MAX_DEPTH {
+        return invalid("max_depth", f64::from(p.max_depth), "at most 20");
+    }
+    if !(p.box_margin.is_finite() && p.box_margin >= 0.0) {
+        return invalid("box_margin", p.box_margin, "a finite number ≥ 0");
+    }
+    if !(p.max_growth.is_finite() && p.max_growth >= 1.0) {
+        return invalid("max_growth", p.max_growth, "a finite number ≥ 1");
+    }
+    if !(p.growth_tolerance > 0.0 && p.growth_tolerance <= 1.0) {
+        return invalid("growth_tolerance", p.growth_tolerance, "a number in (0, 1]");
+    }
+    Ok(())
+}

@@ -1,0 +1,369 @@
+//! The initial cover (thesis §3.4.1, after MPU): an adaptive, 2:1-balanced octree whose
+//! leaves carry the supports.
+//!
+//! Every octant gets a support at its centre with radius `0.75 ×` its diagonal (which covers
+//! the octant with room to spare, so the leaves' balls cover the root box). When that ball
+//! holds fewer than `n_min` points the radius grows to reach the `n_min` nearest points (by
+//! a factor [`REACH`] past the farthest of them, so it carries weight in the fit): a cell far
+//! from the surface still gets a support, whose plane is fitted to the nearest piece of
+//! surface. An octant is subdivided while its fit error exceeds ε, up to the maximum depth.
+//!
+//! Refinement stops where the data cannot support it. The children's balls of an octant lie
+//! inside its ball (a child's centre is `√3/4` of the parent's side from the parent's, and
+//! `√3/4 + 0.75·√3/2 < 0.75·√3`), so when an octant's own ball holds fewer than `n_min`
+//! points, every descendant grows its ball too, to nearly the same nearest points once the
+//! grown radius is several times the octant's own: subdividing then multiplies supports
+//! without fitting the data any better (around a crease or a tip no plane fits the nearest
+//! points, and the subdivision would run to the maximum depth all along it). So a grown
+//! octant is subdivided only while its grown radius is below [`REFINABLE_GROWTH`] times its
+//! own radius, and an *empty* octant (own ball without any point) never is.
+//!
+//! When the plane fitted to its nearest points misses them by more than ε, an empty octant
+//! keeps the plane but not the grown radius: its support stays the octant's own ball, which
+//! touches no sample, so the poor fit cannot spoil `f` on the data while the ball still
+//! covers the octant. (Seen from a concave region the nearest points spread over the whole
+//! concavity and no plane fits them.)
+//!
+//! Balance: a leaf at level `l` has no face neighbour coarser than level `l − 1` (the
+//! usual 2:1 face balance; balancing across edges and corners as well made 2.4 times as
+//! many balance octants on a scanned bunny, nearly all in empty space, for no gain in the
+//! fit). Leaves created to restore the
+//! balance are fitted and refined like the others, and balancing repeats until nothing
+//! changes.
+//!
+//! Octants are fitted one level (wave) at a time in parallel; every decision is taken
+//! sequentially in wave order, and the final leaves are sorted by Morton code, so the result
+//! does not depend on the thread count.
+
+use super::fit::{Candidates, Fit, Samples};
+use super::{SurfaceCoverParams, SurfaceCoverStats};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::{HashMap, HashSet};
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// Deepest octree level [`super::SurfaceCoverParams::max_depth`] may ask for (the cell keys
+/// hold 21 bits per axis).
+pub const MAX_DEPTH: u32 = 20;
+
+/// A grown support reaches this factor past its `n_min`-th nearest point, so that point has
+/// a small positive weight (the kernels vanish on the sphere).
+pub(crate) const REACH: f64 = 1.0625;
+
+/// A grown octant is subdivided only while its grown radius is below this factor times its
+/// own radius (see the module docs).
+pub(crate) const REFINABLE_GROWTH: f64 = 2.0;
+
+/// One octree leaf: its support and fit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Leaf {
+    pub level: u8,
+    pub key: u64,
+    pub center: DVec3,
+    pub radius: f64,
+    pub fit: Fit,
+    /// The octant's own ball (radius `0.75 ×` diagonal) held fewer than `n_min` points, and
+    /// the radius grew to reach them.
+    pub grown: bool,
+    /// The octant's own ball held no point.
+    pub empty: bool,
+    /// Subdividing the octant can fit the data better (see the module docs).
+    pub refinable: bool,
+}
+
+/// The root cube and its subdivision.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Geometry {
+    /// Minimum corner of the root cube.
+    pub min: f64,
+    /// Side of the root cube.
+    pub side: f64,
+}
+
+impl Geometry {
+    fn cell(&self, level: u8, key: u64) -> (DVec3, f64) {
+        let h = self.side / f64::from(1u32 << level);
+        let (x, y, z) = unpack(key);
+        let center = DVec3::new(
+            self.min + (f64::from(x) + 0.5) * h,
+            self.min + (f64::from(y) + 0.5) * h,
+            self.min + (f64::from(z) + 0.5) * h,
+        );
+        (center, 0.75 * 3f64.sqrt() * h)
+    }
+}
+
+const AXIS_BITS: u32 = 21;
+const AXIS_MASK: u64 = (1 << AXIS_BITS) - 1;
+
+fn pack(x: u32, y: u32, z: u32) -> u64 {
+    u64::from(x) | u64::from(y) << AXIS_BITS | u64::from(z) << (2 * AXIS_BITS)
+}
+
+fn unpack(key: u64) -> (u32, u32, u32) {
+    (
+        (key & AXIS_MASK) as u32,
+        (key >> AXIS_BITS & AXIS_MASK) as u32,
+        (key >> (2 * AXIS_BITS) & AXIS_MASK) as u32,
+    )
+}
+
+fn parent(key: u64) -> u64 {
+    let (x, y, z) = unpack(key);
+    pack(x >> 1, y >> 1, z >> 1)
+}
+
+fn children(key: u64) -> impl Iterator<Item = u64> {
+    let (x, y, z) = unpack(key);
+    (0..8u32).map(move |c| pack(2 * x + (c & 1), 2 * y + (c >> 1 & 1), 2 * z + (c >> 2)))
+}
+
+/// Interleaves the bits of a cell's minimum corner at the finest level: sorting leaves by it
+/// puts neighbouring supports next to each other in memory.
+fn morton(level: u8, key: u64) -> u64 {
+    let shift = MAX_DEPTH - u32::from(level);
+    let (x, y, z) = unpack(key);
+    spread(x << shift) | spread(y << shift) << 1 | spread(z << shift) << 2
+}
+
+fn spread(v: u32) -> u64 {
+    let mut x = u64::from(v) & AXIS_MASK;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// A multiplicative hasher for the `u64` cell keys (SipHash costs more than the lookups).
+#[derive(Default)]
+struct KeyHasher(u64);
+
+impl Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        let mut x = self.0;
+        x ^= x >> 33;
+        x = x.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        x ^= x >> 33;
+        x
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+    }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = v;
+    }
+}
+
+type KeySet = HashSet<u64, BuildHasherDefault<KeyHasher>>;
+type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
+
+struct Octree<'a> {
+    samples: &'a Samples,
+    params: &'a SurfaceCoverParams,
+    geometry: Geometry,
+    /// Subdivided cells, per level.
+    internal: Vec<KeySet>,
+    /// Fitted leaves, per level.
+    leaves: Vec<KeyMap<Leaf>>,
+}
+
+/// Builds the balanced adaptive octree and returns its leaves in Morton order.
+pub(crate) fn build(
+    samples: &Samples,
+    params: &SurfaceCoverParams,
+    geometry: Geometry,
+    stats: &mut SurfaceCoverStats,
+) -> Vec<Leaf> {
+    let levels = params.max_depth as usize + 1;
+    let mut tree = Octree {
+        samples,
+        params,
+        geometry,
+        internal: vec![KeySet::default(); levels],
+        leaves: vec![KeyMap::default(); levels],
+    };
+    stats.octants_per_level = vec![0; levels];
+    let mut frontier = vec![(0u8, 0u64)];
+    loop {
+        let new_leaves = tree.refine(frontier, stats);
+        frontier = tree.balance(new_leaves);
+        stats.balance_octants += frontier.len();
+        if frontier.is_empty() {
+            break;
+        }
+    }
+    let mut leaves: Vec<Leaf> = tree
+        .leaves
+        .into_iter()
+        .flat_map(|level| level.into_values())
+        .collect();
+    leaves.sort_unstable_by_key(|l| (morton(l.level, l.key), l.level));
+    stats.leaves_per_level = vec![0; levels];
+    for l in &leaves {
+        stats.leaves_per_level[l.level as usize] += 1;
+    }
+    leaves
+}
+
+impl Octree<'_> {
+    /// Fits the cells of `frontier` and subdivides those whose error exceeds ε, wave by wave,
+    /// until no cell is left; returns the cells that became leaves.
+    fn refine(
+        &mut self,
+        mut frontier: Vec<(u8, u64)>,
+        stats: &mut SurfaceCoverStats,
+    ) -> Vec<(u8, u64)> {
+        let mut new_leaves = Vec::new();
+        while !frontier.is_empty() {
+            let fitted: Vec<Option<Leaf>> = frontier
+                .par_iter()
+                .map_init(Candidates::default, |cand, &(level, key)| {
+                    self.fit_cell(cand, level, key)
+                })
+                .collect();
+            stats.fits += frontier.len() as u64;
+            let mut next = Vec::new();
+            for (&(level, key), leaf) in frontier.iter().zip(fitted) {
+                stats.octants_per_level[level as usize] += 1;
+                let Some(leaf) = leaf else { continue };
+                if leaf.fit.error > self.params.eps
+                    && u32::from(level) < self.params.max_depth
+                    && leaf.refinable
+                {
+                    self.internal[level as usize].insert(key);
+                    next.extend(children(key).map(|c| (level + 1, c)));
+                } else {
+                    self.leaves[level as usize].insert(key, leaf);
+                    new_leaves.push((level, key));
+                }
+            }
+            frontier = next;
+        }
+        new_leaves
+    }
+
+    /// The support of a cell. `None` only when no point is indexed at all.
+    fn fit_cell(&self, cand: &mut Candidates, level: u8, key: u64) -> Option<Leaf> {
+        let (center, natural) = self.geometry.cell(level, key);
+        let samples = self.samples;
+        cand.gather(samples, center, natural);
+        let mut radius = natural;
+        let empty = cand.len() == 0;
+        let mut grown = false;
+        if cand.len() < self.params.n_min {
+            let mut nearest = Vec::with_capacity(self.params.n_min);
+            samples
+                .index
+                .nearest_k_with_distances(center, self.params.n_min, &mut nearest);
+            let farthest = nearest.last()?.0.sqrt();
+            radius = natural.max(farthest * REACH);
+            grown = radius > natural;
+            cand.gather(samples, center, radius);
+        }
+        let limit = if u32::from(level) < self.params.max_depth && !empty {
+            self.params.eps
+        } else {
+            // No refinement will follow: keep the exact error.
+            f64::INFINITY
+        };
+        let refinable = !empty && radius < REFINABLE_GROWTH * natural;
+        let limit = if refinable { limit } else { f64::INFINITY };
+        let mut fit = cand.fit(radius, self.params.kernel, limit)?;
+        if empty && fit.error > self.params.eps {
+            radius = natural;
+            grown = false;
+            // No sample lies in the support's ball.
+            fit.error = 0.0;
+        }
+        Some(Leaf {
+            level,
+            key,
+            center,
+            radius,
+            fit,
+            grown,
+            empty,
+            refinable,
+        })
+    }
+
+    /// Restores the 2:1 balance around the leaves `seeds` (and around every leaf it creates)
+    /// and returns the created leaves, still to be fitted.
+    fn balance(&mut self, seeds: Vec<(u8, u64)>) -> Vec<(u8, u64)> {
+        let levels = self.internal.len();
+        let mut buckets: Vec<Vec<u64>> = vec![Vec::new(); levels];
+        for (level, key) in seeds {
+            buckets[level as usize].push(key);
+        }
+        let mut created = Vec::new();
+        // Deepest first: fixing level l only creates cells at levels below l, which are
+        // checked afterwards.
+        for level in (2..levels).rev() {
+            let bucket = std::mem::take(&mut buckets[level]);
+            let cells = 1i64 << level;
+            for key in bucket {
+                if self.internal[level].contains(&key) {
+                    continue;
+                }
+                let (x, y, z) = unpack(key);
+                for dz in -1i64..=1 {
+                    for dy in -1i64..=1 {
+                        for dx in -1i64..=1 {
+                            let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+                            if dx.abs() + dy.abs() + dz.abs() != 1
+                                || !(0..cells).contains(&nx)
+                                || !(0..cells).contains(&ny)
+                                || !(0..cells).contains(&nz)
+                            {
+                                continue;
+                            }
+                            // The neighbour's parent must exist: its grandparent subdivided.
+                            let grand = pack((nx >> 2) as u32, (ny >> 2) as u32, (nz >> 2) as u32);
+                            if !self.internal[level - 2].contains(&grand) {
+                                self.subdivide_up(level - 2, grand, &mut buckets, &mut created);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        created.retain(|&(level, key)| !self.internal[level as usize].contains(&key));
+        created
+    }
+
+    /// Subdivides cell `(level, key)` and every ancestor not yet subdivided; the new cells
+    /// that are not themselves subdivided are new leaves.
+    fn subdivide_up(
+        &mut self,
+        mut level: usize,
+        mut key: u64,
+        buckets: &mut [Vec<u64>],
+        created: &mut Vec<(u8, u64)>,
+    ) {
+        let mut chain = Vec::new();
+        while !self.internal[level].contains(&key) {
+            self.internal[level].insert(key);
+            self.leaves[level].remove(&key);
+            chain.push((level, key));
+            if level == 0 {
+                break;
+            }
+            level -= 1;
+            key = parent(key);
+        }
+        for (level, key) in chain {
+            for child in children(key) {
+                if !self.internal[level + 1].contains(&child) {
+                    created.push(((level + 1) as u8, child));
+                    buckets[level + 1].push(child);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,143 @@
+//! `PointIndex` against brute force: fixed-radius and k-nearest queries, on random clouds
+//! with many duplicate coordinates (ties in distance and in split coordinates).
+
+use proptest::prelude::*;
+use sphcover_core::{DVec3, PointIndex};
+
+/// Coordinates on a coarse grid, so that equal coordinates and equal distances are common.
+fn grid_point() -> impl Strategy<Value = DVec3> {
+    (0..8i32, 0..8i32, 0..8i32)
+        .prop_map(|(x, y, z)| DVec3::new(x as f64, y as f64, z as f64) * 0.125)
+}
+
+fn any_point() -> impl Strategy<Value = DVec3> {
+    prop_oneof![
+        grid_point(),
+        (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z)),
+    ]
+}
+
+fn cloud() -> impl Strategy<Value = Vec<DVec3>> {
+    prop::collection::vec(any_point(), 0..400)
+}
+
+fn brute_within(points: &[DVec3], x: DVec3, r: f64) -> Vec<u32> {
+    (0..points.len() as u32)
+        .filter(|&i| (points[i as usize] - x).length_squared() < r * r)
+        .collect()
+}
+
+fn brute_nearest(points: &[DVec3], x: DVec3, k: usize) -> Vec<u32> {
+    let mut all: Vec<(f64, u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| ((*p - x).length_squared(), i as u32))
+        .collect();
+    all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    all.into_iter().take(k).map(|(_, i)| i).collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn within_matches_brute_force(points in cloud(), x in any_point(), r in 0.0..1.5f64) {
+        let index = PointIndex::new(&points).unwrap();
+        let mut got = Vec::new();
+        index.within(x, r, &mut got);
+        prop_assert_eq!(&got, &brute_within(&points, x, r));
+        // The visitors report the same set, each point once, with its own position.
+        let mut visited = Vec::new();
+        index.for_each_within(x, r, |i, p| {
+            assert_eq!(p, points[i as usize]);
+            visited.push(i);
+        });
+        visited.sort_unstable();
+        prop_assert_eq!(visited, got);
+    }
+
+    #[test]
+    fn nearest_k_matches_brute_force(points in cloud(), x in any_point(), k in 0usize..40) {
+        let index = PointIndex::new(&points).unwrap();
+        let mut got = Vec::new();
+        index.nearest_k(x, k, &mut got);
+        prop_assert_eq!(got, brute_nearest(&points, x, k));
+    }
+
+    #[test]
+    fn slot_order_is_a_permutation(points in cloud()) {
+        let index = PointIndex::new(&points).unwrap();
+        let mut order = index.order().to_vec();
+        for (s, &i) in order.iter().enumerate() {
+            prop_assert_eq!(index.slot_points()[s], points[i as usize]);
+        }
+        order.sort_unstable();
+        prop_assert_eq!(order, (0..points.len() as u32).collect::<Vec<_>>());
+    }
+}
+
+#[test]
+fn boundary_is_open_and_non_finite_points_are_skipped() {
+    let points = [
+        DVec3::ZERO,
+        DVec3::X,
+        DVec3::new(f64::NAN, 0.0, 0.0),
+        DVec3::new(0.5, 0.0, 0.0),
+        DVec3::splat(f64::INFINITY),
+    ];
+    let index = PointIndex::new(&points).unwrap();
+    assert_eq!(index.len(), 3);
+    assert_eq!(index.input_len(), 5);
+    let mut out = Vec::new();
+    index.within(DVec3::ZERO, 1.0, &mut out);
+    assert_eq!(out, [0, 3], "a point at distance exactly r is outside");
+    index.within(DVec3::ZERO, f64::INFINITY, &mut out);
+    assert_eq!(out, [0, 1, 3]);
+    index.within(DVec3::new(f64::NAN, 0.0, 0.0), 10.0, &mut out);
+    assert!(out.is_empty());
+    index.within(DVec3::ZERO, -1.0, &mut out);
+    assert!(out.is_empty());
+    index.nearest_k(DVec3::new(0.9, 0.0, 0.0), 10, &mut out);
+    assert_eq!(out, [1, 3, 0]);
+    // Equidistant points: the lower index wins.
+    index.nearest_k(DVec3::new(0.25, 0.0, 0.0), 1, &mut out);
+    assert_eq!(out, [0]);
+}
+
+#[test]
+fn identical_points_and_large_clouds_are_handled() {
+    let same = vec![DVec3::splat(0.3); 1000];
+    let index = PointIndex::new(&same).unwrap();
+    let mut out = Vec::new();
+    index.nearest_k(DVec3::ZERO, 5, &mut out);
+    assert_eq!(out, [0, 1, 2, 3, 4]);
+    index.within(DVec3::splat(0.3), 1e-9, &mut out);
+    assert_eq!(out.len(), 1000);
+
+    // Large enough for the parallel build; the tree must not depend on the thread count.
+    let n = 100_000;
+    let points: Vec<DVec3> = (0..n)
+        .map(|i| {
+            let t = i as f64;
+            DVec3::new(
+                (t * 0.618).fract(),
+                (t * 0.754).fract(),
+                (t * 0.317).fract(),
+            )
+        })
+        .collect();
+    let build = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| PointIndex::new(&points).unwrap())
+    };
+    let (a, b) = (build(1), build(2));
+    assert_eq!(a.order(), b.order());
+    let x = DVec3::splat(0.5);
+    a.within(x, 0.05, &mut out);
+    assert_eq!(out, brute_within(&points, x, 0.05));
+    a.nearest_k(x, 20, &mut out);
+    assert_eq!(out, brute_nearest(&points, x, 20));
+}
