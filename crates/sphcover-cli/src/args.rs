@@ -37,8 +37,8 @@ pub enum Command {
     Recon(PendingArgs),
     /// Extract the skeletal sheet of a thin part from a CT volume (not available yet).
     Skeleton(PendingArgs),
-    /// Build a spherical cover of points or a volume (not available yet).
-    Cover(PendingArgs),
+    /// Build a spherical cover of oriented scan points or of a CT volume.
+    Cover(CoverArgs),
     /// Build the tetrahedral mesh of a cover: the dual complex of its union of balls.
     Tetra(TetraArgs),
 }
@@ -72,7 +72,40 @@ pub struct TetraArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     #[command(flatten)]
-    pub input: InputArgs,
+    pub read: InputArgs,
+}
+
+/// Arguments of `sphcover cover`.
+#[derive(Debug, Args)]
+pub struct CoverArgs {
+    /// Oriented points (PLY, OBJ, OFF, STL, XYZ/PWN with normals) for a surface cover, or a
+    /// NIfTI volume (`.nii`, `.nii.gz`) for a volume cover.
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// Output cover file (PLY: centres, radii and local-function coefficients).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Error tolerance ε. Surfaces: the largest |g| of a support's fit over its points, in
+    /// units of the longest bounding-box edge (default 2.5e-3). Volumes: the RMS fit error
+    /// as a fraction of the value range (default 0.05).
+    #[arg(long, value_name = "E")]
+    pub eps: Option<f64>,
+    /// Volumes: the object is where the value exceeds T, in the file's own units (HU for
+    /// CT). Default: the midpoint of the value range.
+    #[arg(long, value_name = "T")]
+    pub threshold: Option<f64>,
+    /// Volumes: linear local functions over the whole bounding box (thesis §6.2.3) instead of
+    /// quadratics over the object.
+    #[arg(long)]
+    pub linear: bool,
+    /// Seed of the random choices (expansion order, centre choice).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Write the PLY as ascii instead of binary little-endian.
+    #[arg(long)]
+    pub ascii: bool,
+    #[command(flatten)]
+    pub read: InputArgs,
 }
 
 /// How input files are read.
@@ -91,4 +124,18 @@ pub struct PendingArgs {
     /// Whatever was given.
     #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
     pub rest: Vec<String>,
+}
+
+impl InputArgs {
+    /// The readers' options these flags ask for.
+    pub fn read_options(&self) -> sphcover_core::io::ReadOptions {
+        use sphcover_core::io::{NonFinitePolicy, ReadOptions};
+        ReadOptions {
+            non_finite: if self.drop_non_finite {
+                NonFinitePolicy::Drop
+            } else {
+                NonFinitePolicy::Refuse
+            },
+        }
+    }
 }

@@ -35,7 +35,7 @@ fn main() -> ExitCode {
         Command::Info(a) => commands::info::run(a, &reporter),
         Command::Recon(a) => commands::unavailable::run("recon", a, &reporter),
         Command::Skeleton(a) => commands::unavailable::run("skeleton", a, &reporter),
-        Command::Cover(a) => commands::unavailable::run("cover", a, &reporter),
+        Command::Cover(a) => commands::cover::run(a, &reporter),
         Command::Tetra(a) => commands::tetra::run(a, &reporter),
     };
     match result {

@@ -90,7 +90,7 @@ fn info_keeps_going_past_a_bad_file_and_still_fails() {
 
 #[test]
 fn pending_subcommands_say_so_and_exit_1() {
-    for sub in ["recon", "skeleton", "cover"] {
+    for sub in ["recon", "skeleton"] {
         let out = sphcover(&[sub, "in.ply", "-o", "out.ply"]);
         assert_eq!(out.status.code(), Some(1), "{sub}");
         assert!(text(&out.stderr).contains("not available"), "{sub}");
@@ -223,4 +223,84 @@ fn non_finite_spheres_are_refused_unless_dropped_on_request() {
     assert_eq!(dropped.status.code(), Some(0), "{}", text(&dropped.stderr));
     assert!(text(&dropped.stderr).contains("dropped 1 spheres"));
     assert!(out.exists());
+}
+
+#[test]
+fn cover_of_oriented_points_is_read_back_and_independent_of_threads() {
+    let input = fixture("sphere_2k.ply");
+    let dir = tempfile::tempdir().unwrap();
+    let one = dir.path().join("one.ply");
+    let two = dir.path().join("two.ply");
+    for (threads, out) in [("1", &one), ("2", &two)] {
+        let run = sphcover(&[
+            "--threads",
+            threads,
+            "cover",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--eps",
+            "0.005",
+            "--seed",
+            "3",
+        ]);
+        assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+        assert!(text(&run.stderr).contains("supports"));
+    }
+    assert!(std::fs::read(&one).unwrap() == std::fs::read(&two).unwrap());
+    let (cover, meta) = sphcover_core::io::read_cover(&one).unwrap();
+    assert!(cover.len() > 10);
+    // The samples of a sphere of radius 0.5 span a box whose longest edge is just under 1.
+    assert!((meta.normalisation.scale - 1.0).abs() < 1e-2, "{meta:?}");
+}
+
+#[test]
+fn cover_of_a_ct_volume_and_its_tetrahedral_mesh() {
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let dir = tempfile::tempdir().unwrap();
+    let cover = dir.path().join("t.cover.ply");
+    let run = sphcover(&[
+        "cover",
+        input.to_str().unwrap(),
+        "-o",
+        cover.to_str().unwrap(),
+        "--threshold",
+        "500",
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(
+        text(&run.stderr).contains("0 over ε"),
+        "{}",
+        text(&run.stderr)
+    );
+    let mesh = dir.path().join("t.vtk");
+    let run = sphcover(&[
+        "tetra",
+        cover.to_str().unwrap(),
+        "-o",
+        mesh.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+}
+
+#[test]
+fn cover_refuses_points_without_normals_and_empty_thresholds() {
+    let dir = tempfile::tempdir().unwrap();
+    let bare = dir.path().join("bare.xyz");
+    std::fs::write(&bare, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n").unwrap();
+    let out = dir.path().join("c.ply");
+    let run = sphcover(&["cover", bare.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(text(&run.stderr).contains("normals"));
+    let ct = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let run = sphcover(&[
+        "cover",
+        ct.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--threshold",
+        "100000",
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
+    assert!(!out.exists());
 }

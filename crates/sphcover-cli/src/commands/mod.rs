@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod cover;
 pub mod info;
 pub mod tetra;
 pub mod unavailable;

@@ -1,7 +1,7 @@
 //! `sphcover tetra`: the tetrahedral mesh of a cover (thesis §3.5), built as the dual complex
 //! of the union of balls on an exact regular triangulation.
 
-use sphcover_core::io::{self, NonFinitePolicy, ReadOptions, SphereSet};
+use sphcover_core::io::{self, SphereSet};
 use sphcover_tetra::{DualComplexParams, TetMesh, TetMeshFormat, dual_complex, write_tet_mesh};
 
 use crate::args::TetraArgs;
@@ -73,14 +73,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
 
 /// Reads the sphere set, dropping non-finite spheres with a warning when asked to.
 fn read_spheres(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<SphereSet> {
-    let options = ReadOptions {
-        non_finite: if args.input.drop_non_finite {
-            NonFinitePolicy::Drop
-        } else {
-            NonFinitePolicy::Refuse
-        },
-    };
-    let geometry = io::read_geometry(&args.spheres, &options)?;
+    let geometry = io::read_geometry(&args.spheres, &args.read.read_options())?;
     let dropped = geometry.info.non_finite.dropped_vertices;
     if dropped > 0 {
         reporter.warn(&format!(

@@ -8,7 +8,6 @@ fn what(name: &str) -> &'static str {
     match name {
         "recon" => "surface reconstruction (crate sphcover-recon)",
         "skeleton" => "skeletal-sheet extraction (crate sphcover-skeleton)",
-        "cover" => "the cover builders of thesis §3.4 (sphcover-core)",
         _ => "this subcommand",
     }
 }

@@ -1,0 +1,178 @@
+//! `sphcover cover`: a spherical cover of oriented scan points (thesis §3.4.1) or of a CT
+//! volume (thesis §3.4.2), written as a cover file the library reads back.
+
+use std::path::Path;
+
+use sphcover_core::io::{self, CoverFileMeta, PlyEncoding, WriteOptions};
+use sphcover_core::{
+    Cover, Normalisation, SurfaceCoverParams, Threshold, VolumeCoverParams, VolumeCoverVariant,
+    build_surface_cover_from_cloud, build_volume_cover,
+};
+
+use crate::args::CoverArgs;
+use crate::exit::BadInput;
+use crate::report::Reporter;
+
+/// Runs `sphcover cover`.
+pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    if let Some(eps) = args.eps
+        && !(eps.is_finite() && eps > 0.0)
+    {
+        return Err(BadInput(format!("--eps {eps} must be a positive number")).into());
+    }
+    let (cover, meta) = if io::is_volume_path(&args.input) {
+        volume_cover(args, reporter)?
+    } else {
+        if args.threshold.is_some() || args.linear {
+            return Err(BadInput(
+                "--threshold and --linear apply to volumes (.nii, .nii.gz) only".to_owned(),
+            )
+            .into());
+        }
+        surface_cover(args, reporter)?
+    };
+    let stage = reporter.stage("write");
+    let options = WriteOptions {
+        ply_encoding: if args.ascii {
+            PlyEncoding::Ascii
+        } else {
+            PlyEncoding::BinaryLittleEndian
+        },
+        inputs: vec![args.input.clone()],
+        ..WriteOptions::default()
+    };
+    io::write_cover(&args.output, &cover, &meta, &options)?;
+    stage.finish();
+    Ok(())
+}
+
+fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover, CoverFileMeta)> {
+    let stage = reporter.stage("read points");
+    let cloud = io::read_point_cloud(&args.input, &args.read.read_options())?;
+    stage.finish();
+    if cloud.normals.is_none() {
+        return Err(BadInput(format!(
+            "{}: the points have no normals: the surface cover needs outward normals (estimating them from unoriented points is part of `sphcover recon`){}",
+            args.input.display(),
+            if cloud.values.is_some() {
+                "; covers of scattered samples with values (volume data off a grid) are not supported yet"
+            } else {
+                ""
+            }
+        ))
+        .into());
+    }
+    let params = SurfaceCoverParams {
+        eps: args.eps.unwrap_or(SurfaceCoverParams::default().eps),
+        seed: args.seed,
+        ..SurfaceCoverParams::default()
+    };
+    let bar = reporter.progress(None, "building the surface cover");
+    let (cover, normalisation, stats) = build_surface_cover_from_cloud(&cloud, &params)
+        .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
+    bar.finish_and_clear();
+    let t = &stats.timings;
+    for (name, d) in [
+        ("point index", t.index),
+        ("octree", t.octree),
+        ("growth", t.growth),
+        ("elimination", t.elimination),
+    ] {
+        reporter.detail(&format!("  {name:<24} {:>9.3} s", d.as_secs_f64()));
+    }
+    reporter.detail(&format!(
+        "  octants per level {:?}; leaves per level {:?}",
+        stats.octants_per_level, stats.leaves_per_level
+    ));
+    if stats.skipped_normals > 0 {
+        reporter.warn(&format!(
+            "{}: skipped {} points with zero-length normals",
+            args.input.display(),
+            stats.skipped_normals
+        ));
+    }
+    reporter.summary(&format!(
+        "{} points ({} used): {} supports ({} before expansion), {} over ε = {} (largest error {:.3e}), {:.3} s -> {}",
+        stats.input_points,
+        stats.used_points,
+        stats.supports_after_expansion,
+        stats.supports_before_expansion,
+        stats.supports_over_eps,
+        params.eps,
+        stats.max_error,
+        t.total.as_secs_f64(),
+        args.output.display()
+    ));
+    let meta = CoverFileMeta {
+        normalisation,
+        notes: vec![notes(
+            &args.input,
+            &format!("surface cover eps={} seed={}", params.eps, params.seed),
+        )],
+        ..CoverFileMeta::default()
+    };
+    Ok((cover, meta))
+}
+
+fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover, CoverFileMeta)> {
+    let stage = reporter.stage("read volume");
+    let (volume, _info) = io::read_volume(&args.input)?;
+    stage.finish();
+    let defaults = VolumeCoverParams::default();
+    let params = VolumeCoverParams {
+        threshold: args.threshold.map_or(defaults.threshold, Threshold::Raw),
+        tolerance: args.eps.unwrap_or(defaults.tolerance),
+        variant: if args.linear {
+            VolumeCoverVariant::BoundingBoxLinear
+        } else {
+            VolumeCoverVariant::ObjectQuadratic
+        },
+        seed: args.seed,
+        ..defaults
+    };
+    let bar = reporter.progress(None, "building the volume cover");
+    let (cover, stats) = build_volume_cover(&volume, &params)
+        .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
+    bar.finish_and_clear();
+    reporter.detail(&format!(
+        "  distance transform       {:>9.3} s\n  cover                    {:>9.3} s",
+        stats.time_distance_transform.as_secs_f64(),
+        stats.time_cover.as_secs_f64()
+    ));
+    reporter.detail(&format!(
+        "  radii {:.4} .. {:.4} (mean {:.4}); r_min {:.4}, r_max {:.4}; {} fits",
+        stats.radius_min, stats.radius_max, stats.radius_mean, stats.r_min, stats.r_max, stats.fits
+    ));
+    reporter.summary(&format!(
+        "{} object points of {} candidates: {} supports ({:.1} points per support), largest RMS error {:.4} ({} over ε = {}) -> {}",
+        stats.object_points,
+        stats.candidates,
+        stats.supports,
+        stats.object_points as f64 / stats.supports.max(1) as f64,
+        stats.max_rms,
+        stats.above_tolerance,
+        params.tolerance,
+        args.output.display()
+    ));
+    let meta = CoverFileMeta {
+        normalisation: Normalisation::IDENTITY,
+        notes: vec![notes(
+            &args.input,
+            &format!(
+                "volume cover tolerance={} variant={:?} seed={}",
+                params.tolerance, params.variant, params.seed
+            ),
+        )],
+        ..CoverFileMeta::default()
+    };
+    Ok((cover, meta))
+}
+
+/// A provenance note: which file and which parameters made the cover.
+fn notes(input: &Path, what: &str) -> String {
+    let name = input.file_name().map_or_else(
+        || input.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    format!("{what} from {name}")
+}
