@@ -77,6 +77,17 @@ struct BoxSummary {
     diagonal: f64,
 }
 
+impl BoxSummary {
+    fn of(bbox: &Aabb) -> BoxSummary {
+        BoxSummary {
+            min: bbox.min.to_array(),
+            max: bbox.max.to_array(),
+            extent: bbox.extent().to_array(),
+            diagonal: bbox.diagonal(),
+        }
+    }
+}
+
 #[derive(Debug, Serialize)]
 struct NormalSummary {
     unit_length: usize,
@@ -174,12 +185,7 @@ fn summarise(path: &Path) -> anyhow::Result<Summary> {
         triangles: geometry.triangles.len(),
         polygons: info.polygons,
         skipped_polygons: info.skipped_polygons,
-        bounding_box: (!bbox.is_empty()).then(|| BoxSummary {
-            min: bbox.min.to_array(),
-            max: bbox.max.to_array(),
-            extent: bbox.extent().to_array(),
-            diagonal: bbox.diagonal(),
-        }),
+        bounding_box: (!bbox.is_empty()).then(|| BoxSummary::of(&bbox)),
         normals: points.normals.as_deref().map(summarise_normals),
         confidence: points.confidence.as_deref().and_then(summarise_range),
         values: points.values.as_deref().and_then(summarise_range),
@@ -220,12 +226,7 @@ fn summarise_volume(path: &Path) -> anyhow::Result<VolumeSummary> {
         voxels: volume.len(),
         voxel_size: volume.voxel_size().to_array(),
         affine_source: format!("{:?}", info.affine_source),
-        world_bounding_box: BoxSummary {
-            min: bbox.min.to_array(),
-            max: bbox.max.to_array(),
-            extent: bbox.extent().to_array(),
-            diagonal: bbox.diagonal(),
-        },
+        world_bounding_box: BoxSummary::of(&bbox),
         scaling: info.scaling,
         value_range: volume.value_range(),
         non_finite_voxels: non_finite,
