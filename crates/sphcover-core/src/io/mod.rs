@@ -1,4 +1,4 @@
-//! Scan file formats: PLY, OBJ, OFF, STL, XYZ text and sphere sets.
+//! Scan file formats: PLY, OBJ, OFF, STL, XYZ text, sphere sets and LAS (read only).
 //!
 //! Every reader parses the whole file from memory, checks every count the file declares
 //! against the bytes actually present before allocating, and reports every problem as an
@@ -17,6 +17,7 @@
 //! | `.xyz` `.pwn` | `x y z`, `x y z v`, `x y z nx ny nz`, `x y z nx ny nz v` per line | same |
 //! | `.txt` | as `.xyz`, except that 4 columns mean a sphere set `x y z r` | same |
 //! | `.sph` `.spheres` | sphere sets, `x y z r` per line | same |
+//! | `.las` | LAS 1.0–1.4, point formats 0–10: positions, intensity as per-vertex values (LAZ refused) | — |
 //!
 //! * Text records are one per line (every PLY, OFF and XYZ writer does that), so a record
 //!   with a missing or extra number is reported on its own line instead of shifting every
@@ -44,6 +45,7 @@ mod atomic;
 mod cover_file;
 mod encode;
 mod error;
+mod las;
 #[cfg(feature = "nifti")]
 mod nifti;
 mod non_finite;
@@ -88,6 +90,9 @@ pub enum Format {
     Txt,
     /// Sphere sets `x y z r`, one per line (`.sph`, `.spheres`).
     Sph,
+    /// ASPRS LAS LiDAR point cloud (`.las`; read only). `.laz` names it too, so that a
+    /// compressed file is refused with a hint instead of as an unknown format.
+    Las,
 }
 
 impl Format {
@@ -106,6 +111,7 @@ impl Format {
             Some("pwn") => Ok(Format::Pwn),
             Some("txt") => Ok(Format::Txt),
             Some("sph" | "spheres") => Ok(Format::Sph),
+            Some("las" | "laz") => Ok(Format::Las),
             _ => Err(IoError::UnknownFormat {
                 path: path.to_path_buf(),
             }),
@@ -123,6 +129,7 @@ impl Format {
             Format::Pwn => "PWN",
             Format::Txt => "TXT",
             Format::Sph => "sphere set",
+            Format::Las => "LAS",
         }
     }
 }
@@ -368,6 +375,7 @@ pub fn parse_geometry(
         Format::Obj => obj::read(bytes),
         Format::Off => off::read(bytes),
         Format::Stl => stl::read(bytes),
+        Format::Las => las::read(bytes),
         Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::read(bytes, format),
     }
     .map_err(|failure| failure.into_io(path))?;
@@ -463,6 +471,9 @@ impl Export<'_> {
         };
         let has_faces = !self.triangles.is_empty();
         let problem = match format {
+            Format::Las => {
+                Some("written data: sphcover reads LAS but does not write it (write PLY)")
+            }
             Format::Ply => None,
             Format::Obj | Format::Off => {
                 if self.confidence.is_some() {
@@ -541,6 +552,11 @@ fn write_export(path: &Path, export: Export<'_>, options: &WriteOptions) -> Resu
         Format::Obj => obj::write(w, &export, double),
         Format::Off => off::write(w, &export, double),
         Format::Stl => stl::write(w, &export),
+        // Refused by `check_supported` above; kept as an error rather than a panic.
+        Format::Las => Err(std::io::Error::new(
+            std::io::ErrorKind::Unsupported,
+            "LAS is read only",
+        )),
         Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::write(w, &export, double),
     })
 }

@@ -1,0 +1,322 @@
+//! ASPRS LAS point clouds (`.las`), versions 1.0 to 1.4, point data record formats 0 to 10;
+//! read only.
+//!
+//! * Positions are `raw · scale + offset` in `f64`, with the scale and offset of the public
+//!   header block; every point record format starts with the `i32` triple `X Y Z`.
+//! * The `u16` intensity, which every record format stores right after `X Y Z` (byte 12),
+//!   becomes [`PointCloud::values`]; the other fields (returns, classification, GPS time,
+//!   colours, waveforms, extra bytes) are not read.
+//! * Records are `point data record length` bytes apart, starting at `offset to point
+//!   data`; a length larger than the format's minimum (extra bytes) is allowed.
+//! * The point count is the 64-bit count of the 1.4 header when it is non-zero, else the
+//!   legacy 32-bit count; it is checked against the bytes present before anything is
+//!   allocated.
+//! * Compressed LAZ files (the point format with bit 7 or 6 set, as LASzip writes it) are
+//!   refused with a hint to decompress them.
+//! * Variable length records are skipped.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::error::{Failure, Location, Problem};
+use super::{ElementInfo, FileInfo, Format, Parsed, PropertyInfo, VertexOrigins};
+use crate::point_cloud::PointCloud;
+
+/// Size of the LAS 1.0–1.2 public header block; later versions only add to it.
+const MIN_HEADER: usize = 227;
+/// Size of the LAS 1.4 public header block (with the 64-bit point count).
+const HEADER_1_4: usize = 375;
+
+/// Fields of one point data record format, as `(name, type)`, in file order.
+fn record_fields(format: u8) -> Vec<(&'static str, &'static str)> {
+    let mut fields = vec![
+        ("x", "int"),
+        ("y", "int"),
+        ("z", "int"),
+        ("intensity", "ushort"),
+    ];
+    if format <= 5 {
+        fields.extend([
+            ("return_flags", "uchar"),
+            ("classification", "uchar"),
+            ("scan_angle_rank", "char"),
+            ("user_data", "uchar"),
+            ("point_source_id", "ushort"),
+        ]);
+        if matches!(format, 1 | 3 | 4 | 5) {
+            fields.push(("gps_time", "double"));
+        }
+        if matches!(format, 2 | 3 | 5) {
+            fields.extend([("red", "ushort"), ("green", "ushort"), ("blue", "ushort")]);
+        }
+    } else {
+        fields.extend([
+            ("return_flags", "uchar"),
+            ("classification_flags", "uchar"),
+            ("classification", "uchar"),
+            ("user_data", "uchar"),
+            ("scan_angle", "short"),
+            ("point_source_id", "ushort"),
+            ("gps_time", "double"),
+        ]);
+        if matches!(format, 7 | 8 | 10) {
+            fields.extend([("red", "ushort"), ("green", "ushort"), ("blue", "ushort")]);
+        }
+        if matches!(format, 8 | 10) {
+            fields.push(("nir", "ushort"));
+        }
+    }
+    if matches!(format, 4 | 5 | 9 | 10) {
+        fields.extend([
+            ("wave_packet_index", "uchar"),
+            ("wave_offset", "ulong"),
+            ("wave_size", "uint"),
+            ("return_point_location", "float"),
+            ("x_t", "float"),
+            ("y_t", "float"),
+            ("z_t", "float"),
+        ]);
+    }
+    fields
+}
+
+/// Bytes of a field type named in [`record_fields`].
+fn type_size(type_name: &str) -> usize {
+    match type_name {
+        "uchar" | "char" => 1,
+        "ushort" | "short" => 2,
+        "int" | "uint" | "float" => 4,
+        _ => 8,
+    }
+}
+
+/// The minimum record length of a point data record format (the sum of its fields).
+pub(crate) fn min_record_length(format: u8) -> usize {
+    record_fields(format)
+        .iter()
+        .map(|(_, t)| type_size(t))
+        .sum()
+}
+
+fn header(at: usize, message: impl Into<String>) -> Failure {
+    Failure::header(Location::Byte(at as u64), message)
+}
+
+fn u16_at(b: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([b[at], b[at + 1]])
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+fn u64_at(b: &[u8], at: usize) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[at..at + 8]);
+    u64::from_le_bytes(a)
+}
+
+fn f64_at(b: &[u8], at: usize) -> f64 {
+    f64::from_bits(u64_at(b, at))
+}
+
+/// A fixed-width text field of the header, up to its first NUL, trimmed.
+fn text_at(b: &[u8], at: usize, len: usize) -> String {
+    let raw = &b[at..at + len];
+    let end = raw.iter().position(|&c| c == 0).unwrap_or(len);
+    String::from_utf8_lossy(&raw[..end]).trim().to_string()
+}
+
+pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
+    if !bytes.starts_with(b"LASF") {
+        let found = super::error::token_for_message(&bytes[..bytes.len().min(4)]);
+        return Err(header(
+            0,
+            format!("signature {found:?} is not \"LASF\": not a LAS file"),
+        ));
+    }
+    if bytes.len() < MIN_HEADER {
+        return Err(header(
+            bytes.len(),
+            format!(
+                "file ends inside the {MIN_HEADER}-byte LAS public header ({} bytes)",
+                bytes.len()
+            ),
+        ));
+    }
+    let (major, minor) = (bytes[24], bytes[25]);
+    if major != 1 || minor > 4 {
+        return Err(header(
+            24,
+            format!("version {major}.{minor} is not LAS 1.0 to 1.4"),
+        ));
+    }
+    let header_size = usize::from(u16_at(bytes, 94));
+    let required = match minor {
+        0..=2 => MIN_HEADER,
+        3 => MIN_HEADER + 8,
+        _ => HEADER_1_4,
+    };
+    if header_size < required {
+        return Err(header(
+            94,
+            format!(
+                "header size {header_size} is smaller than the {required} bytes of a LAS 1.{minor} header"
+            ),
+        ));
+    }
+    if bytes.len() < header_size {
+        return Err(header(
+            bytes.len(),
+            format!(
+                "file ends inside the {header_size}-byte LAS public header ({} bytes)",
+                bytes.len()
+            ),
+        ));
+    }
+    let point_format_raw = bytes[104];
+    if point_format_raw & 0xC0 != 0 {
+        return Err(header(
+            104,
+            format!(
+                "point data format byte {point_format_raw} has the compression bits set: LAZ is compressed; decompress with laszip (laszip -i in.laz -o out.las)"
+            ),
+        ));
+    }
+    let point_format = point_format_raw;
+    if point_format > 10 {
+        return Err(header(
+            104,
+            format!("point data record format {point_format} is not one of 0 to 10"),
+        ));
+    }
+    let record_length = usize::from(u16_at(bytes, 105));
+    let min_length = min_record_length(point_format);
+    if record_length < min_length {
+        return Err(header(
+            105,
+            format!(
+                "point data record length {record_length} is shorter than the {min_length} bytes of point format {point_format}"
+            ),
+        ));
+    }
+    let offset = u32_at(bytes, 96) as usize;
+    if offset < header_size {
+        return Err(header(
+            96,
+            format!("offset to point data {offset} lies inside the {header_size}-byte header"),
+        ));
+    }
+    let legacy_count = u64::from(u32_at(bytes, 107));
+    // `header_size ≥ 375` was checked for 1.4, so the 64-bit count is within the file.
+    let count = match minor {
+        4.. => match u64_at(bytes, 247) {
+            0 => legacy_count,
+            n => n,
+        },
+        _ => legacy_count,
+    };
+    let mut scale = [0.0; 3];
+    let mut shift = [0.0; 3];
+    for axis in 0..3 {
+        let s_at = 131 + 8 * axis;
+        let o_at = 155 + 8 * axis;
+        scale[axis] = f64_at(bytes, s_at);
+        shift[axis] = f64_at(bytes, o_at);
+        if !(scale[axis].is_finite() && scale[axis] != 0.0) {
+            return Err(header(
+                s_at,
+                format!(
+                    "{} scale factor {} is not finite and non-zero",
+                    ["x", "y", "z"][axis],
+                    scale[axis]
+                ),
+            ));
+        }
+        if !shift[axis].is_finite() {
+            return Err(header(
+                o_at,
+                format!(
+                    "{} offset {} is not finite",
+                    ["x", "y", "z"][axis],
+                    shift[axis]
+                ),
+            ));
+        }
+    }
+
+    let available = bytes.len().saturating_sub(offset) as u64 / record_length as u64;
+    if count > available {
+        let first_missing =
+            (offset as u64 + available * record_length as u64).min(bytes.len() as u64);
+        return Err(Failure::new(
+            Location::Byte(first_missing),
+            Problem::Truncated {
+                element: "vertex".into(),
+                index: available,
+                declared: count,
+            },
+        ));
+    }
+    // `count ≤ available`, so this fits in memory: it is bounded by the file size.
+    let n = count as usize;
+    let data = &bytes[offset..offset + n * record_length];
+    let scale = DVec3::from_array(scale);
+    let shift = DVec3::from_array(shift);
+    let (positions, values): (Vec<DVec3>, Vec<f64>) = data
+        .par_chunks_exact(record_length)
+        .map(|r| {
+            let raw = DVec3::new(
+                f64::from(u32_at(r, 0) as i32),
+                f64::from(u32_at(r, 4) as i32),
+                f64::from(u32_at(r, 8) as i32),
+            );
+            (raw * scale + shift, f64::from(u16_at(r, 12)))
+        })
+        .unzip();
+
+    let mut info = FileInfo::new(
+        Format::Las,
+        format!("LAS {major}.{minor}, point format {point_format}"),
+        bytes.len(),
+    );
+    let mut properties: Vec<PropertyInfo> = record_fields(point_format)
+        .into_iter()
+        .map(|(name, type_name)| PropertyInfo {
+            name: name.to_string(),
+            type_name: type_name.to_string(),
+        })
+        .collect();
+    if record_length > min_length {
+        properties.push(PropertyInfo {
+            name: "extra_bytes".into(),
+            type_name: format!("{} bytes", record_length - min_length),
+        });
+    }
+    info.elements.push(ElementInfo {
+        name: "vertex".into(),
+        count,
+        properties,
+    });
+    for (label, at) in [("system", 26), ("software", 58)] {
+        let text = text_at(bytes, at, 32);
+        if !text.is_empty() {
+            info.comments.push(format!("{label}: {text}"));
+        }
+    }
+    Ok(Parsed {
+        points: PointCloud {
+            positions,
+            normals: None,
+            confidence: None,
+            values: Some(values),
+        },
+        triangles: Vec::new(),
+        radii: None,
+        info,
+        origins: VertexOrigins::Stride {
+            start: offset as u64,
+            stride: record_length as u64,
+        },
+    })
+}
