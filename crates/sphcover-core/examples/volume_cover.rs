@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use sphcover_core::io::read_volume;
+use sphcover_core::io::read_nifti;
 use sphcover_core::{Threshold, VolumeCoverParams, VolumeCoverVariant, build_volume_cover};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -17,7 +17,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let linear = args.next().as_deref() == Some("linear");
 
     let start = Instant::now();
-    let (volume, info) = read_volume(&path)?;
+    let (volume, info) = read_nifti(&path)?;
     let read = start.elapsed();
     println!(
         "{}: NIfTI-{} {} {:?} voxels {:.4?}, {} frame(s), affine from {:?}, read in {:.3?}",

@@ -8,7 +8,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use sphcover_core::io::{
-    AffineSource, IoError, Location, NiftiDatatype, parse_nifti, read_nifti, read_volume,
+    AffineSource, IoError, Location, NiftiDatatype, VolumeInfo, parse_nifti, read_nifti,
+    read_volume,
 };
 use sphcover_core::{DVec3, VoxelValues};
 
@@ -256,7 +257,9 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
         let mut file = h.bytes();
         file.extend(encode(dt, false, &values));
         let path = write(dir.path(), &format!("q{version}.nii"), &file);
-        let (vol, info) = read_volume(&path).unwrap();
+        let (vol, VolumeInfo::Nifti(info)) = read_volume(&path).unwrap() else {
+            panic!("a .nii file must read as NIfTI")
+        };
         assert_eq!(info.affine_source, AffineSource::Qform);
         // Voxel (1, 0, 0) moves 2 along +y; (0, 1, 0) moves 3 along −x; (0, 0, 1) moves −4 in z.
         let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-6;
@@ -282,7 +285,9 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
         let mut file = h.bytes();
         file.extend(encode(dt, false, &values));
         let path = write(dir.path(), &format!("s{version}.nii"), &file);
-        let (vol, info) = read_volume(&path).unwrap();
+        let (vol, VolumeInfo::Nifti(info)) = read_volume(&path).unwrap() else {
+            panic!("a .nii file must read as NIfTI")
+        };
         assert_eq!(info.affine_source, AffineSource::Sform);
         assert!(close(
             vol.voxel_center([1, 1, 1]),

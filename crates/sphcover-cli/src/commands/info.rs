@@ -210,27 +210,18 @@ fn summarise_volume(path: &Path) -> anyhow::Result<VolumeSummary> {
         .count();
     Ok(VolumeSummary {
         file: path.display().to_string(),
-        format: format!(
-            "NIfTI-{} {}{}",
-            info.version,
-            if info.big_endian {
-                "big-endian"
-            } else {
-                "little-endian"
-            },
-            if info.gzip { ", gzip" } else { "" }
-        ),
-        datatype: info.datatype.name().to_owned(),
+        format: info.format_description(),
+        datatype: info.datatype_name().to_owned(),
         dims,
-        frames: info.frames,
+        frames: info.frames(),
         voxels: volume.len(),
         voxel_size: volume.voxel_size().to_array(),
-        affine_source: format!("{:?}", info.affine_source),
+        affine_source: info.axes_source(),
         world_bounding_box: BoxSummary::of(&bbox),
-        scaling: info.scaling,
+        scaling: info.scaling(),
         value_range: volume.value_range(),
         non_finite_voxels: non_finite,
-        description: info.description.clone(),
+        description: info.description(),
     })
 }
 

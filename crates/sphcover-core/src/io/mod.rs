@@ -45,6 +45,8 @@ mod atomic;
 mod cover_file;
 mod encode;
 mod error;
+#[cfg(feature = "nifti")]
+mod inrimage;
 mod las;
 #[cfg(feature = "nifti")]
 mod nifti;
@@ -54,6 +56,8 @@ mod off;
 mod ply;
 mod stl;
 mod text;
+#[cfg(feature = "nifti")]
+mod volume_file;
 mod xyz;
 
 use std::path::{Path, PathBuf};
@@ -67,9 +71,11 @@ pub use atomic::write_atomic;
 pub use cover_file::{CoverFileMeta, parse_cover, read_cover, write_cover};
 pub use error::{IoError, Location, Problem};
 #[cfg(feature = "nifti")]
-pub use nifti::{
-    AffineSource, NiftiDatatype, NiftiInfo, is_volume_path, parse_nifti, read_nifti, read_volume,
-};
+pub use inrimage::{InrimageInfo, InrimageType, parse_inrimage, read_inrimage};
+#[cfg(feature = "nifti")]
+pub use nifti::{AffineSource, NiftiDatatype, NiftiInfo, parse_nifti, read_nifti};
+#[cfg(feature = "nifti")]
+pub use volume_file::{VolumeInfo, is_volume_path, read_volume};
 
 /// A file format, named by the file's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

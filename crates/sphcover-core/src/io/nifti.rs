@@ -782,20 +782,3 @@ fn convert(
         NiftiDatatype::F64 => values!(f64),
     }
 }
-
-/// Reads a volume file. NIfTI (`.nii`, `.nii.gz`) is the only volume format; the content,
-/// not the extension, decides how the file is decoded.
-pub fn read_volume(path: &Path) -> Result<(Volume, NiftiInfo), IoError> {
-    read_nifti(path)
-}
-
-/// True when the name of `path` ends in `.nii` or `.nii.gz` (case-insensitive): the
-/// extensions a command-line tool should send to [`read_volume`].
-pub fn is_volume_path(path: &Path) -> bool {
-    let name = path
-        .file_name()
-        .and_then(|n| n.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    name.ends_with(".nii") || name.ends_with(".nii.gz")
-}
