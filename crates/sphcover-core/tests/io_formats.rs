@@ -359,9 +359,9 @@ fn format_detection_is_case_insensitive_and_names_unknown_files() {
         Format::from_path(Path::new("x.Spheres")).unwrap(),
         Format::Sph
     );
-    let err = Format::from_path(Path::new("scan.las")).unwrap_err();
+    let err = Format::from_path(Path::new("scan.e57")).unwrap_err();
     assert!(
-        err.to_string().starts_with("scan.las: unknown file format"),
+        err.to_string().starts_with("scan.e57: unknown file format"),
         "{err}"
     );
     let err = Format::from_path(Path::new("noext")).unwrap_err();

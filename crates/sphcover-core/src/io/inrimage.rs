@@ -273,16 +273,14 @@ fn parse_keys(header: &[u8]) -> Result<Keys, DecodeError> {
                     .ok_or_else(|| bad("a size \"N bits\""))?;
                 keys.pixsize = Some((bits, line_at));
             }
-            "SCALE" => {
-                if value != "2**0" {
-                    return Err(header_error(
-                        line_at,
-                        format!(
-                            "SCALE={} (fixed-point scaling) is not supported; only 2**0",
-                            super::error::token_for_message(value.as_bytes())
-                        ),
-                    ));
-                }
+            "SCALE" if value != "2**0" => {
+                return Err(header_error(
+                    line_at,
+                    format!(
+                        "SCALE={} (fixed-point scaling) is not supported; only 2**0",
+                        super::error::token_for_message(value.as_bytes())
+                    ),
+                ));
             }
             "CPU" => {
                 let big = match value {
