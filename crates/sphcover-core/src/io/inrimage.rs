@@ -26,6 +26,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use super::error::{Failure, IoError, Location, Problem};
+use super::volume_file::DecodeError;
 use crate::volume::{Volume, VoxelValues};
 
 /// DEFLATE cannot expand data by more than this ratio (see the NIfTI reader).
@@ -134,30 +135,6 @@ pub fn parse_inrimage(bytes: &[u8], path: &Path) -> Result<(Volume, InrimageInfo
         decode(bytes, size, false)
     }
     .map_err(|e| e.into_io(path))
-}
-
-/// A problem in the content, or an operating-system read error.
-enum DecodeError {
-    Content(Failure),
-    Os(std::io::Error),
-}
-
-impl DecodeError {
-    fn into_io(self, path: &Path) -> IoError {
-        match self {
-            DecodeError::Content(f) => f.into_io(path),
-            DecodeError::Os(source) => IoError::Read {
-                path: path.to_path_buf(),
-                source,
-            },
-        }
-    }
-}
-
-impl From<Failure> for DecodeError {
-    fn from(f: Failure) -> DecodeError {
-        DecodeError::Content(f)
-    }
 }
 
 fn header_error(at: usize, message: impl Into<String>) -> DecodeError {

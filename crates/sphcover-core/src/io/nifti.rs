@@ -28,6 +28,7 @@ use std::path::Path;
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::error::{Failure, IoError, Location, Problem};
+use super::volume_file::DecodeError;
 use crate::volume::{Volume, VoxelValues};
 
 /// DEFLATE cannot expand data by more than this ratio (a 258-byte match costs at least two
@@ -183,30 +184,6 @@ pub fn parse_nifti(bytes: &[u8], path: &Path) -> Result<(Volume, NiftiInfo), IoE
         decode(&mut Counting::new(bytes), size, false)
     }
     .map_err(|e| e.into_io(path))
-}
-
-/// A failure while decoding: a problem in the content, or an operating-system read error.
-enum DecodeError {
-    Content(Failure),
-    Os(std::io::Error),
-}
-
-impl DecodeError {
-    fn into_io(self, path: &Path) -> IoError {
-        match self {
-            DecodeError::Content(f) => f.into_io(path),
-            DecodeError::Os(source) => IoError::Read {
-                path: path.to_path_buf(),
-                source,
-            },
-        }
-    }
-}
-
-impl From<Failure> for DecodeError {
-    fn from(f: Failure) -> DecodeError {
-        DecodeError::Content(f)
-    }
 }
 
 /// A reader that counts the bytes it has delivered (the decompressed offset).

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::error::IoError;
+use super::error::{Failure, IoError};
 use super::inrimage::{InrimageInfo, read_inrimage};
 use super::nifti::{NiftiInfo, read_nifti};
 use crate::volume::Volume;
@@ -102,4 +102,29 @@ pub fn read_volume(path: &Path) -> Result<(Volume, VolumeInfo), IoError> {
 pub fn is_volume_path(path: &Path) -> bool {
     let name = lowercase_name(path);
     name.ends_with(".nii") || name.ends_with(".nii.gz") || is_inrimage_path(path)
+}
+
+/// A failure while decoding a volume file: a problem in the content, or an operating-system
+/// read error (of the file, or of the gzip stream inside it).
+pub(crate) enum DecodeError {
+    Content(Failure),
+    Os(std::io::Error),
+}
+
+impl DecodeError {
+    pub(crate) fn into_io(self, path: &Path) -> IoError {
+        match self {
+            DecodeError::Content(f) => f.into_io(path),
+            DecodeError::Os(source) => IoError::Read {
+                path: path.to_path_buf(),
+                source,
+            },
+        }
+    }
+}
+
+impl From<Failure> for DecodeError {
+    fn from(f: Failure) -> DecodeError {
+        DecodeError::Content(f)
+    }
 }
