@@ -6,8 +6,7 @@ use std::path::Path;
 
 use glam::DVec3;
 use sphcover_core::io::{
-    InrimageType, IoError, Location, Problem, VolumeInfo, is_volume_path, parse_inrimage,
-    read_volume,
+    IoError, Location, Problem, SampleType, VolumeInfo, is_volume_path, parse_inrimage, read_volume,
 };
 
 /// A header padded to `blocks` × 256 bytes.
@@ -58,7 +57,7 @@ const VALUES: [f64; 12] = [
     0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 100.0, 17.0, 42.0, 9.0,
 ];
 
-fn encode(ty: InrimageType, big: bool, v: f64) -> Vec<u8> {
+fn encode(ty: SampleType, big: bool, v: f64) -> Vec<u8> {
     macro_rules! e {
         ($x:expr) => {
             if big {
@@ -69,27 +68,27 @@ fn encode(ty: InrimageType, big: bool, v: f64) -> Vec<u8> {
         };
     }
     match ty {
-        InrimageType::U8 => e!(v as u8),
-        InrimageType::I8 => e!(v as i8),
-        InrimageType::U16 => e!(v as u16),
-        InrimageType::I16 => e!(v as i16),
-        InrimageType::U32 => e!(v as u32),
-        InrimageType::I32 => e!(v as i32),
-        InrimageType::F32 => e!(v as f32),
-        InrimageType::F64 => e!(v),
+        SampleType::U8 => e!(v as u8),
+        SampleType::I8 => e!(v as i8),
+        SampleType::U16 => e!(v as u16),
+        SampleType::I16 => e!(v as i16),
+        SampleType::U32 => e!(v as u32),
+        SampleType::I32 => e!(v as i32),
+        SampleType::F32 => e!(v as f32),
+        SampleType::F64 => e!(v),
     }
 }
 
-fn file(ty: InrimageType, big: bool, extra: &[&str], blocks: usize) -> Vec<u8> {
+fn file(ty: SampleType, big: bool, extra: &[&str], blocks: usize) -> Vec<u8> {
     let (type_name, bits) = match ty {
-        InrimageType::U8 => ("unsigned fixed", 8),
-        InrimageType::I8 => ("signed fixed", 8),
-        InrimageType::U16 => ("unsigned fixed", 16),
-        InrimageType::I16 => ("signed fixed", 16),
-        InrimageType::U32 => ("unsigned fixed", 32),
-        InrimageType::I32 => ("signed fixed", 32),
-        InrimageType::F32 => ("float", 32),
-        InrimageType::F64 => ("float", 64),
+        SampleType::U8 => ("unsigned fixed", 8),
+        SampleType::I8 => ("signed fixed", 8),
+        SampleType::U16 => ("unsigned fixed", 16),
+        SampleType::I16 => ("signed fixed", 16),
+        SampleType::U32 => ("unsigned fixed", 32),
+        SampleType::I32 => ("signed fixed", 32),
+        SampleType::F32 => ("float", 32),
+        SampleType::F64 => ("float", 64),
     };
     let type_line = format!("TYPE={type_name}");
     let bits_line = format!("PIXSIZE={bits} bits");
@@ -112,15 +111,15 @@ fn file(ty: InrimageType, big: bool, extra: &[&str], blocks: usize) -> Vec<u8> {
     f
 }
 
-const TYPES: [InrimageType; 8] = [
-    InrimageType::U8,
-    InrimageType::I8,
-    InrimageType::U16,
-    InrimageType::I16,
-    InrimageType::U32,
-    InrimageType::I32,
-    InrimageType::F32,
-    InrimageType::F64,
+const TYPES: [SampleType; 8] = [
+    SampleType::U8,
+    SampleType::I8,
+    SampleType::U16,
+    SampleType::I16,
+    SampleType::U32,
+    SampleType::I32,
+    SampleType::F32,
+    SampleType::F64,
 ];
 
 #[test]
@@ -180,7 +179,7 @@ fn defaults_voxel_size_one_origin_zero_and_z_one() {
 #[test]
 fn read_volume_dispatches_on_the_name() {
     let dir = tempfile::tempdir().unwrap();
-    let plain = file(InrimageType::I16, true, &[], 1);
+    let plain = file(SampleType::I16, true, &[], 1);
     for (name, bytes) in [("a.inr", plain.clone()), ("b.INR.gz", gzip(&plain))] {
         let path = dir.path().join(name);
         std::fs::write(&path, &bytes).unwrap();
@@ -324,7 +323,7 @@ fn refuses_bad_headers() {
 
 #[test]
 fn truncated_data_is_refused_before_allocating() {
-    let good = file(InrimageType::I16, false, &[], 1);
+    let good = file(SampleType::I16, false, &[], 1);
     for cut in 1..good.len() {
         let (at, p) = malformed(&good[..cut]);
         if cut >= 256 {
@@ -382,7 +381,7 @@ fn truncated_data_is_refused_before_allocating() {
 
 #[test]
 fn no_byte_sequence_panics() {
-    let good = file(InrimageType::F32, false, &["VX=2"], 1);
+    let good = file(SampleType::F32, false, &["VX=2"], 1);
     for i in 0..good.len() {
         for v in [0u8, b'\n', b'#', b'=', 0xFF] {
             let mut b = good.clone();

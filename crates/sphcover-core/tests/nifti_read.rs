@@ -8,8 +8,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use sphcover_core::io::{
-    AffineSource, IoError, Location, NiftiDatatype, VolumeInfo, parse_nifti, read_nifti,
-    read_volume,
+    AffineSource, IoError, Location, SampleType, VolumeInfo, parse_nifti, read_nifti, read_volume,
 };
 use sphcover_core::{DVec3, VoxelValues};
 
@@ -34,14 +33,14 @@ struct Header {
 }
 
 impl Header {
-    fn new(version: u8, big: bool, dt: NiftiDatatype, dims: &[i64]) -> Header {
+    fn new(version: u8, big: bool, dt: SampleType, dims: &[i64]) -> Header {
         let mut dim = [1i64; 8];
         dim[0] = dims.len() as i64;
         dim[1..=dims.len()].copy_from_slice(dims);
         Header {
             version,
             big,
-            datatype: dt.code(),
+            datatype: dt.nifti_code(),
             bitpix: 8 * dt.size() as i16,
             dim,
             pixdim: [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0],
@@ -128,18 +127,18 @@ impl Header {
 }
 
 /// Encodes `values` (as f64) in the datatype and byte order.
-fn encode(dt: NiftiDatatype, big: bool, values: &[f64]) -> Vec<u8> {
+fn encode(dt: SampleType, big: bool, values: &[f64]) -> Vec<u8> {
     let mut out = Vec::new();
     for &v in values {
         let mut raw = match dt {
-            NiftiDatatype::U8 => vec![v as u8],
-            NiftiDatatype::I8 => (v as i8).to_le_bytes().to_vec(),
-            NiftiDatatype::I16 => (v as i16).to_le_bytes().to_vec(),
-            NiftiDatatype::U16 => (v as u16).to_le_bytes().to_vec(),
-            NiftiDatatype::I32 => (v as i32).to_le_bytes().to_vec(),
-            NiftiDatatype::U32 => (v as u32).to_le_bytes().to_vec(),
-            NiftiDatatype::F32 => (v as f32).to_le_bytes().to_vec(),
-            NiftiDatatype::F64 => v.to_le_bytes().to_vec(),
+            SampleType::U8 => vec![v as u8],
+            SampleType::I8 => (v as i8).to_le_bytes().to_vec(),
+            SampleType::I16 => (v as i16).to_le_bytes().to_vec(),
+            SampleType::U16 => (v as u16).to_le_bytes().to_vec(),
+            SampleType::I32 => (v as i32).to_le_bytes().to_vec(),
+            SampleType::U32 => (v as u32).to_le_bytes().to_vec(),
+            SampleType::F32 => (v as f32).to_le_bytes().to_vec(),
+            SampleType::F64 => v.to_le_bytes().to_vec(),
         };
         if big {
             raw.reverse();
@@ -161,33 +160,33 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
     path
 }
 
-fn sample_values(dt: NiftiDatatype, n: usize) -> Vec<f64> {
+fn sample_values(dt: SampleType, n: usize) -> Vec<f64> {
     (0..n)
         .map(|i| {
             let i = i as f64;
             match dt {
-                NiftiDatatype::U8 => (i * 7.0) % 256.0,
-                NiftiDatatype::I8 => (i * 7.0) % 200.0 - 100.0,
-                NiftiDatatype::I16 => i * 97.0 - 1000.0,
-                NiftiDatatype::U16 => i * 1013.0,
-                NiftiDatatype::I32 => i * 1_000_003.0 - 5e7,
-                NiftiDatatype::U32 => i * 60_000_007.0,
-                NiftiDatatype::F32 => (i * 0.37 - 2.0) as f32 as f64,
-                NiftiDatatype::F64 => i * 0.123_456_789 - 1.5,
+                SampleType::U8 => (i * 7.0) % 256.0,
+                SampleType::I8 => (i * 7.0) % 200.0 - 100.0,
+                SampleType::I16 => i * 97.0 - 1000.0,
+                SampleType::U16 => i * 1013.0,
+                SampleType::I32 => i * 1_000_003.0 - 5e7,
+                SampleType::U32 => i * 60_000_007.0,
+                SampleType::F32 => (i * 0.37 - 2.0) as f32 as f64,
+                SampleType::F64 => i * 0.123_456_789 - 1.5,
             }
         })
         .collect()
 }
 
-const ALL: [NiftiDatatype; 8] = [
-    NiftiDatatype::U8,
-    NiftiDatatype::I8,
-    NiftiDatatype::I16,
-    NiftiDatatype::U16,
-    NiftiDatatype::I32,
-    NiftiDatatype::U32,
-    NiftiDatatype::F32,
-    NiftiDatatype::F64,
+const ALL: [SampleType; 8] = [
+    SampleType::U8,
+    SampleType::I8,
+    SampleType::I16,
+    SampleType::U16,
+    SampleType::I32,
+    SampleType::U32,
+    SampleType::F32,
+    SampleType::F64,
 ];
 
 #[test]
@@ -220,10 +219,7 @@ fn every_datatype_both_orders_both_versions_plain_and_gzip() {
                     assert_eq!(info.affine_source, AffineSource::Pixdim);
                     assert_eq!(info.voxel_size, DVec3::new(0.5, 0.25, 2.0));
                     assert_eq!(info.scaling, None);
-                    let narrow = !matches!(
-                        dt,
-                        NiftiDatatype::I32 | NiftiDatatype::U32 | NiftiDatatype::F64
-                    );
+                    let narrow = !matches!(dt, SampleType::I32 | SampleType::U32 | SampleType::F64);
                     assert_eq!(
                         matches!(vol.values(), VoxelValues::F32(_)),
                         narrow,
@@ -245,7 +241,7 @@ fn every_datatype_both_orders_both_versions_plain_and_gzip() {
 #[test]
 fn sform_wins_over_qform_which_wins_over_pixdim() {
     let dir = tempfile::tempdir().unwrap();
-    let dt = NiftiDatatype::I16;
+    let dt = SampleType::I16;
     let values = sample_values(dt, 8);
     for version in [1u8, 2] {
         let mut h = Header::new(version, false, dt, &[2, 2, 2]);
@@ -300,7 +296,7 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
 #[test]
 fn scaling_applies_unless_slope_is_zero() {
     let dir = tempfile::tempdir().unwrap();
-    let dt = NiftiDatatype::I16;
+    let dt = SampleType::I16;
     let values = [0.0, 1.0, 100.0, -5.0];
     for version in [1u8, 2] {
         for (slope, inter, expect) in [(0.0, 7.0, None), (2.0, -1024.0, Some((2.0, -1024.0)))] {
@@ -327,7 +323,7 @@ fn scaling_applies_unless_slope_is_zero() {
 #[test]
 fn four_d_volumes_keep_the_first_frame_and_extensions_are_skipped() {
     let dir = tempfile::tempdir().unwrap();
-    let dt = NiftiDatatype::F32;
+    let dt = SampleType::F32;
     let values: Vec<f64> = (0..24).map(f64::from).collect();
     let mut h = Header::new(1, false, dt, &[2, 3, 2, 2]);
     h.vox_offset = 352.0 + 32.0; // an extension block before the data
@@ -355,7 +351,7 @@ fn location(e: &IoError) -> Location {
 #[test]
 fn malformed_files_are_refused_with_file_and_offset() {
     let dir = tempfile::tempdir().unwrap();
-    let dt = NiftiDatatype::I16;
+    let dt = SampleType::I16;
     let good = |version| {
         let h = Header::new(version, false, dt, &[4, 4, 4]);
         let mut f = h.bytes();
@@ -428,7 +424,7 @@ fn malformed_files_are_refused_with_file_and_offset() {
 #[test]
 fn absurd_dimensions_are_refused_before_allocating() {
     let dir = tempfile::tempdir().unwrap();
-    let dt = NiftiDatatype::F64;
+    let dt = SampleType::F64;
     // 32767³ doubles (2.8e14 bytes) declared by a tiny file, plain and gzip.
     let h = Header::new(1, false, dt, &[32767, 32767, 32767]);
     let bytes = h.bytes();
@@ -456,7 +452,7 @@ fn empty_corrupt_and_missing_files() {
             .to_string()
             .contains("empty file")
     );
-    let h = Header::new(1, false, NiftiDatatype::U8, &[4, 4, 4]);
+    let h = Header::new(1, false, SampleType::U8, &[4, 4, 4]);
     let mut f = h.bytes();
     f.extend([7u8; 64]);
     let mut gz = gzip(&f);

@@ -26,8 +26,8 @@ use std::path::Path;
 use glam::DVec3;
 
 use super::error::{Failure, IoError, Location, Problem};
-use super::volume_file::DecodeError;
-use crate::volume::{Volume, VoxelValues};
+use super::volume_file::{DecodeError, SampleType, decode_samples};
+use crate::volume::Volume;
 
 /// DEFLATE cannot expand data by more than this ratio (see the NIfTI reader).
 const MAX_DEFLATE_RATIO: u64 = 1032;
@@ -37,53 +37,6 @@ const BLOCK: usize = 256;
 /// INRIMAGE file.
 const MAX_HEADER: usize = 1 << 20;
 
-/// The sample type of an INRIMAGE file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum InrimageType {
-    /// `unsigned fixed`, 8 bits.
-    U8,
-    /// `signed fixed`, 8 bits.
-    I8,
-    /// `unsigned fixed`, 16 bits.
-    U16,
-    /// `signed fixed`, 16 bits.
-    I16,
-    /// `unsigned fixed`, 32 bits.
-    U32,
-    /// `signed fixed`, 32 bits.
-    I32,
-    /// `float`, 32 bits.
-    F32,
-    /// `float`, 64 bits.
-    F64,
-}
-
-impl InrimageType {
-    /// Bytes per sample.
-    pub fn size(self) -> usize {
-        match self {
-            InrimageType::U8 | InrimageType::I8 => 1,
-            InrimageType::U16 | InrimageType::I16 => 2,
-            InrimageType::U32 | InrimageType::I32 | InrimageType::F32 => 4,
-            InrimageType::F64 => 8,
-        }
-    }
-
-    /// Name for messages (`"uint8"`, `"float32"`, …; the names the NIfTI reader uses).
-    pub fn name(self) -> &'static str {
-        match self {
-            InrimageType::U8 => "uint8",
-            InrimageType::I8 => "int8",
-            InrimageType::U16 => "uint16",
-            InrimageType::I16 => "int16",
-            InrimageType::U32 => "uint32",
-            InrimageType::I32 => "int32",
-            InrimageType::F32 => "float32",
-            InrimageType::F64 => "float64",
-        }
-    }
-}
-
 /// What an INRIMAGE-4 header declares.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InrimageInfo {
@@ -92,7 +45,7 @@ pub struct InrimageInfo {
     /// True for big-endian samples (`CPU=sun` or `sgi`).
     pub big_endian: bool,
     /// The sample type.
-    pub sample_type: InrimageType,
+    pub sample_type: SampleType,
     /// `[XDIM, YDIM, ZDIM]`.
     pub dims: [usize; 3],
     /// `VX VY VZ`.
@@ -363,14 +316,14 @@ fn decode<R: Read>(
         .pixsize
         .ok_or_else(|| header_error(MAGIC.len(), "the header has no PIXSIZE"))?;
     let sample_type = match (type_name.as_str(), bits) {
-        ("unsigned fixed", 8) => InrimageType::U8,
-        ("signed fixed", 8) => InrimageType::I8,
-        ("unsigned fixed", 16) => InrimageType::U16,
-        ("signed fixed", 16) => InrimageType::I16,
-        ("unsigned fixed", 32) => InrimageType::U32,
-        ("signed fixed", 32) => InrimageType::I32,
-        ("float", 32) => InrimageType::F32,
-        ("float", 64) => InrimageType::F64,
+        ("unsigned fixed", 8) => SampleType::U8,
+        ("signed fixed", 8) => SampleType::I8,
+        ("unsigned fixed", 16) => SampleType::U16,
+        ("signed fixed", 16) => SampleType::I16,
+        ("unsigned fixed", 32) => SampleType::U32,
+        ("signed fixed", 32) => SampleType::I32,
+        ("float", 32) => SampleType::F32,
+        ("float", 64) => SampleType::F64,
         ("unsigned fixed" | "signed fixed" | "float", _) => {
             return Err(header_error(
                 bits_at,
@@ -464,7 +417,7 @@ fn decode<R: Read>(
         }
     }
 
-    let values = convert(&data, sample_type, big_endian);
+    let values = decode_samples(&data, sample_type, big_endian, None, true);
     let dims3 = [dims[0] as usize, dims[1] as usize, dims[2] as usize];
     let voxel_size = DVec3::from_array(keys.voxel.map(|v| v.unwrap_or(1.0)));
     let origin = DVec3::from_array(keys.origin.map(|v| v.unwrap_or(0.0)));
@@ -481,43 +434,4 @@ fn decode<R: Read>(
         comments: keys.comments,
     };
     Ok((volume, info))
-}
-
-/// Decodes the raw samples.
-fn convert(data: &[u8], sample_type: InrimageType, big: bool) -> VoxelValues {
-    macro_rules! raw {
-        ($t:ty) => {{
-            const N: usize = std::mem::size_of::<$t>();
-            data.chunks_exact(N).map(move |c| {
-                let mut a = [0u8; N];
-                a.copy_from_slice(c);
-                if big {
-                    <$t>::from_be_bytes(a)
-                } else {
-                    <$t>::from_le_bytes(a)
-                }
-            })
-        }};
-    }
-    // Up to 16-bit integers and f32 hold exactly in f32; wider types need f64.
-    macro_rules! narrow {
-        ($t:ty) => {
-            VoxelValues::F32(raw!($t).map(f32::from).collect())
-        };
-    }
-    macro_rules! wide {
-        ($t:ty) => {
-            VoxelValues::F64(raw!($t).map(f64::from).collect())
-        };
-    }
-    match sample_type {
-        InrimageType::U8 => narrow!(u8),
-        InrimageType::I8 => narrow!(i8),
-        InrimageType::U16 => narrow!(u16),
-        InrimageType::I16 => narrow!(i16),
-        InrimageType::F32 => narrow!(f32),
-        InrimageType::U32 => wide!(u32),
-        InrimageType::I32 => wide!(i32),
-        InrimageType::F64 => wide!(f64),
-    }
 }

@@ -71,11 +71,11 @@ pub use atomic::write_atomic;
 pub use cover_file::{CoverFileMeta, parse_cover, read_cover, write_cover};
 pub use error::{IoError, Location, Problem};
 #[cfg(feature = "nifti")]
-pub use inrimage::{InrimageInfo, InrimageType, parse_inrimage, read_inrimage};
+pub use inrimage::{InrimageInfo, parse_inrimage, read_inrimage};
 #[cfg(feature = "nifti")]
-pub use nifti::{AffineSource, NiftiDatatype, NiftiInfo, parse_nifti, read_nifti};
+pub use nifti::{AffineSource, NiftiInfo, parse_nifti, read_nifti};
 #[cfg(feature = "nifti")]
-pub use volume_file::{VolumeInfo, is_volume_path, read_volume};
+pub use volume_file::{SampleType, VolumeInfo, is_volume_path, read_volume};
 
 /// A file format, named by the file's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

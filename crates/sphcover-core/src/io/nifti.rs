@@ -28,85 +28,40 @@ use std::path::Path;
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::error::{Failure, IoError, Location, Problem};
-use super::volume_file::DecodeError;
-use crate::volume::{Volume, VoxelValues};
+use super::volume_file::{DecodeError, SampleType, decode_samples};
+use crate::volume::Volume;
 
 /// DEFLATE cannot expand data by more than this ratio (a 258-byte match costs at least two
 /// bits), so a gzip file declaring more is refused before decompressing.
 const MAX_DEFLATE_RATIO: u64 = 1032;
 
-/// The voxel type stored in the file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum NiftiDatatype {
-    /// `DT_UINT8` (code 2).
-    U8,
-    /// `DT_INT8` (code 256).
-    I8,
-    /// `DT_INT16` (code 4).
-    I16,
-    /// `DT_UINT16` (code 512).
-    U16,
-    /// `DT_INT32` (code 8).
-    I32,
-    /// `DT_UINT32` (code 768).
-    U32,
-    /// `DT_FLOAT32` (code 16).
-    F32,
-    /// `DT_FLOAT64` (code 64).
-    F64,
-}
-
-impl NiftiDatatype {
-    /// The datatype of a NIfTI `datatype` code, if supported.
-    pub fn from_code(code: i16) -> Option<NiftiDatatype> {
+impl SampleType {
+    /// The sample type of a NIfTI `datatype` code, if supported.
+    pub fn from_nifti_code(code: i16) -> Option<SampleType> {
         Some(match code {
-            2 => NiftiDatatype::U8,
-            256 => NiftiDatatype::I8,
-            4 => NiftiDatatype::I16,
-            512 => NiftiDatatype::U16,
-            8 => NiftiDatatype::I32,
-            768 => NiftiDatatype::U32,
-            16 => NiftiDatatype::F32,
-            64 => NiftiDatatype::F64,
+            2 => SampleType::U8,
+            256 => SampleType::I8,
+            4 => SampleType::I16,
+            512 => SampleType::U16,
+            8 => SampleType::I32,
+            768 => SampleType::U32,
+            16 => SampleType::F32,
+            64 => SampleType::F64,
             _ => return None,
         })
     }
 
     /// The NIfTI `datatype` code.
-    pub fn code(self) -> i16 {
+    pub fn nifti_code(self) -> i16 {
         match self {
-            NiftiDatatype::U8 => 2,
-            NiftiDatatype::I8 => 256,
-            NiftiDatatype::I16 => 4,
-            NiftiDatatype::U16 => 512,
-            NiftiDatatype::I32 => 8,
-            NiftiDatatype::U32 => 768,
-            NiftiDatatype::F32 => 16,
-            NiftiDatatype::F64 => 64,
-        }
-    }
-
-    /// Bytes per voxel.
-    pub fn size(self) -> usize {
-        match self {
-            NiftiDatatype::U8 | NiftiDatatype::I8 => 1,
-            NiftiDatatype::I16 | NiftiDatatype::U16 => 2,
-            NiftiDatatype::I32 | NiftiDatatype::U32 | NiftiDatatype::F32 => 4,
-            NiftiDatatype::F64 => 8,
-        }
-    }
-
-    /// Name for messages (`"int16"`, …).
-    pub fn name(self) -> &'static str {
-        match self {
-            NiftiDatatype::U8 => "uint8",
-            NiftiDatatype::I8 => "int8",
-            NiftiDatatype::I16 => "int16",
-            NiftiDatatype::U16 => "uint16",
-            NiftiDatatype::I32 => "int32",
-            NiftiDatatype::U32 => "uint32",
-            NiftiDatatype::F32 => "float32",
-            NiftiDatatype::F64 => "float64",
+            SampleType::U8 => 2,
+            SampleType::I8 => 256,
+            SampleType::I16 => 4,
+            SampleType::U16 => 512,
+            SampleType::I32 => 8,
+            SampleType::U32 => 768,
+            SampleType::F32 => 16,
+            SampleType::F64 => 64,
         }
     }
 }
@@ -132,7 +87,7 @@ pub struct NiftiInfo {
     /// True when the file is gzip-compressed.
     pub gzip: bool,
     /// The stored voxel type.
-    pub datatype: NiftiDatatype,
+    pub datatype: SampleType,
     /// Spatial dimensions `[nx, ny, nz]` (missing ones are 1).
     pub dims: [usize; 3],
     /// Number of 3D frames (the product of `dim[4..]`); only the first is read.
@@ -532,7 +487,7 @@ fn decode<R: Read>(
     let h = parse_header(&buf[..size], big, version)?;
 
     let (code, code_at) = h.datatype;
-    let datatype = NiftiDatatype::from_code(code).ok_or_else(|| {
+    let datatype = SampleType::from_nifti_code(code).ok_or_else(|| {
         header_error(
             code_at,
             format!(
@@ -664,7 +619,9 @@ fn decode<R: Read>(
         ));
     }
 
-    let values = convert(&data, datatype, big, scaling, version);
+    // NIfTI-1 slopes are f32, so a scaled value rounded to f32 loses nothing the file held;
+    // NIfTI-2 slopes are f64.
+    let values = decode_samples(&data, datatype, big, scaling, version == 1);
     let dims = [extent[0] as usize, extent[1] as usize, extent[2] as usize];
     let volume = Volume::new(dims, values, affine)
         .map_err(|e| header_error(h.dim[1].1, format!("invalid volume: {e}")))?;
@@ -689,7 +646,7 @@ fn decode<R: Read>(
 fn truncated(
     end: u64,
     vox_offset: u64,
-    datatype: NiftiDatatype,
+    datatype: SampleType,
     voxels: u64,
     frames: u64,
 ) -> DecodeError {
@@ -702,60 +659,4 @@ fn truncated(
             declared: voxels.saturating_mul(frames),
         },
     ))
-}
-
-/// Decodes the raw voxel bytes of one frame and applies the scaling.
-fn convert(
-    data: &[u8],
-    datatype: NiftiDatatype,
-    big: bool,
-    scaling: Option<(f64, f64)>,
-    version: u8,
-) -> VoxelValues {
-    macro_rules! raw {
-        ($t:ty) => {{
-            const N: usize = std::mem::size_of::<$t>();
-            data.chunks_exact(N).map(move |c| {
-                let a: [u8; N] = c.try_into().expect("chunk of N bytes");
-                if big {
-                    <$t>::from_be_bytes(a)
-                } else {
-                    <$t>::from_le_bytes(a)
-                }
-            })
-        }};
-    }
-    let scale = |v: f64| match scaling {
-        Some((slope, inter)) => v * slope + inter,
-        None => v,
-    };
-    // Narrow types hold exactly in f32 unscaled; NIfTI-1 slopes are f32, so a scaled value
-    // rounded to f32 loses nothing the file held. NIfTI-2 slopes are f64.
-    let narrow = matches!(
-        datatype,
-        NiftiDatatype::U8
-            | NiftiDatatype::I8
-            | NiftiDatatype::I16
-            | NiftiDatatype::U16
-            | NiftiDatatype::F32
-    ) && (scaling.is_none() || version == 1);
-    macro_rules! values {
-        ($t:ty) => {
-            if narrow {
-                VoxelValues::F32(raw!($t).map(|v| scale(f64::from(v)) as f32).collect())
-            } else {
-                VoxelValues::F64(raw!($t).map(|v| scale(f64::from(v))).collect())
-            }
-        };
-    }
-    match datatype {
-        NiftiDatatype::U8 => values!(u8),
-        NiftiDatatype::I8 => values!(i8),
-        NiftiDatatype::I16 => values!(i16),
-        NiftiDatatype::U16 => values!(u16),
-        NiftiDatatype::I32 => values!(i32),
-        NiftiDatatype::U32 => values!(u32),
-        NiftiDatatype::F32 => values!(f32),
-        NiftiDatatype::F64 => values!(f64),
-    }
 }

@@ -6,7 +6,7 @@ use std::path::Path;
 use super::error::{Failure, IoError};
 use super::inrimage::{InrimageInfo, read_inrimage};
 use super::nifti::{NiftiInfo, read_nifti};
-use crate::volume::Volume;
+use crate::volume::{Volume, VoxelValues};
 
 /// What the header of a volume file declares.
 #[derive(Clone, Debug, PartialEq)]
@@ -126,5 +126,112 @@ impl DecodeError {
 impl From<Failure> for DecodeError {
     fn from(f: Failure) -> DecodeError {
         DecodeError::Content(f)
+    }
+}
+
+/// The type of the samples a volume file stores (NIfTI `datatype`, INRIMAGE `TYPE` and
+/// `PIXSIZE`): every reader decodes through [`decode_samples`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SampleType {
+    /// Unsigned 8-bit integer.
+    U8,
+    /// Signed 8-bit integer.
+    I8,
+    /// Unsigned 16-bit integer.
+    U16,
+    /// Signed 16-bit integer.
+    I16,
+    /// Unsigned 32-bit integer.
+    U32,
+    /// Signed 32-bit integer.
+    I32,
+    /// 32-bit float.
+    F32,
+    /// 64-bit float.
+    F64,
+}
+
+impl SampleType {
+    /// Bytes per sample.
+    pub fn size(self) -> usize {
+        match self {
+            SampleType::U8 | SampleType::I8 => 1,
+            SampleType::U16 | SampleType::I16 => 2,
+            SampleType::U32 | SampleType::I32 | SampleType::F32 => 4,
+            SampleType::F64 => 8,
+        }
+    }
+
+    /// Name for messages (`"uint8"`, `"float32"`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            SampleType::U8 => "uint8",
+            SampleType::I8 => "int8",
+            SampleType::U16 => "uint16",
+            SampleType::I16 => "int16",
+            SampleType::U32 => "uint32",
+            SampleType::I32 => "int32",
+            SampleType::F32 => "float32",
+            SampleType::F64 => "float64",
+        }
+    }
+
+    /// True when every value of the type is exactly an `f32` (up to 16-bit integers, f32).
+    fn fits_f32(self) -> bool {
+        matches!(
+            self,
+            SampleType::U8 | SampleType::I8 | SampleType::U16 | SampleType::I16 | SampleType::F32
+        )
+    }
+}
+
+/// Decodes raw samples and applies `value = slope · stored + intercept` when `scaling` is
+/// given. The result is stored as `f32` when that loses nothing: the type fits `f32` and
+/// either there is no scaling or `scaled_fits_f32` says the scaled values were only ever
+/// `f32`-precise (NIfTI-1 stores its slope and intercept as `f32`).
+pub(crate) fn decode_samples(
+    data: &[u8],
+    sample_type: SampleType,
+    big_endian: bool,
+    scaling: Option<(f64, f64)>,
+    scaled_fits_f32: bool,
+) -> VoxelValues {
+    macro_rules! raw {
+        ($t:ty) => {{
+            const N: usize = std::mem::size_of::<$t>();
+            data.chunks_exact(N).map(move |c| {
+                let mut a = [0u8; N];
+                a.copy_from_slice(c);
+                if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }
+            })
+        }};
+    }
+    let scale = |v: f64| match scaling {
+        Some((slope, inter)) => v * slope + inter,
+        None => v,
+    };
+    let narrow = sample_type.fits_f32() && (scaling.is_none() || scaled_fits_f32);
+    macro_rules! values {
+        ($t:ty) => {
+            if narrow {
+                VoxelValues::F32(raw!($t).map(|v| scale(f64::from(v)) as f32).collect())
+            } else {
+                VoxelValues::F64(raw!($t).map(|v| scale(f64::from(v))).collect())
+            }
+        };
+    }
+    match sample_type {
+        SampleType::U8 => values!(u8),
+        SampleType::I8 => values!(i8),
+        SampleType::U16 => values!(u16),
+        SampleType::I16 => values!(i16),
+        SampleType::U32 => values!(u32),
+        SampleType::I32 => values!(i32),
+        SampleType::F32 => values!(f32),
+        SampleType::F64 => values!(f64),
     }
 }
