@@ -8,7 +8,16 @@
 //! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`.
 #![deny(missing_docs)]
 
-
 pub mod maxflow;
 
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
+pub mod graph_cut;
+pub mod graphcut_reconstruction;
+
+pub use graph_cut::{
+    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_sig, graph_cut_tet,
+};
+pub use graphcut_reconstruction::{
+    GraphCutReconstructionError, GraphCutReconstructionParams, GraphCutReconstructionStats,
+    reconstruct_graphcut,
+};

@@ -115,7 +115,9 @@ impl FlowEdge {
 pub struct MaxFlowInfo {
     /// The maximum flow value (= the capacity of the minimum cut).
     pub flow: f64,
-    /// Augmenting paths pushed.
+    /// Paths source → v → w → sink saturated by the warm start.
+    pub warm_start_pushes: u64,
+    /// Augmenting paths pushed through the search trees.
     pub augmentations: u64,
     /// Orphans processed (adopted or freed).
     pub orphans: u64,
@@ -315,6 +317,7 @@ impl FlowGraph {
         let mut orphans: VecDeque<u32> = VecDeque::new();
         let mut info = MaxFlowInfo::default();
         let mut time: u32 = 0;
+        self.push_two_arc_paths(&mut info);
         for v in 0..n {
             let t = self.terminal[v];
             if t != 0.0 {
@@ -329,12 +332,17 @@ impl FlowGraph {
                 self.parent[v] = NO_PARENT;
             }
         }
-        // The node being grown; it stays current after an augmentation through it, since
-        // its other arcs may still reach the other tree.
-        let mut current: Option<u32> = None;
+        // The node being grown and the arc to resume from: it stays current after an
+        // augmentation through it, since its later arcs may still reach the other tree. Arcs
+        // before the bridge need no second look: a neighbour there that is freed later
+        // re-activates this node (adoption activates every tree neighbour with capacity).
+        let mut current: Option<(u32, usize)> = None;
         loop {
-            let p = match current.take().filter(|&p| self.tree[p as usize] != FREE) {
-                Some(p) => p,
+            let (p, from) = match current
+                .take()
+                .filter(|&(p, _)| self.tree[p as usize] != FREE)
+            {
+                Some(c) => c,
                 None => {
                     let mut next = None;
                     while let Some(v) = active.pop_front() {
@@ -345,15 +353,15 @@ impl FlowGraph {
                         }
                     }
                     match next {
-                        Some(v) => v,
+                        Some(v) => (v, self.first[v as usize] as usize),
                         None => break,
                     }
                 }
             };
-            let Some(bridge) = self.grow(p, &mut active, &mut is_active) else {
+            let Some((bridge, at)) = self.grow(p, from, &mut active, &mut is_active) else {
                 continue;
             };
-            current = Some(p);
+            current = Some((p, at));
             time = time.wrapping_add(1);
             if time == 0 {
                 // After 2³² augmentations the stamps would alias: invalidate them all.
@@ -372,12 +380,54 @@ impl FlowGraph {
         info
     }
 
-    /// Grows the tree of `p` over its arcs; returns an arc from the source tree to the sink
-    /// tree with residual capacity when the trees touch.
-    fn grow(&mut self, p: u32, active: &mut VecDeque<u32>, is_active: &mut [bool]) -> Option<u32> {
+    /// Warm start: saturates every path source → v → w → sink over a single arc, in node
+    /// order. On graph cuts of geometry most terminal capacity drains through such paths, and
+    /// one sequential sweep over the arcs is far cheaper than as many tree augmentations and
+    /// adoptions (measured: 1.3M augmentations → 14K on a sphere intersection graph of mean
+    /// degree 244). Any valid flow is a valid start for the tree search.
+    fn push_two_arc_paths(&mut self, info: &mut MaxFlowInfo) {
+        for v in 0..self.num_nodes() {
+            if self.terminal[v] <= 0.0 {
+                continue;
+            }
+            for a in self.arcs(v as u32) {
+                let w = self.head[a] as usize;
+                if self.terminal[w] >= 0.0 || self.residual[a] <= 0.0 {
+                    continue;
+                }
+                let b = self.terminal[v]
+                    .min(self.residual[a])
+                    .min(-self.terminal[w]);
+                self.terminal[v] -= b;
+                self.residual[a] -= b;
+                self.residual[self.sister[a] as usize] += b;
+                self.terminal[w] += b;
+                if self.terminal[w] > 0.0 {
+                    self.terminal[w] = 0.0;
+                }
+                self.flow += b;
+                info.warm_start_pushes += 1;
+                if self.terminal[v] <= 0.0 {
+                    self.terminal[v] = 0.0;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Grows the tree of `p` over its arcs from arc `from` on; when the trees touch, returns
+    /// the arc from the source tree to the sink tree with residual capacity, and the position
+    /// of `p`'s arc where the scan stopped.
+    fn grow(
+        &mut self,
+        p: u32,
+        from: usize,
+        active: &mut VecDeque<u32>,
+        is_active: &mut [bool],
+    ) -> Option<(u32, usize)> {
         let tp = self.tree[p as usize];
         let (sp, dp) = (self.stamp[p as usize], self.dist[p as usize]);
-        for a in self.arcs(p) {
+        for a in from..self.first[p as usize + 1] as usize {
             // Arc usable in the tree's direction: p → q in S, q → p in T.
             let cap = if tp == SOURCE_TREE {
                 self.residual[a]
@@ -399,11 +449,12 @@ impl FlowGraph {
                     active.push_back(q as u32);
                 }
             } else if tq != tp {
-                return Some(if tp == SOURCE_TREE {
+                let bridge = if tp == SOURCE_TREE {
                     a as u32
                 } else {
                     self.sister[a]
-                });
+                };
+                return Some((bridge, a));
             } else if self.stamp[q] <= sp && self.dist[q] > dp {
                 // Shorter route to the terminal through p (the paper's distance heuristic).
                 self.parent[q] = self.sister[a];
@@ -577,8 +628,7 @@ impl FlowGraph {
                 active.push_back(q as u32);
             }
             let pq = self.parent[q];
-            if pq != TERMINAL && pq != ORPHAN && pq != NO_PARENT && self.head[pq as usize] == p
-            {
+            if pq != TERMINAL && pq != ORPHAN && pq != NO_PARENT && self.head[pq as usize] == p {
                 self.parent[q] = ORPHAN;
                 orphans.push_back(q as u32);
             }
@@ -628,7 +678,11 @@ mod tests {
         }
         for e in edges {
             g.add_edge(nodes[e.from as usize], nodes[e.to as usize], e.capacity);
-            g.add_edge(nodes[e.to as usize], nodes[e.from as usize], e.reverse_capacity);
+            g.add_edge(
+                nodes[e.to as usize],
+                nodes[e.from as usize],
+                e.reverse_capacity,
+            );
         }
         dinics(&g, s, t).0
     }
