@@ -491,3 +491,64 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod speed {
+    use super::*;
+    use crate::graph_cut::graph_cut_sig;
+    use sphcover_core::{
+        SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
+    };
+
+    /// Timings of the graph-cut path and of the SIG cut on a noisy torus with 1% outliers.
+    /// `cargo test --release -p sphcover-recon graphcut_speed -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn graphcut_speed() {
+        let n = 100_000;
+        let mut cloud = sphcover_fixtures::torus(0.35, 0.15, n);
+        sphcover_fixtures::add_position_noise(&mut cloud, 0.001, 1);
+        let m = cloud.len();
+        sphcover_fixtures::add_uniform_outliers(
+            &mut cloud,
+            m / 100,
+            DVec3::new(-0.5, -0.5, -0.15),
+            DVec3::new(0.5, 0.5, 0.15),
+            2,
+        );
+        let t = Instant::now();
+        let (cover, norm, _) =
+            build_surface_cover_from_cloud(&cloud, &SurfaceCoverParams::default()).unwrap();
+        let cover_time = t.elapsed();
+        let mut samples = cloud.positions.clone();
+        norm.points_to_unit(&mut samples);
+        let t = Instant::now();
+        let (mesh, stats) =
+            reconstruct_graphcut(&cover, &samples, &GraphCutReconstructionParams::default())
+                .unwrap();
+        let recon_time = t.elapsed();
+        let topo = sphcover_core::mesh_topology::MeshTopology::of(&mesh);
+        println!(
+            "graphcut_speed: {} samples, {} supports, cover {:.2} s, graph-cut path {:.2} s ({:?}), components {}, watertight {}",
+            cloud.len(),
+            cover.len(),
+            cover_time.as_secs_f64(),
+            recon_time.as_secs_f64(),
+            stats,
+            topo.components,
+            topo.is_watertight()
+        );
+        let t = Instant::now();
+        let sig = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 0.7).unwrap();
+        let sig_time = t.elapsed();
+        let t = Instant::now();
+        let cut = graph_cut_sig(&cover, &sig, &GraphCutParams::sig()).unwrap();
+        println!(
+            "graphcut_speed: SIG mean degree {:.1}, build {:.2} s, cut {:.2} s, {:?}",
+            sig.mean_degree(),
+            sig_time.as_secs_f64(),
+            t.elapsed().as_secs_f64(),
+            cut.stats
+        );
+    }
+}

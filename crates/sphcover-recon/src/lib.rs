@@ -20,7 +20,8 @@ pub use confidence::{
     support_confidence,
 };
 pub use graph_cut::{
-    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_sig, graph_cut_tet,
+    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_csr,
+    graph_cut_sig, graph_cut_tet,
 };
 pub use graphcut_reconstruction::{
     GraphCutReconstructionError, GraphCutReconstructionParams, GraphCutReconstructionStats,
