@@ -664,6 +664,42 @@ mod tests {
         assert_eq!(cut.stats.inconsistent, cut.inconsistent.len());
     }
 
+    /// A cover-sized random graph gives the same labels and flow bits on one thread and two.
+    #[test]
+    fn thread_count_does_not_change_the_cut() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let n = 20_000;
+        let positions: Vec<DVec3> = (0..n)
+            .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        let values: Vec<f64> = positions
+            .iter()
+            .map(|p| 0.3 - p.distance(DVec3::splat(0.5)) + rng.random_range(-0.05..0.05))
+            .collect();
+        let sig = SphereIntersectionGraph::build(&positions, &vec![0.04; n], 1.0).unwrap();
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    graph_cut_csr(
+                        &positions,
+                        &values,
+                        sig.offsets(),
+                        sig.neighbor_array(),
+                        &GraphCutParams::sig(),
+                    )
+                    .unwrap()
+                })
+        };
+        let (a, b) = (run(1), run(2));
+        assert_eq!(a.labels, b.labels);
+        assert_eq!(a.flow.to_bits(), b.flow.to_bits());
+        assert!(a.stats.inconsistent > 0 && a.stats.inside > 0);
+    }
+
     #[test]
     fn degenerate_inputs() {
         // Empty graph.
