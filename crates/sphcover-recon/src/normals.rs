@@ -100,19 +100,21 @@ pub fn estimate_normals(
     let start = Instant::now();
     let index = PointIndex::new(points)?;
     // Neighbour lists, `k` slots per point, `u32::MAX` for a missing neighbour.
-    let mut neighbours = vec![u32::MAX; n * k];
-    let mut normals = vec![DVec3::ZERO; n];
-    neighbours
+    // Queries run in the index's slot order, where consecutive points are neighbours in
+    // space (the tree's buckets), so the tree nodes they visit stay in cache; the results
+    // are scattered back to the caller's order afterwards. Non-finite points are not in the
+    // index and keep a zero normal.
+    let order = index.order();
+    let mut by_slot_neighbours = vec![u32::MAX; order.len() * k];
+    let mut by_slot_normals = vec![DVec3::ZERO; order.len()];
+    by_slot_neighbours
         .par_chunks_mut(k)
-        .zip(normals.par_iter_mut())
-        .zip(points.par_iter())
+        .zip(by_slot_normals.par_iter_mut())
+        .zip(index.slot_points().par_iter())
         .with_min_len(512)
         .for_each_init(
             || (Vec::with_capacity(k), Vec::with_capacity(k)),
             |(ids, pts), ((slots, normal), &p)| {
-                if !p.is_finite() {
-                    return;
-                }
                 index.nearest_k(p, k, ids);
                 pts.clear();
                 pts.extend(ids.iter().map(|&j| points[j as usize]));
@@ -122,6 +124,15 @@ pub fn estimate_normals(
                 slots[..ids.len()].copy_from_slice(ids);
             },
         );
+    let mut neighbours = vec![u32::MAX; n * k];
+    let mut normals = vec![DVec3::ZERO; n];
+    for (slot, &i) in order.iter().enumerate() {
+        let i = i as usize;
+        normals[i] = by_slot_normals[slot];
+        neighbours[i * k..(i + 1) * k]
+            .copy_from_slice(&by_slot_neighbours[slot * k..(slot + 1) * k]);
+    }
+    drop((by_slot_neighbours, by_slot_normals));
     let mut stats = NormalStats {
         points: n,
         undetermined: normals.iter().filter(|v| **v == DVec3::ZERO).count(),
