@@ -39,15 +39,23 @@
 #![deny(missing_docs)]
 
 pub mod conjugate_gradient;
+pub mod discrete_operators;
 pub mod error;
 pub mod implicit_smoothing;
+pub mod least_squares_gradient;
 pub mod pair_geometry;
 pub mod poisson;
+pub mod quadratic_fit_operators;
+pub mod thesis_operators;
 
 pub use conjugate_gradient::{
     CgError, CgInfo, CgParams, CgScratch, Preconditioner, SymmetricOperator, conjugate_gradient,
 };
+pub use discrete_operators::DiscreteOperators;
 pub use error::{OpsError, SolveError};
 pub use implicit_smoothing::{ShiftedStiffness, implicit_smoothing};
+pub use least_squares_gradient::LeastSquaresGradient;
 pub use pair_geometry::{MassKind, PairGeometry, PairTerms};
 pub use poisson::{PoissonBoundary, solve_poisson};
+pub use quadratic_fit_operators::{QuadraticFitOperators, QuadraticFitStats};
+pub use thesis_operators::{FluxKind, ThesisOperators};
