@@ -57,5 +57,5 @@ pub use implicit_smoothing::{ShiftedStiffness, implicit_smoothing};
 pub use least_squares_gradient::LeastSquaresGradient;
 pub use pair_geometry::{MassKind, PairGeometry, PairTerms};
 pub use poisson::{PoissonBoundary, solve_poisson};
-pub use quadratic_fit_operators::{QuadraticFitOperators, QuadraticFitStats};
+pub use quadratic_fit_operators::{QuadraticFitOperators, QuadraticFitStats, RowKind};
 pub use thesis_operators::{FluxKind, ThesisOperators};

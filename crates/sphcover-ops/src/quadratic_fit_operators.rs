@@ -71,6 +71,7 @@ pub struct QuadraticFitOperators {
     neighbors: Vec<u32>,
     lap_coeff: Vec<f64>,
     grad_coeff: Vec<DVec3>,
+    row_kinds: Vec<RowKind>,
     stats: QuadraticFitStats,
 }
 
@@ -90,10 +91,14 @@ fn basis(d: DVec3) -> Vec9 {
     ])
 }
 
-#[derive(Clone, Copy)]
-enum RowKind {
+/// How one row of a [`QuadraticFitOperators`] was built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RowKind {
+    /// From the quadratic fit: `Lap` exact on every quadratic.
     Quadratic,
+    /// The linear-exact fallback (the neighbourhood does not determine `tr H`).
     Fallback,
+    /// No usable neighbour: zero operators.
     Isolated,
 }
 
@@ -120,11 +125,12 @@ impl QuadraticFitOperators {
                 row = end;
             }
         }
-        let stats = tasks
+        let per_task: Vec<(QuadraticFitStats, Vec<RowKind>)> = tasks
             .into_par_iter()
             .map(|(rows, lap_out, grad_out)| {
                 let base = offsets[rows.start] as usize;
                 let mut stats = QuadraticFitStats::default();
+                let mut kinds = Vec::with_capacity(rows.len());
                 for i in rows {
                     let range = offsets[i] as usize - base..offsets[i + 1] as usize - base;
                     let (kind, grad_fallback) = fit_row(
@@ -140,22 +146,33 @@ impl QuadraticFitOperators {
                         RowKind::Isolated => stats.isolated_rows += 1,
                     }
                     stats.gradient_fallback_rows += usize::from(grad_fallback);
+                    kinds.push(kind);
                 }
-                stats
+                (stats, kinds)
             })
-            .reduce(QuadraticFitStats::default, |a, b| QuadraticFitStats {
-                quadratic_rows: a.quadratic_rows + b.quadratic_rows,
-                fallback_rows: a.fallback_rows + b.fallback_rows,
-                gradient_fallback_rows: a.gradient_fallback_rows + b.gradient_fallback_rows,
-                isolated_rows: a.isolated_rows + b.isolated_rows,
-            });
+            .collect();
+        let mut stats = QuadraticFitStats::default();
+        let mut row_kinds = Vec::with_capacity(n);
+        for (s, kinds) in per_task {
+            stats.quadratic_rows += s.quadratic_rows;
+            stats.fallback_rows += s.fallback_rows;
+            stats.gradient_fallback_rows += s.gradient_fallback_rows;
+            stats.isolated_rows += s.isolated_rows;
+            row_kinds.extend(kinds);
+        }
         QuadraticFitOperators {
             offsets: offsets.to_vec(),
             neighbors: geometry.neighbor_array().to_vec(),
             lap_coeff,
             grad_coeff,
+            row_kinds,
             stats,
         }
+    }
+
+    /// How row `i` was built (panics when out of range).
+    pub fn row_kind(&self, i: usize) -> RowKind {
+        self.row_kinds[i]
     }
 
     /// How many rows are quadratic-exact, fell back, or are isolated.
