@@ -5,6 +5,12 @@
 //! tetrahedral mesh, diffusion of local functions with fitting terms, normal estimation for
 //! unoriented input, and polygonisation by surface nets visited only near the zero set.
 //!
-//! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`. Nothing is implemented
-//! yet, so it exposes no API.
+//! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`.
 #![deny(missing_docs)]
+
+pub mod diffusion;
+
+pub use diffusion::{
+    DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
+    diffuse,
+};
