@@ -35,6 +35,10 @@ use crate::error::OpsError;
 /// Rows handled by one parallel task: fixed, so that the split never depends on the pool.
 pub(crate) const ROWS_PER_TASK: usize = 4096;
 
+/// One parallel task of [`PairGeometry::build`]: its first row, its rows' entries of `φ`, and
+/// its rows' per-support sums `[S, Σφ, thesis m, moment m]`.
+type RowTask<'a> = (usize, &'a mut [f64], &'a mut [[f64; 4]]);
+
 /// Geometry of one ordered pair `(i, j)` of supports.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PairTerms {
@@ -166,7 +170,7 @@ impl PairGeometry {
         let mut phi = vec![0.0; neighbors.len()];
         let mut per_support = vec![[0.0f64; 4]; n];
         // Split the entry array along row boundaries so that each task owns its rows' entries.
-        let mut tasks: Vec<(usize, &mut [f64], &mut [[f64; 4]])> = Vec::new();
+        let mut tasks: Vec<RowTask<'_>> = Vec::new();
         {
             let mut phi_rest: &mut [f64] = &mut phi;
             let mut rows_rest: &mut [[f64; 4]] = &mut per_support;

@@ -230,7 +230,7 @@ fn fit_row(
         let v = eigen.eigenvectors.column(k).into_owned();
         let lambda = eigen.eigenvalues[k];
         if lambda > RANK_TOLERANCE * largest {
-            pinv += (&v * v.transpose()) / lambda;
+            pinv += (v * v.transpose()) / lambda;
         } else {
             null.push(v);
         }
