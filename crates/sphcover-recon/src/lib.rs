@@ -8,3 +8,7 @@
 //! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`. Nothing is implemented
 //! yet, so it exposes no API.
 #![deny(missing_docs)]
+
+pub mod mesh_smoothing;
+
+pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
