@@ -12,3 +12,6 @@
 pub mod mesh_smoothing;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
+pub mod polygonise;
+
+pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
