@@ -33,3 +33,9 @@ pub use diffusion::{
     DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
     diffuse,
 };
+pub mod mesh_smoothing;
+
+pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
+pub mod polygonise;
+
+pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
