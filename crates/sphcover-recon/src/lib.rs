@@ -20,6 +20,10 @@ pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, sample_confidence,
     support_confidence,
 };
+pub use diffusion::{
+    DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
+    diffuse,
+};
 pub use graph_cut::{
     GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_sig, graph_cut_tet,
 };
@@ -29,10 +33,6 @@ pub use graphcut_reconstruction::{
 };
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
-pub use diffusion::{
-    DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
-    diffuse,
-};
 pub mod mesh_smoothing;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
