@@ -15,10 +15,11 @@ pub mod graphcut_reconstruction;
 pub mod maxflow;
 pub mod normals;
 mod pca;
+pub mod pipeline;
 
 pub use confidence::{
-    ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, sample_confidence,
-    support_confidence,
+    ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
+    sample_confidence, sample_confidence_with, support_confidence,
 };
 pub use diffusion::{
     DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
@@ -38,4 +39,7 @@ pub mod mesh_smoothing;
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub mod polygonise;
 
+pub use pipeline::{
+    Method, ReconError, ReconParams, ReconStats, Reconstruction, default_depth, reconstruct,
+};
 pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
