@@ -544,8 +544,14 @@ fn retain_large_components(mesh: &mut TriMesh, fraction: f64) -> usize {
             vertices[new as usize] = mesh.vertices[old];
         }
     }
-    mesh.normals = mesh.normals.as_ref().map(|a| remap_attribute(a, &remap, next));
-    mesh.values = mesh.values.as_ref().map(|a| remap_attribute(a, &remap, next));
+    mesh.normals = mesh
+        .normals
+        .as_ref()
+        .map(|a| remap_attribute(a, &remap, next));
+    mesh.values = mesh
+        .values
+        .as_ref()
+        .map(|a| remap_attribute(a, &remap, next));
     mesh.vertices = vertices;
     mesh.triangles = triangles
         .iter()

@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use serde_json::json;
-use sphcover_core::{PointCloud, SurfaceCoverParams};
 use sphcover_core::io::{self, CoverFileMeta, Format, WriteOptions};
+use sphcover_core::{PointCloud, SurfaceCoverParams};
 use sphcover_recon::{
     GraphCutParams, Method, ReconError, ReconParams, Reconstruction, reconstruct,
 };
@@ -71,7 +71,13 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
             positions: cloud.positions.clone(),
             normals: cloud.normals.clone(),
             confidence: Some(recon.confidence.clone()),
-            values: Some(recon.outliers.iter().map(|&o| f64::from(u8::from(o))).collect()),
+            values: Some(
+                recon
+                    .outliers
+                    .iter()
+                    .map(|&o| f64::from(u8::from(o)))
+                    .collect(),
+            ),
         };
         io::write_point_cloud(path, &points, &options)?;
     }
@@ -89,7 +95,9 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.report {
         let text = serde_json::to_string_pretty(&report_json(args, &recon))?;
-        io::write_atomic(path, &[args.input.clone()], |w| w.write_all(text.as_bytes()))?;
+        io::write_atomic(path, &[args.input.clone()], |w| {
+            w.write_all(text.as_bytes())
+        })?;
     }
     stage.finish();
 
@@ -163,7 +171,10 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
     };
     params.normals.k = args.normal_neighbors;
     if let Some(k) = args.k {
-        params.graph_cut = GraphCutParams { k, ..params.graph_cut };
+        params.graph_cut = GraphCutParams {
+            k,
+            ..params.graph_cut
+        };
         params.graph_cut_only.k = k;
     }
     Ok(params)
@@ -221,6 +232,8 @@ fn report_json(args: &ReconArgs, recon: &Reconstruction) -> serde_json::Value {
 }
 
 fn file_name(path: &Path) -> String {
-    path.file_name()
-        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }
