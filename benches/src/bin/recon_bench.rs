@@ -72,11 +72,13 @@ struct Args {
     timeout: f64,
 }
 
+/// Builds the command line of a tool for an input and an output path.
+type CommandBuilder = Box<dyn Fn(&Path, &Path) -> Vec<String>>;
+
 /// One tool to run on every scan.
 struct Tool {
     name: String,
-    /// Builds the command for an input and an output.
-    command: Box<dyn Fn(&Path, &Path) -> Vec<String>>,
+    command: CommandBuilder,
     /// Why it cannot run at all, if so.
     unavailable: Option<String>,
 }
