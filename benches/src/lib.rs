@@ -44,6 +44,26 @@ pub fn release_dir() -> PathBuf {
     }
 }
 
+/// This process's command line, each argument quoted for a POSIX shell where needed, so a
+/// table's header can be pasted back into a terminal.
+pub fn command_line() -> String {
+    std::env::args()
+        .map(|a| shell_quote(&a))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `word` as a POSIX shell would need it: unchanged when it holds only safe characters,
+/// otherwise in single quotes (a single quote inside becomes `'\''`).
+pub fn shell_quote(word: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
+    if !word.is_empty() && word.chars().all(safe) {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
+}
+
 /// The last line of a tool's stderr, shortened for a table cell.
 pub fn short_message(message: &str, max_chars: usize) -> String {
     let m = message.trim();
@@ -58,6 +78,22 @@ pub fn short_message(message: &str, max_chars: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn words_are_quoted_only_when_needed() {
+        assert_eq!(shell_quote("--sizes"), "--sizes");
+        assert_eq!(shell_quote("a=b/c.ply"), "a=b/c.ply");
+        assert_eq!(shell_quote("p=x {in} {out}"), "'p=x {in} {out}'");
+        assert_eq!(shell_quote("it's"), "'it'\\''s'");
+        assert_eq!(shell_quote(""), "''");
+        // Splitting the quoted form gives the word back.
+        for w in ["p=x {in} {out}", "it's", "a\"b", ""] {
+            assert_eq!(
+                command_template::split_words(&shell_quote(w)).unwrap(),
+                vec![w.to_string()]
+            );
+        }
+    }
 
     #[test]
     fn messages_are_shortened_on_char_boundaries() {

@@ -147,3 +147,78 @@ fn recon_score_scores_a_mesh_against_itself() {
     assert_eq!(v["watertight"].as_bool(), Some(true));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A stand-in `sphcover` that answers `skeleton CT -o OUT …` with the phantom's true sheet:
+/// the table must show the expected topology and zero distances.
+#[cfg(unix)]
+#[test]
+fn skeleton_bench_scores_a_sheet_against_the_phantom_truth() {
+    use sphcover_core::TriMesh;
+    use std::os::unix::fs::PermissionsExt;
+
+    let dir = temp_dir("skeleton-truth");
+    let phantom = dir.join("phantoms").join("plate");
+    std::fs::create_dir_all(&phantom).unwrap();
+    std::fs::write(phantom.join("ct_n000.nii.gz"), b"not read by the stand-in").unwrap();
+    std::fs::write(
+        phantom.join("meta.json"),
+        r#"{"voxel_mm": 0.1, "expected_components": 1, "expected_euler_characteristic": 1}"#,
+    )
+    .unwrap();
+    // A flat 10 × 10 grid of quads, 2 mm across: a disc, χ = 1.
+    let n = 11u32;
+    let vertices = (0..n * n)
+        .map(|k| DVec3::new((k % n) as f64 * 0.2, (k / n) as f64 * 0.2, 0.0))
+        .collect();
+    let triangles = (0..n - 1)
+        .flat_map(|j| (0..n - 1).map(move |i| (i, j)))
+        .flat_map(|(i, j)| {
+            let a = j * n + i;
+            [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+        })
+        .collect();
+    io::write_mesh(
+        &phantom.join("gt_sheet_mesh.ply"),
+        &TriMesh::new(vertices, triangles),
+        &WriteOptions::default(),
+    )
+    .unwrap();
+    let fake = dir.join("fake-sphcover");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\ncp \"$(dirname \"$2\")/gt_sheet_mesh.ply\" \"$4\"\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+
+    let out = Command::new(env!("CARGO_BIN_EXE_skeleton-bench"))
+        .arg("--phantoms-dir")
+        .arg(dir.join("phantoms"))
+        .arg("--sphcover")
+        .arg(&fake)
+        .args(["--methods", "ridge", "--samples", "5000", "--work-dir"])
+        .arg(dir.join("work"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let row: Vec<&str> = stdout
+        .lines()
+        .find(|l| l.starts_with("| plate-n000"))
+        .unwrap_or_else(|| panic!("no row in\n{stdout}"))
+        .split('|')
+        .map(str::trim)
+        .collect();
+    // Columns: phantom method wall cpu peak triangles comp χ chamfer h99 f status
+    assert_eq!(row[6], "200");
+    assert_eq!(row[7], "1 (1)");
+    assert_eq!(row[8], "1 (1)");
+    assert_eq!(row[9], "0.000");
+    assert_eq!(row[11], "1.0000");
+    assert_eq!(row[12], "ok");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

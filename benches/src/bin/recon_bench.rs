@@ -18,9 +18,10 @@ use clap::Parser;
 use sphcover_benches::command_template::{CommandTemplate, split_words};
 use sphcover_benches::markdown_table::{MarkdownTable, fixed, format_count, parse_count};
 use sphcover_benches::measured_run::{RunMeasurement, RunOutcome, run_measured};
-use sphcover_benches::{release_dir, short_message, workspace_root};
-use sphcover_core::TriMesh;
+use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptions, WriteOptions};
+use sphcover_core::{DVec3, TriMesh};
+use sphcover_fixtures::ground_truth_meshes::{icosphere, torus_mesh};
 use sphcover_fixtures::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
 use sphcover_fixtures::scan::{ScanCase, generate_scan};
 
@@ -40,7 +41,8 @@ struct Args {
     /// gradient, normals30, normals60, scanner, combined, combined-no-outliers, all.
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
-    /// Ground-truth mesh as NAME=PATH (repeatable); default `bunny=fixtures/real/bunny00.off`.
+    /// Ground-truth mesh as NAME=PATH, or `sphere` or `torus` for an analytic shape
+    /// (repeatable); default `bunny=fixtures/real/bunny00.off`.
     #[arg(long = "mesh")]
     meshes: Vec<String>,
     /// The sphcover binary (default: the release build in the cargo target directory).
@@ -120,9 +122,17 @@ fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut meshes = Vec::new();
     for spec in &mesh_specs {
-        let (name, path) = spec
-            .split_once('=')
-            .with_context(|| format!("--mesh wants NAME=PATH, got `{spec}`"))?;
+        let Some((name, path)) = spec.split_once('=') else {
+            let mesh = builtin_mesh(spec).with_context(|| {
+                format!("--mesh wants NAME=PATH or one of sphere, torus; got `{spec}`")
+            })?;
+            meshes.push((
+                spec.clone(),
+                PathBuf::from(format!("(analytic {spec})")),
+                mesh,
+            ));
+            continue;
+        };
         let path = resolve(&root, Path::new(path));
         let mesh = io::read_mesh(&path, &ReadOptions::default())
             .with_context(|| format!("reading ground truth {}", path.display()))?;
@@ -253,7 +263,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             "Command: `{}`\n\nGround truth: {}. Scores on {} area-uniform samples per mesh; \
              lengths in % of the ground truth's bounding-box diagonal; NC = normal \
              consistency; comp. = connected components.\n\n{rendered}",
-            std::env::args().collect::<Vec<_>>().join(" "),
+            command_line(),
             gt_list.join("; "),
             args.samples
         );
@@ -333,10 +343,21 @@ fn row_cells(mesh: &str, case: ScanCase, points: usize, tool: &str, r: &ToolResu
         ]),
         Err(e) => {
             cells.extend(std::iter::repeat_n("–".to_string(), 8));
-            cells.push(short_message(e, 90));
+            cells.push(short_message(e, 120));
         }
     }
     cells
+}
+
+/// The analytic ground truths: a sphere of radius 0.5 (81,920 triangles) and a torus of
+/// radii 0.35 and 0.15 (65,536 triangles), fine enough that their facets are far below the
+/// errors measured.
+fn builtin_mesh(name: &str) -> Option<TriMesh> {
+    match name {
+        "sphere" => Some(icosphere(DVec3::ZERO, 0.5, 6)),
+        "torus" => Some(torus_mesh(0.35, 0.15, 256, 128)),
+        _ => None,
+    }
 }
 
 /// `p` relative to the workspace root unless absolute or present from here, so the harness

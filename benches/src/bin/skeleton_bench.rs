@@ -23,7 +23,7 @@ use clap::Parser;
 use sphcover_benches::command_template::split_words;
 use sphcover_benches::markdown_table::{MarkdownTable, fixed};
 use sphcover_benches::measured_run::{RunOutcome, run_measured};
-use sphcover_benches::{release_dir, short_message, workspace_root};
+use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::MeshTopology;
 use sphcover_core::io::{self, NonFinitePolicy, ReadOptions};
 use sphcover_fixtures::recon_metrics::{ReconMetricsParams, score_reconstruction};
@@ -176,7 +176,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                 RunOutcome::NotStarted(m) => format!("not started: {m}"),
             };
             cells.resize(11, "–".to_string());
-            cells.push(short_message(&status, 90));
+            cells.push(short_message(&status, 120));
             eprintln!("  {}", cells.join(" | "));
             table.push(cells);
         }
@@ -187,7 +187,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         let text = format!(
             "Command: `{}`\n\nDistances to the true mid-surface in voxels; χ = Euler \
              characteristic; expected values from each phantom's `meta.json`.\n\n{rendered}",
-            std::env::args().collect::<Vec<_>>().join(" ")
+            command_line()
         );
         std::fs::write(out, text).with_context(|| format!("writing {}", out.display()))?;
     }
