@@ -7,9 +7,11 @@
 //!   when its area weighted by the ridge strength `|λ1|` reaches a fraction of the largest
 //!   component's (faint ridges weigh little, whatever their size) and its plain area reaches
 //!   a minimum.
-//! * Tiny holes: a boundary loop whose vertices all have exactly two boundary edges, with few
-//!   edges and a short perimeter, is a hole left by a degenerate tetrahedron, not a hole of
-//!   the part; it is closed by a fan around its centroid.
+//! * Spurious holes: a boundary loop whose vertices all have exactly two boundary edges, with
+//!   a bounded number of edges and perimeter, and with material at its centroid, is a hole
+//!   left by tetrahedra where the ridge test failed (eigenvectors turning near rims and
+//!   junctions), not a hole of the part (which has air in its middle); it is closed by a fan
+//!   around its centroid.
 
 use std::collections::HashMap;
 
@@ -25,7 +27,7 @@ pub struct CleaningParams {
     pub min_component_fraction: f64,
     /// A component is dropped when its area is below this (world units²).
     pub min_component_area: f64,
-    /// Largest number of edges of a hole that is filled.
+    /// Largest number of edges of a hole that is filled (with material at its centroid).
     pub max_hole_edges: usize,
     /// Largest perimeter of a hole that is filled (world units).
     pub max_hole_perimeter: f64,
@@ -50,10 +52,18 @@ pub struct CleaningStats {
 
 /// Cleans a patch mesh whose per-vertex values are ridge strengths (missing values count
 /// as 1). The output has no unused vertex.
-pub fn clean_sheet(mesh: &TriMesh, params: &CleaningParams) -> (TriMesh, CleaningStats) {
+///
+/// `is_material(x)` says whether there is material at `x`: a hole is filled only when there
+/// is material at its centroid, so holes of the part itself (air in the middle) stay open
+/// whatever their size.
+pub fn clean_sheet(
+    mesh: &TriMesh,
+    params: &CleaningParams,
+    is_material: impl Fn(DVec3) -> bool,
+) -> (TriMesh, CleaningStats) {
     let mut stats = CleaningStats::default();
     let mut mesh = weld_coincident(mesh, &mut stats);
-    fill_small_holes(&mut mesh, params, &mut stats);
+    fill_small_holes(&mut mesh, params, &is_material, &mut stats);
     drop_fragments(&mut mesh, params, &mut stats);
     (compact(&mesh), stats)
 }
@@ -129,7 +139,12 @@ fn drop_fragments(mesh: &mut TriMesh, params: &CleaningParams, stats: &mut Clean
     stats.dropped_triangles = before - mesh.triangles.len();
 }
 
-fn fill_small_holes(mesh: &mut TriMesh, params: &CleaningParams, stats: &mut CleaningStats) {
+fn fill_small_holes(
+    mesh: &mut TriMesh,
+    params: &CleaningParams,
+    is_material: &impl Fn(DVec3) -> bool,
+    stats: &mut CleaningStats,
+) {
     let mut edge_count: HashMap<(u32, u32), u32> = HashMap::new();
     for tri in &mesh.triangles {
         for k in 0..3 {
@@ -188,6 +203,9 @@ fn fill_small_holes(mesh: &mut TriMesh, params: &CleaningParams, stats: &mut Cle
             continue;
         }
         let centre = pos.iter().copied().sum::<DVec3>() / pos.len() as f64;
+        if !is_material(centre) {
+            continue;
+        }
         let c = mesh.vertices.len() as u32;
         mesh.vertices.push(centre);
         if let Some(normals) = &mut mesh.normals {
@@ -290,7 +308,7 @@ mod tests {
     fn small_fragment_is_dropped_and_large_kept() {
         let mut m = grid(10, 0.0, 0.0);
         append(&mut m, &grid(1, 20.0, 0.0));
-        let (out, stats) = clean_sheet(&m, &PARAMS);
+        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
         assert_eq!(stats.components_before, 2);
         assert_eq!(stats.dropped_components, 1);
         assert_eq!(out.triangles.len(), 200);
@@ -305,7 +323,7 @@ mod tests {
         let mut small = m.clone();
         small.triangles.remove(2 * (4 * 10 + 4));
         small.triangles.remove(2 * (4 * 10 + 4));
-        let (out, stats) = clean_sheet(&small, &PARAMS);
+        let (out, stats) = clean_sheet(&small, &PARAMS, |_| true);
         assert_eq!(stats.holes_filled, 1);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 1);
         // Remove a 3 × 3 block: perimeter 12 stays open (χ = 0, an annulus).
@@ -320,7 +338,11 @@ mod tests {
             })
             .map(|(_, t)| *t)
             .collect();
-        let (out, stats) = clean_sheet(&big, &PARAMS);
+        let (out, stats) = clean_sheet(&big, &PARAMS, |_| true);
+        assert_eq!(stats.holes_filled, 0);
+        assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
+        // A small hole over air stays open.
+        let (out, stats) = clean_sheet(&small, &PARAMS, |_| false);
         assert_eq!(stats.holes_filled, 0);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
     }
@@ -340,7 +362,7 @@ mod tests {
                 }
             }
         }
-        let (out, stats) = clean_sheet(&m, &PARAMS);
+        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
         assert!(stats.welded_vertices == 1);
         assert_eq!(out.vertices.len(), 9);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 1);

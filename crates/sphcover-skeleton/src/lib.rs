@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! Volume ─► intensity_model (Otsu threshold, noise, tolerance ε)
+//!        ─► object_mask (drop noise specks above the threshold)
 //!        ─► build_volume_cover (core: quadratic local fits, automatic r_min / r_max)
 //!        ─► dual_complex + TetMesh (tetra: σ_t = 0.75, edges, ordered edge rings)
 //!        ─► ridge_points (∇f, ∇²f with support expansion σ; eq. 6.1, 6.4, 6.5)
@@ -17,8 +18,10 @@
 
 pub mod cleaning;
 pub mod error;
+pub mod gaussian_filter;
 pub mod intensity_model;
 pub mod nms_baseline;
+pub mod object_mask;
 pub mod patches;
 pub mod pipeline;
 pub mod ridge_points;
@@ -29,6 +32,7 @@ pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
 pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
+pub use object_mask::{ObjectMaskStats, drop_small_object_components};
 pub use patches::ridge_patches;
 pub use pipeline::{SkeletonParams, SkeletonStats, SkeletonTimings, extract_skeleton};
 pub use ridge_points::{

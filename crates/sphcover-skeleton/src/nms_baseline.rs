@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use sphcover_core::Volume;
 
 use crate::error::SkeletonError;
+use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
 use crate::symmetric_eigen::smallest_eigen;
 
@@ -67,16 +68,7 @@ pub fn nms_skeleton(
     }
     let intensity = estimate_intensity_model(volume, params.threshold)?;
     let dims = volume.dims();
-    let fill = intensity.background_level;
-    let mut smooth: Vec<f64> = (0..volume.len())
-        .map(|i| {
-            let v = volume.value(i);
-            if v.is_finite() { v } else { fill }
-        })
-        .collect();
-    for axis in 0..3 {
-        smooth = gaussian_along(&smooth, dims, axis, params.sigma);
-    }
+    let smooth = smoothed_values(volume, params.sigma, intensity.background_level);
     let inv = volume.affine().matrix3.inverse();
     let inv_t = inv.transpose();
     let [nx, ny, nz] = dims;
@@ -150,33 +142,6 @@ pub fn nms_skeleton(
         points: points.len(),
     };
     Ok((points, stats))
-}
-
-/// Convolves `data` (grid `dims`, x fastest) along `axis` with a Gaussian of standard
-/// deviation `sigma` (truncated at 3σ, renormalised at the borders).
-fn gaussian_along(data: &[f64], dims: [usize; 3], axis: usize, sigma: f64) -> Vec<f64> {
-    let radius = (3.0 * sigma).ceil() as i64;
-    let kernel: Vec<f64> = (-radius..=radius)
-        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let stride = [1, dims[0], dims[0] * dims[1]][axis];
-    let n = dims[axis] as i64;
-    (0..data.len())
-        .into_par_iter()
-        .with_min_len(4096)
-        .map(|idx| {
-            let pos = ((idx / stride) % dims[axis]) as i64;
-            let (mut sum, mut weight) = (0.0, 0.0);
-            for (o, w) in (-radius..=radius).zip(&kernel) {
-                let p = pos + o;
-                if (0..n).contains(&p) {
-                    sum += w * data[(idx as i64 + o * stride as i64) as usize];
-                    weight += w;
-                }
-            }
-            sum / weight
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -12,7 +12,9 @@ use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex};
 
 use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 use crate::error::SkeletonError;
+use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
+use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
 use crate::ridge_points::{RidgeFilter, orient_eigenvectors, ridge_points, vertex_derivatives};
 use crate::rim_trimming::{RimTrimParams, trim_rims};
@@ -28,6 +30,13 @@ pub struct SkeletonParams {
     pub tolerance: Option<f64>,
     /// The model part of the automatic tolerance, as a fraction of the contrast.
     pub model_tolerance: f64,
+    /// Connected components of the object mask smaller than this fraction of the largest are
+    /// noise specks and are dropped before the cover is built.
+    pub min_object_fraction: f64,
+    /// Above this noise level (standard deviation over contrast), object voxels must also
+    /// exceed the threshold in the volume smoothed by one voxel (see
+    /// [`crate::object_mask`]).
+    pub smooth_mask_noise: f64,
     /// Smallest support radius (world units); `None`: the voxel diagonal.
     pub r_min: Option<f64>,
     /// Largest support radius (world units); `None`: the object's maximum thickness.
@@ -45,8 +54,8 @@ pub struct SkeletonParams {
     pub min_component_fraction: f64,
     /// Components smaller than this many voxel areas are dropped.
     pub min_component_area_voxels: f64,
-    /// Rim trimming: a sheet vertex is in the rim when its distance to the sheet's boundary
-    /// is below this factor times the local half-thickness; `0` disables trimming.
+    /// Rim trimming: a sheet vertex is in the rim when the object's surface lies closer than
+    /// this factor times the local half-thickness along the sheet; `0` disables trimming.
     pub rim_trim_factor: f64,
     /// Holes with at most this many edges…
     pub max_hole_edges: usize,
@@ -62,6 +71,8 @@ impl Default for SkeletonParams {
             threshold: None,
             tolerance: None,
             model_tolerance: 0.05,
+            min_object_fraction: 0.01,
+            smooth_mask_noise: 0.2,
             r_min: None,
             r_max: None,
             sigma: 4.0,
@@ -70,9 +81,9 @@ impl Default for SkeletonParams {
             ridge: RidgeFilter::default(),
             min_component_fraction: 0.05,
             min_component_area_voxels: 4.0,
-            rim_trim_factor: 0.5,
-            max_hole_edges: 64,
-            max_hole_perimeter_voxels: 16.0,
+            rim_trim_factor: 0.9,
+            max_hole_edges: 200,
+            max_hole_perimeter_voxels: 60.0,
             seed: 0,
         }
     }
@@ -83,6 +94,8 @@ impl Default for SkeletonParams {
 pub struct SkeletonTimings {
     /// Histogram, threshold and noise estimate.
     pub intensity_model: Duration,
+    /// Dropping noise specks from the object mask.
+    pub object_mask: Duration,
     /// The volume cover (including its distance transform).
     pub cover: Duration,
     /// Regular triangulation, dual complex, edges and rings.
@@ -99,9 +112,10 @@ pub struct SkeletonTimings {
 
 impl SkeletonTimings {
     /// The stages with their names, in pipeline order.
-    pub fn stages(&self) -> [(&'static str, Duration); 7] {
+    pub fn stages(&self) -> [(&'static str, Duration); 8] {
         [
             ("intensity model", self.intensity_model),
+            ("object mask", self.object_mask),
             ("volume cover", self.cover),
             ("tetrahedral mesh", self.tetrahedral_mesh),
             ("derivatives", self.derivatives),
@@ -124,6 +138,8 @@ pub struct SkeletonStats {
     pub intensity: IntensityModel,
     /// The fit tolerance ε used (normalised units).
     pub tolerance: f64,
+    /// Noise specks dropped from the object mask.
+    pub object_mask: ObjectMaskStats,
     /// The volume cover's own statistics (radii bounds, thickness, supports).
     pub cover: VolumeCoverStats,
     /// Vertices of the tetrahedral mesh.
@@ -175,6 +191,19 @@ pub fn extract_skeleton(
         .tolerance
         .unwrap_or_else(|| intensity.tolerance(params.model_tolerance));
     timings.intensity_model = start.elapsed();
+
+    let start = Instant::now();
+    let smooth = (intensity.noise_std > params.smooth_mask_noise * intensity.contrast().abs())
+        .then(|| smoothed_values(volume, 1.0, intensity.value_range.0));
+    let (cleaned, mask) = drop_small_object_components(
+        volume,
+        intensity.threshold,
+        params.min_object_fraction,
+        smooth.as_deref(),
+    );
+    drop(smooth);
+    let volume = cleaned.as_ref().unwrap_or(volume);
+    timings.object_mask = start.elapsed();
 
     let start = Instant::now();
     let cover_params = VolumeCoverParams {
@@ -243,19 +272,21 @@ pub fn extract_skeleton(
         max_hole_edges: params.max_hole_edges,
         max_hole_perimeter: params.max_hole_perimeter_voxels * voxel,
     };
-    let (mut sheet, mut cleaning) = clean_sheet(&raw, &cleaning_params);
+    let plain = PuEvaluator::new(&cover, 1.0)?;
+    let level = cover_stats.threshold_normalised;
+    let is_material = |x: DVec3| plain.value(x).is_some_and(|v| v > level);
+    let (mut sheet, mut cleaning) = clean_sheet(&raw, &cleaning_params, is_material);
     let mut rim_triangles = 0;
     if params.rim_trim_factor > 0.0 {
-        let plain = PuEvaluator::new(&cover, 1.0)?;
         let trim = RimTrimParams {
-            surface_level: cover_stats.threshold_normalised,
+            surface_level: level,
             step: 0.25 * voxel,
             max_half_thickness: cover_stats.r_max,
             factor: params.rim_trim_factor,
         };
         let (trimmed, removed) = trim_rims(&sheet, &plain, &trim);
         rim_triangles = removed;
-        let (again, second) = clean_sheet(&trimmed, &cleaning_params);
+        let (again, second) = clean_sheet(&trimmed, &cleaning_params, is_material);
         cleaning.welded_vertices += second.welded_vertices;
         cleaning.degenerate_triangles += second.degenerate_triangles;
         cleaning.dropped_components += second.dropped_components;
@@ -275,6 +306,7 @@ pub fn extract_skeleton(
     let stats = SkeletonStats {
         intensity,
         tolerance,
+        object_mask: mask,
         cover: cover_stats,
         mesh_vertices: mesh.vertices.len(),
         tetrahedra: mesh.tets.len(),
@@ -325,6 +357,7 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("min_relative_strength", p.ridge.min_relative_strength),
         ("max_eigen_ratio", p.ridge.max_eigen_ratio),
         ("min_component_fraction", p.min_component_fraction),
+        ("min_object_fraction", p.min_object_fraction),
         ("rim_trim_factor", p.rim_trim_factor),
         ("min_component_area_voxels", p.min_component_area_voxels),
         ("max_hole_perimeter_voxels", p.max_hole_perimeter_voxels),

@@ -5,14 +5,18 @@
 //! extracted sheet is `t/2` too wide all around (on the phantoms: 5–25 % of the output lies
 //! farther than one voxel from the true sheet, all of it at the rims).
 //!
-//! The medial-axis property tells the rim apart. At a sheet point `p` with across direction
-//! `e`, let `h(p)` be the half-thickness along `e` (the distance from `p` to the object
-//! surface `f = T` along `±e`, averaged over both sides) and `d(p)` the geodesic distance on
-//! the extracted sheet to its boundary. Inside the true sheet at distance `x` from its
-//! boundary, `d = t/2 + x ≥ h = t/2`. In the rim, at distance `δ` beyond the true boundary,
-//! `d = t/2 − δ < h = √(t²/4 − δ²)`. So the triangles whose corners mostly satisfy
-//! `d < h` are the rim's, and are removed. Holes must be filled before (a hole's boundary
-//! would otherwise grow by `h`).
+//! The medial-axis property tells the rim apart, locally. At a sheet point `p` with across
+//! direction `e`, let `h(p)` be the half-thickness along `e` (the distance from `p` to the
+//! object surface `f = T` along `±e`, averaged over both sides). Inside the true sheet the
+//! object extends farther than `h` in every direction along the sheet. In the rim, at
+//! distance `δ` beyond the true boundary, the surface lies `t/2 − δ` away along the sheet
+//! (outwards) while `h = √(t²/4 − δ²)`. So a vertex is in the rim when, in one of
+//! [`DIRECTIONS`] directions perpendicular to `e`, the surface is closer than `κ·h`
+//! (`κ` = [`RimTrimParams::factor`]; with `κ = 0.9` this trims what lies more than about
+//! `0.05 t` beyond the true boundary), and triangles with two rim corners are removed. At a
+//! T-junction the other sheet's material continues along the sheet, so nothing is trimmed
+//! there. Only vertices within the object's thickness of the sheet's boundary (geodesic
+//! distance) are tested.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -30,9 +34,12 @@ pub struct RimTrimParams {
     pub step: f64,
     /// Largest half-thickness searched (world units); also bounds the geodesic distances.
     pub max_half_thickness: f64,
-    /// A vertex is in the rim when `d < factor · h`.
+    /// `κ`: a vertex is in the rim when the surface lies closer than `κ·h` along the sheet.
     pub factor: f64,
 }
+
+/// In-plane directions tested around each vertex.
+pub const DIRECTIONS: usize = 12;
 
 /// Removes the rim triangles of `mesh` (whose normals must hold the ridge directions `e`).
 /// Returns the trimmed mesh (vertices unchanged) and the number of triangles removed.
@@ -44,25 +51,43 @@ pub fn trim_rims(
     let Some(normals) = &mesh.normals else {
         return (mesh.clone(), 0);
     };
-    let reach = params.factor * params.max_half_thickness;
-    let distance = distance_to_boundary(mesh, reach);
+    let distance = distance_to_boundary(mesh, 2.0 * params.max_half_thickness);
     let in_rim: Vec<bool> = (0..mesh.vertices.len())
         .into_par_iter()
         .with_min_len(256)
-        .map(|v| {
-            let d = distance[v];
-            if !(d < reach) {
-                return false;
-            }
-            half_thickness(evaluator, mesh.vertices[v], normals[v], params)
-                .is_some_and(|h| d < params.factor * h)
-        })
+        .map(|v| distance[v].is_finite() && is_rim(evaluator, mesh.vertices[v], normals[v], params))
         .collect();
     let mut out = mesh.clone();
     out.triangles
         .retain(|t| t.iter().filter(|&&v| in_rim[v as usize]).count() < 2);
     let removed = mesh.triangles.len() - out.triangles.len();
     (out, removed)
+}
+
+/// True when the object surface is closer than `factor · h(p)` along some direction
+/// perpendicular to `e` (see the module documentation).
+pub fn is_rim(evaluator: &PuEvaluator<'_>, p: DVec3, e: DVec3, params: &RimTrimParams) -> bool {
+    let Some(h) = half_thickness(evaluator, p, e, params) else {
+        return false;
+    };
+    let reach = params.factor * h;
+    let u = e.any_orthonormal_vector();
+    let v = e.cross(u);
+    (0..DIRECTIONS).any(|k| {
+        let angle = std::f64::consts::TAU * k as f64 / DIRECTIONS as f64;
+        let dir = angle.cos() * u + angle.sin() * v;
+        let mut s = params.step;
+        while s <= reach {
+            if evaluator
+                .value(p + s * dir)
+                .is_none_or(|f| f < params.surface_level)
+            {
+                return true;
+            }
+            s += params.step;
+        }
+        false
+    })
 }
 
 /// The half-thickness of the object at `p` along `±e`: the mean distance to the first
