@@ -48,6 +48,8 @@ pub struct CleaningStats {
     pub dropped_triangles: usize,
     /// Holes filled.
     pub holes_filled: usize,
+    /// Triangles removed to undo pinched (bow-tie) vertices.
+    pub pinch_triangles: usize,
 }
 
 /// Cleans a patch mesh whose per-vertex values are ridge strengths (missing values count
@@ -63,7 +65,9 @@ pub fn clean_sheet(
 ) -> (TriMesh, CleaningStats) {
     let mut stats = CleaningStats::default();
     let mut mesh = weld_coincident(mesh, &mut stats);
+    resolve_pinches(&mut mesh, &mut stats);
     fill_small_holes(&mut mesh, params, &is_material, &mut stats);
+    resolve_pinches(&mut mesh, &mut stats);
     drop_fragments(&mut mesh, params, &mut stats);
     (compact(&mesh), stats)
 }
@@ -94,6 +98,93 @@ fn weld_coincident(mesh: &TriMesh, stats: &mut CleaningStats) -> TriMesh {
         triangles,
         normals: mesh.normals.clone(),
         values: mesh.values.clone(),
+    }
+}
+
+/// Undoes pinched vertices: where the triangles around a vertex form several fans that meet
+/// only at that vertex (a bow-tie, typically left where trimming removed a triangle between
+/// two others along the boundary), only the largest fan is kept (ties: the one with the
+/// lowest triangle index). Repeats while removals create new pinches (at most 4 rounds).
+fn resolve_pinches(mesh: &mut TriMesh, stats: &mut CleaningStats) {
+    for _ in 0..4 {
+        let n = mesh.vertices.len();
+        let mut offsets = vec![0u32; n + 1];
+        for t in &mesh.triangles {
+            for &v in t {
+                offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut incident = vec![0u32; 3 * mesh.triangles.len()];
+        for (ti, t) in mesh.triangles.iter().enumerate() {
+            for &v in t {
+                incident[fill[v as usize] as usize] = ti as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        let mut remove = vec![false; mesh.triangles.len()];
+        let mut any = false;
+        for v in 0..n {
+            let around = &incident[offsets[v] as usize..offsets[v + 1] as usize];
+            if around.len() < 2 {
+                continue;
+            }
+            // Union-find over the triangles around v, joined through a shared second vertex.
+            let mut parent: Vec<usize> = (0..around.len()).collect();
+            fn find(p: &mut [usize], mut x: usize) -> usize {
+                while p[x] != x {
+                    p[x] = p[p[x]];
+                    x = p[x];
+                }
+                x
+            }
+            let mut by_vertex: HashMap<u32, usize> = HashMap::new();
+            for (k, &t) in around.iter().enumerate() {
+                for &w in &mesh.triangles[t as usize] {
+                    if w as usize == v {
+                        continue;
+                    }
+                    if let Some(&j) = by_vertex.get(&w) {
+                        let (a, b) = (find(&mut parent, k), find(&mut parent, j));
+                        parent[a.max(b)] = a.min(b);
+                    } else {
+                        by_vertex.insert(w, k);
+                    }
+                }
+            }
+            let mut size: HashMap<usize, usize> = HashMap::new();
+            for k in 0..around.len() {
+                *size.entry(find(&mut parent, k)).or_insert(0) += 1;
+            }
+            if size.len() < 2 {
+                continue;
+            }
+            let best = size
+                .iter()
+                .max_by(|a, b| a.1.cmp(b.1).then_with(|| b.0.cmp(a.0)))
+                .map(|(&root, _)| root)
+                .unwrap_or(0);
+            for k in 0..around.len() {
+                if find(&mut parent, k) != best {
+                    remove[around[k] as usize] = true;
+                    any = true;
+                }
+            }
+        }
+        if !any {
+            return;
+        }
+        let before = mesh.triangles.len();
+        let mut t = 0;
+        mesh.triangles.retain(|_| {
+            let keep = !remove[t];
+            t += 1;
+            keep
+        });
+        stats.pinch_triangles += before - mesh.triangles.len();
     }
 }
 
@@ -345,6 +436,28 @@ mod tests {
         let (out, stats) = clean_sheet(&small, &PARAMS, |_| false);
         assert_eq!(stats.holes_filled, 0);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
+    }
+
+    #[test]
+    fn pinched_vertex_keeps_its_largest_fan() {
+        // Two grids sharing one corner vertex: a bow-tie.
+        let mut m = grid(3, 0.0, 0.0);
+        let small = grid(1, -1.0, 0.0);
+        let off = m.vertices.len() as u32;
+        m.vertices.extend_from_slice(&small.vertices);
+        // Vertex 1 of `small` is (0, 0, 0): identify it with vertex 0 of the big grid.
+        m.triangles.extend(
+            small
+                .triangles
+                .iter()
+                .map(|t| t.map(|v| if v == 1 { 0 } else { v + off })),
+        );
+        assert_eq!(MeshTopology::of(&m).non_manifold_vertices, 1);
+        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        assert_eq!(stats.pinch_triangles, 2);
+        let topo = MeshTopology::of(&out);
+        assert_eq!((topo.non_manifold_vertices, topo.components), (0, 1));
+        assert_eq!(out.triangles.len(), 18);
     }
 
     #[test]

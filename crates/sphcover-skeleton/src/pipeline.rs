@@ -292,6 +292,7 @@ pub fn extract_skeleton(
         cleaning.dropped_components += second.dropped_components;
         cleaning.dropped_triangles += second.dropped_triangles;
         cleaning.holes_filled += second.holes_filled;
+        cleaning.pinch_triangles += second.pinch_triangles;
         sheet = again;
     }
     let topology = MeshTopology::of(&sheet);
