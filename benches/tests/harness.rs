@@ -148,24 +148,55 @@ fn recon_score_scores_a_mesh_against_itself() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A stand-in `sphcover` that answers `skeleton CT -o OUT …` with the phantom's true sheet:
-/// the table must show the expected topology and zero distances.
+/// A stand-in `sphcover` that answers `skeleton CT -o OUT …` with the phantom's true sheet
+/// (a flat 2 mm square): the table must show full coverage, nothing spurious and the
+/// expected topology.
 #[cfg(unix)]
 #[test]
 fn skeleton_bench_scores_a_sheet_against_the_phantom_truth() {
-    use sphcover_core::TriMesh;
+    use sphcover_core::io::{PlyEncoding, Precision};
+    use sphcover_core::{PointCloud, TriMesh};
     use std::os::unix::fs::PermissionsExt;
 
     let dir = temp_dir("skeleton-truth");
     let phantom = dir.join("phantoms").join("plate");
     std::fs::create_dir_all(&phantom).unwrap();
     std::fs::write(phantom.join("ct_n000.nii.gz"), b"not read by the stand-in").unwrap();
+    // Voxels of 0.1 mm: the square is 20 × 20 voxels.
     std::fs::write(
         phantom.join("meta.json"),
-        r#"{"voxel_mm": 0.1, "expected_components": 1, "expected_euler_characteristic": 1}"#,
+        r#"{"voxel_mm": 0.1, "expected_components": 1, "expected_euler_characteristic": 1, "gt_sheet_area_vox2": 400.0}"#,
     )
     .unwrap();
-    // A flat 10 × 10 grid of quads, 2 mm across: a disc, χ = 1.
+    let float_ply = WriteOptions {
+        ply_encoding: PlyEncoding::BinaryLittleEndian,
+        precision: Precision::F32,
+        inputs: Vec::new(),
+    };
+    // True samples a quarter voxel apart, with their normals; the boundary is the square's
+    // outline.
+    let m = 81u32;
+    let step = 2.0 / (m - 1) as f64;
+    let samples: Vec<DVec3> = (0..m * m)
+        .map(|k| DVec3::new((k % m) as f64 * step, (k / m) as f64 * step, 0.0))
+        .collect();
+    let sheet = PointCloud {
+        normals: Some(vec![DVec3::Z; samples.len()]),
+        ..PointCloud::from_positions(samples.clone())
+    };
+    io::write_point_cloud(&phantom.join("gt_sheet.ply"), &sheet, &float_ply).unwrap();
+    let outline: Vec<DVec3> = samples
+        .iter()
+        .copied()
+        .filter(|p| p.x == 0.0 || p.y == 0.0 || p.x >= 2.0 - 1e-9 || p.y >= 2.0 - 1e-9)
+        .collect();
+    io::write_point_cloud(
+        &phantom.join("gt_boundary.ply"),
+        &PointCloud::from_positions(outline),
+        &float_ply,
+    )
+    .unwrap();
+    // The same square as a 10 × 10 grid of quads: a disc, χ = 1.
     let n = 11u32;
     let vertices = (0..n * n)
         .map(|k| DVec3::new((k % n) as f64 * 0.2, (k / n) as f64 * 0.2, 0.0))
@@ -196,7 +227,7 @@ fn skeleton_bench_scores_a_sheet_against_the_phantom_truth() {
         .arg(dir.join("phantoms"))
         .arg("--sphcover")
         .arg(&fake)
-        .args(["--methods", "ridge", "--samples", "5000", "--work-dir"])
+        .args(["--methods", "ridge", "--work-dir"])
         .arg(dir.join("work"))
         .output()
         .unwrap();
@@ -213,12 +244,15 @@ fn skeleton_bench_scores_a_sheet_against_the_phantom_truth() {
         .split('|')
         .map(str::trim)
         .collect();
-    // Columns: phantom method wall cpu peak triangles comp χ chamfer h99 f status
-    assert_eq!(row[6], "200");
-    assert_eq!(row[7], "1 (1)");
-    assert_eq!(row[8], "1 (1)");
-    assert_eq!(row[9], "0.000");
-    assert_eq!(row[11], "1.0000");
-    assert_eq!(row[12], "ok");
+    // Columns: phantom method wall cpu peak output coverage spurious spurious-off-rim
+    // p95-off-rim components χ boundary-reach status
+    assert_eq!(row[6], "200 triangles", "{stdout}");
+    assert_eq!(row[7], "1.000", "{stdout}");
+    assert_eq!(row[8], "0.000", "{stdout}");
+    assert_eq!(row[9], "0.000", "{stdout}");
+    assert_eq!(row[11], "1 (1)", "{stdout}");
+    assert_eq!(row[12], "1 (1)", "{stdout}");
+    assert_eq!(row[13], "0.00", "{stdout}");
+    assert_eq!(row[14], "ok", "{stdout}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

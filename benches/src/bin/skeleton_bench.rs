@@ -8,11 +8,13 @@
 //! ```
 //!
 //! A phantom is a CT volume (`.nii.gz`). When the folder of the volume holds the phantom
-//! generator's `meta.json` (voxel size, expected components and Euler characteristic) and
-//! `gt_sheet_mesh.ply` (the true mid-surface), the table compares the output with them:
-//! two-sided Chamfer distance, 99th-percentile Hausdorff distance and F-score at one voxel,
-//! all in voxels, from the same point-to-surface scoring as `recon-bench`. Sheet-specific
-//! scores (boundary and junction-curve distances) belong to the skeleton's own metrics.
+//! generator's ground truth (`meta.json`, `gt_sheet.ply`, `gt_boundary.ply`, optionally
+//! `gt_junction.ply`), the output is scored with `sphcover_fixtures::sheet_metrics` at τ = 1
+//! voxel: coverage of the true sheet, spurious fraction (everywhere and away from the
+//! rounded rims), the 95th-percentile distance away from the rims, components and Euler
+//! characteristic against the expected ones, and how close the output comes to the true
+//! boundary. Without a ground truth only cost and topology are shown. The ridge method
+//! writes a triangle mesh, the NMS baseline a point set; both are scored.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -24,9 +26,13 @@ use sphcover_benches::command_template::split_words;
 use sphcover_benches::markdown_table::{MarkdownTable, fixed};
 use sphcover_benches::measured_run::{RunOutcome, run_measured};
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
-use sphcover_core::MeshTopology;
 use sphcover_core::io::{self, NonFinitePolicy, ReadOptions};
-use sphcover_fixtures::recon_metrics::{ReconMetricsParams, score_reconstruction};
+use sphcover_core::{MeshTopology, TriMesh};
+use sphcover_fixtures::sheet_metrics::{read_ground_truth, score_mesh, score_points};
+use sphcover_fixtures::thin_phantoms::GroundTruthSheet;
+
+/// Columns of the table.
+const COLUMNS: usize = 14;
 
 /// The phantom used when none is given (relative to the workspace root).
 const DEFAULT_PHANTOM: &str = "t_junction-n000=fixtures/phantoms/t_junction_ct_n000.nii.gz";
@@ -59,21 +65,9 @@ struct Args {
     /// Where outputs go (default: `skeleton-bench` next to the release directory).
     #[arg(long)]
     work_dir: Option<PathBuf>,
-    /// Samples per mesh for the distances.
-    #[arg(long, default_value_t = 100_000)]
-    samples: usize,
     /// Time limit per run, in seconds.
     #[arg(long, default_value_t = 1800.0)]
     timeout: f64,
-}
-
-/// What the phantom generator says about one phantom.
-#[derive(Debug, Default)]
-struct PhantomTruth {
-    voxel_mm: Option<f64>,
-    components: Option<u64>,
-    euler: Option<i64>,
-    sheet_mesh: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -124,21 +118,23 @@ fn run(args: Args) -> anyhow::Result<()> {
         "wall s",
         "CPU s",
         "peak MiB",
-        "triangles",
-        "comp. (expected)",
-        "χ (expected)",
-        "Chamfer vox",
-        "H99 vox",
-        "F@1 vox",
+        "output",
+        "coverage",
+        "spurious",
+        "spurious off rim",
+        "p95 off rim vox",
+        "comp. (true)",
+        "χ (true)",
+        "boundary reach vox",
         "status",
     ]);
     for (name, ct) in &phantoms {
-        let truth = phantom_truth(ct);
+        let truth = ct.parent().and_then(|dir| read_ground_truth(dir).ok());
         for method in &args.methods {
             let output = work.join(format!("{name}.{method}.ply"));
             let mut cells = vec![name.clone(), method.clone()];
             if !exe.is_file() {
-                cells.extend(std::iter::repeat_n("–".to_string(), 9));
+                cells.extend(std::iter::repeat_n("–".to_string(), COLUMNS - 3));
                 cells.push(format!(
                     "not built: {} (cargo build --release -p sphcover-cli)",
                     exe.display()
@@ -165,7 +161,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             ]);
             let status = match &run.outcome {
                 RunOutcome::Success if output.is_file() => {
-                    score_sheet(&output, &truth, args.samples, &mut cells)
+                    score_output(&output, truth.as_ref(), &mut cells)
                 }
                 RunOutcome::Success => "exited 0 but wrote no output".to_string(),
                 RunOutcome::Failed { code, message } => format!(
@@ -175,7 +171,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                 RunOutcome::TimedOut => format!("timed out after {} s", timeout.as_secs()),
                 RunOutcome::NotStarted(m) => format!("not started: {m}"),
             };
-            cells.resize(11, "–".to_string());
+            cells.resize(COLUMNS - 1, "–".to_string());
             cells.push(short_message(&status, 120));
             eprintln!("  {}", cells.join(" | "));
             table.push(cells);
@@ -185,8 +181,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     println!("{rendered}");
     if let Some(out) = &args.out {
         let text = format!(
-            "Command: `{}`\n\nDistances to the true mid-surface in voxels; χ = Euler \
-             characteristic; expected values from each phantom's `meta.json`.\n\n{rendered}",
+            "Command: `{}`\n\nScores of `sphcover_fixtures::sheet_metrics` at τ = 1 voxel \
+             (distances in voxels; \"off rim\" = away from the rounded rims of the plates); \
+             χ = Euler characteristic; true values from each phantom's `meta.json`.\n\n{rendered}",
             command_line()
         );
         std::fs::write(out, text).with_context(|| format!("writing {}", out.display()))?;
@@ -194,58 +191,56 @@ fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Reads the output sheet, appends triangles, components, χ and the distances to `cells`,
-/// and returns the status.
-fn score_sheet(
+/// Reads the output (a mesh, or a point set from the NMS baseline), appends its size and
+/// scores to `cells`, and returns the status.
+fn score_output(
     output: &Path,
-    truth: &PhantomTruth,
-    samples: usize,
+    truth: Option<&GroundTruthSheet>,
     cells: &mut Vec<String>,
 ) -> String {
     let opts = ReadOptions {
         non_finite: NonFinitePolicy::Drop,
     };
-    let sheet = match io::read_mesh(output, &opts) {
-        Ok(m) => m,
+    let geometry = match io::read_geometry(output, &opts) {
+        Ok(g) => g,
         Err(e) => return format!("unreadable output: {e}"),
     };
-    let topo = MeshTopology::of(&sheet);
-    let with_expected = |got: String, expected: Option<String>| match expected {
-        Some(e) => format!("{got} ({e})"),
-        None => got,
-    };
-    cells.push(sheet.triangles.len().to_string());
-    cells.push(with_expected(
-        topo.components.to_string(),
-        truth.components.map(|c| c.to_string()),
-    ));
-    cells.push(with_expected(
-        topo.euler_characteristic().to_string(),
-        truth.euler.map(|c| c.to_string()),
-    ));
-    let (Some(gt_path), Some(voxel)) = (&truth.sheet_mesh, truth.voxel_mm) else {
-        return "ok (no ground-truth sheet next to the CT file)".to_string();
-    };
-    let gt = match io::read_mesh(gt_path, &ReadOptions::default()) {
-        Ok(m) => m,
-        Err(e) => return format!("ground truth unreadable: {e}"),
-    };
-    let diag = gt.bounding_box().diagonal();
-    let params = ReconMetricsParams {
-        samples,
-        seed: 0,
-        thresholds: vec![voxel / diag],
-    };
-    match score_reconstruction(&sheet, &gt, &params) {
-        Ok(s) => {
-            let to_vox = |pct: f64| pct / 100.0 * s.gt_diagonal / voxel;
-            cells.push(format!("{:.3}", to_vox(s.chamfer)));
-            cells.push(format!("{:.3}", to_vox(s.hausdorff99)));
-            cells.push(fixed(s.fscores.first().map(|f| f.fscore), 4));
-            "ok".to_string()
+    let is_mesh = !geometry.triangles.is_empty();
+    let mesh = TriMesh::new(geometry.points.positions, geometry.triangles);
+    cells.push(if is_mesh {
+        format!("{} triangles", mesh.triangles.len())
+    } else {
+        format!("{} points", mesh.vertices.len())
+    });
+    let Some(truth) = truth else {
+        let topo = MeshTopology::of(&mesh);
+        cells.extend(std::iter::repeat_n("–".to_string(), 4));
+        if is_mesh {
+            cells.push(topo.components.to_string());
+            cells.push(topo.euler_characteristic().to_string());
         }
-        Err(e) => e.to_string(),
-    }
+        return "ok (no ground truth next to the CT file)".to_string();
+    };
+    let m = if is_mesh {
+        score_mesh(&mesh, truth, 1.0)
+    } else {
+        score_points(&mesh.vertices, truth, 1.0)
+    };
+    cells.extend([
+        format!("{:.3}", m.coverage),
+        format!("{:.3}", m.spurious),
+        format!("{:.3}", m.spurious_interior),
+        format!("{:.2}", m.distance_interior_p95),
+        format!("{} ({})", m.components, truth.components),
+        format!(
+            "{} ({})",
+            m.euler_characteristic
+                .map_or_else(|| "–".to_string(), |e| e.to_string()),
+            truth.euler_characteristic
+        ),
+        format!("{:.2}", m.boundary_reach_mean),
+    ]);
+    "ok".to_string()
 }
 
 /// Every `ct_n*.nii.gz` in the sub-folders of `dir`, named `FOLDER-nXXX`, in name order.
@@ -270,27 +265,6 @@ fn find_phantoms(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)>> {
     }
     found.sort();
     Ok(found)
-}
-
-/// What `meta.json` and `gt_sheet_mesh.ply` next to `ct` say, when they exist.
-fn phantom_truth(ct: &Path) -> PhantomTruth {
-    let Some(dir) = ct.parent() else {
-        return PhantomTruth::default();
-    };
-    let meta: Option<serde_json::Value> = std::fs::read_to_string(dir.join("meta.json"))
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok());
-    let sheet = dir.join("gt_sheet_mesh.ply");
-    PhantomTruth {
-        voxel_mm: meta.as_ref().and_then(|m| m["voxel_mm"].as_f64()),
-        components: meta
-            .as_ref()
-            .and_then(|m| m["expected_components"].as_u64()),
-        euler: meta
-            .as_ref()
-            .and_then(|m| m["expected_euler_characteristic"].as_i64()),
-        sheet_mesh: sheet.is_file().then_some(sheet),
-    }
 }
 
 /// `p` relative to the workspace root unless absolute or present from here.
