@@ -35,8 +35,8 @@ pub enum Command {
     Info(InfoArgs),
     /// Reconstruct a surface mesh from scanned points (oriented or not), robust to noise and outliers.
     Recon(ReconArgs),
-    /// Extract the skeletal sheet of a thin part from a CT volume (not available yet).
-    Skeleton(PendingArgs),
+    /// Extract the skeletal sheet (mid-surface) of a thin part from a CT volume.
+    Skeleton(SkeletonArgs),
     /// Build a spherical cover of oriented scan points or of a CT volume.
     Cover(CoverArgs),
     /// Build the tetrahedral mesh of a cover: the dual complex of its union of balls.
@@ -172,6 +172,50 @@ pub struct CoverArgs {
     pub read: InputArgs,
 }
 
+/// How `sphcover skeleton` finds the sheet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SkeletonMethod {
+    /// Ridges of the spherical cover's function on its tetrahedral mesh (thesis §6): a
+    /// triangle mesh.
+    Ridge,
+    /// Baseline: Gaussian smoothing and non-maximum suppression on the voxel grid: points.
+    Nms,
+}
+
+/// Arguments of `sphcover skeleton`.
+#[derive(Debug, Args)]
+pub struct SkeletonArgs {
+    /// A CT volume (`.nii`, `.nii.gz`, `.inr`, `.inr.gz`) of a thin part, brighter than the
+    /// background, with cubic voxels.
+    #[arg(value_name = "CT")]
+    pub input: PathBuf,
+    /// Output: the sheet as a triangle mesh (PLY, OBJ, OFF, STL) in world coordinates; with
+    /// `--method nms`, a point set (PLY, XYZ).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// The object is where the value exceeds T, in the file's own units (HU for CT).
+    /// Default: Otsu's threshold.
+    #[arg(long, value_name = "T")]
+    pub threshold: Option<f64>,
+    /// Ridge method: support expansion σ for the derivatives (default 4, thesis §6.2.2).
+    /// NMS method: the Gaussian's standard deviation in voxels (default 1).
+    #[arg(long, value_name = "S")]
+    pub sigma: Option<f64>,
+    /// Fit tolerance ε of the cover as a fraction of the value range (default: from the
+    /// noise level and the contrast).
+    #[arg(long, value_name = "E")]
+    pub eps: Option<f64>,
+    /// How to find the sheet.
+    #[arg(long, value_enum, default_value_t = SkeletonMethod::Ridge)]
+    pub method: SkeletonMethod,
+    /// Seed of the random choices (cover centres, triangulation order).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Write the PLY as ascii instead of binary little-endian.
+    #[arg(long)]
+    pub ascii: bool,
+}
+
 /// How input files are read.
 #[derive(Debug, Args)]
 pub struct InputArgs {
@@ -179,15 +223,6 @@ pub struct InputArgs {
     /// the file.
     #[arg(long)]
     pub drop_non_finite: bool,
-}
-
-/// Arguments of a subcommand whose pipeline is not built yet: accepted so that the command
-/// can say plainly what is missing instead of failing on the first option.
-#[derive(Debug, Args)]
-pub struct PendingArgs {
-    /// Whatever was given.
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
-    pub rest: Vec<String>,
 }
 
 impl InputArgs {

@@ -1,10 +1,41 @@
 //! Skeletal sheets of thin parts from CT volumes (thesis §6).
 //!
-//! This crate will hold the skeleton pipeline: a quadratic cover of the intensity, the dual
-//! complex tetrahedral mesh, ridge points on its edges (eq. 6.1, 6.4, 6.5), patches around
-//! ridge edges, derivative smoothing, cleaning of fragments and holes, and the
-//! non-maximum-suppression baseline for comparison.
+//! ```text
+//! Volume ─► intensity_model (Otsu threshold, noise, tolerance ε)
+//!        ─► object_mask (drop noise specks above the threshold)
+//!        ─► build_volume_cover (core: quadratic local fits, automatic r_min / r_max)
+//!        ─► dual_complex + TetMesh (tetra: σ_t = 0.75, edges, ordered edge rings)
+//!        ─► ridge_points (∇f, ∇²f with support expansion σ; eq. 6.1, 6.4, 6.5)
+//!        ─► patches (fans around ridge edges, open at the mesh boundary)
+//!        ─► cleaning (weld, fill tiny holes, drop fragments)
+//!        ─► rim trimming (medial-axis test) ─► cleaning again ─► TriMesh in world units
+//! ```
 //!
-//! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`. Nothing is implemented
-//! yet, so it exposes no API.
+//! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
+//! [`nms_skeleton`] is the image-based baseline the thesis compares against (Gaussian
+//! smoothing and non-maximum suppression along the Hessian's smallest eigenvector).
 #![deny(missing_docs)]
+
+pub mod cleaning;
+pub mod error;
+pub mod gaussian_filter;
+pub mod intensity_model;
+pub mod nms_baseline;
+pub mod object_mask;
+pub mod patches;
+pub mod pipeline;
+pub mod ridge_points;
+pub mod rim_trimming;
+pub mod symmetric_eigen;
+
+pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
+pub use error::SkeletonError;
+pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
+pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
+pub use object_mask::{ObjectMaskStats, drop_small_object_components};
+pub use patches::ridge_patches;
+pub use pipeline::{SkeletonParams, SkeletonStats, SkeletonTimings, extract_skeleton};
+pub use ridge_points::{
+    RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
+};
+pub use rim_trimming::{RimTrimParams, trim_rims};

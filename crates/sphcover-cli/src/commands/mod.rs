@@ -3,5 +3,5 @@
 pub mod cover;
 pub mod info;
 pub mod recon;
+pub mod skeleton;
 pub mod tetra;
-pub mod unavailable;

@@ -1,0 +1,193 @@
+//! `sphcover skeleton`: the skeletal sheet of a thin part from a CT volume (thesis §6), or
+//! the non-maximum-suppression baseline for comparison.
+
+use sphcover_core::io::{self, PlyEncoding, VolumeInfo, WriteOptions};
+use sphcover_core::{PointCloud, Volume};
+use sphcover_skeleton::{
+    NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton, nms_skeleton,
+};
+
+use crate::args::{SkeletonArgs, SkeletonMethod};
+use crate::exit::BadInput;
+use crate::report::Reporter;
+
+/// Relative difference of voxel edge lengths accepted as cubic voxels.
+const CUBIC_TOLERANCE: f64 = 1e-3;
+/// Largest off-axis component (relative to the column length) of an axis-aligned affine.
+const AXIS_TOLERANCE: f64 = 1e-6;
+
+/// Runs `sphcover skeleton`.
+pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    if !io::is_volume_path(&args.input) {
+        return Err(BadInput(format!(
+            "{}: expected a CT volume (.nii, .nii.gz, .inr, .inr.gz); scattered samples with values are not supported yet",
+            args.input.display()
+        ))
+        .into());
+    }
+    if let Some(s) = args.sigma
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(BadInput(format!("--sigma {s} must be a positive number")).into());
+    }
+    let options = WriteOptions {
+        ply_encoding: if args.ascii {
+            PlyEncoding::Ascii
+        } else {
+            PlyEncoding::BinaryLittleEndian
+        },
+        inputs: vec![args.input.clone()],
+        ..WriteOptions::default()
+    };
+
+    let stage = reporter.stage("read volume");
+    let (volume, info) = io::read_volume(&args.input)?;
+    stage.finish();
+    check_volume(args, &volume, &info)?;
+    let [nx, ny, nz] = volume.dims();
+    let size = volume.voxel_size();
+    reporter.detail(&format!(
+        "  {nx} x {ny} x {nz} voxels of {:.4} ({})",
+        size.x,
+        info.format_description()
+    ));
+    let bad = |e: SkeletonError| -> anyhow::Error {
+        match e {
+            SkeletonError::Tetra(_) | SkeletonError::Evaluator(_) => {
+                anyhow::Error::new(e).context(format!("{}", args.input.display()))
+            }
+            e => BadInput(format!("{}: {e}", args.input.display())).into(),
+        }
+    };
+
+    match args.method {
+        SkeletonMethod::Ridge => {
+            let params = SkeletonParams {
+                threshold: args.threshold,
+                tolerance: args.eps,
+                sigma: args.sigma.unwrap_or(SkeletonParams::default().sigma),
+                seed: args.seed,
+                ..SkeletonParams::default()
+            };
+            let bar = reporter.progress(None, "extracting the skeletal sheet");
+            let result = extract_skeleton(&volume, &params);
+            bar.finish_and_clear();
+            let (sheet, stats) = result.map_err(bad)?;
+            for (name, time) in stats.timings.stages() {
+                reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
+            }
+            if stats.thickness_exceeds_r_max() {
+                reporter.warn(&format!(
+                    "the object is up to {:.3} thick, more than the largest support radius {:.3}: thick parts may lose their sheet",
+                    stats.cover.thickness.unwrap_or(0.0),
+                    stats.cover.r_max
+                ));
+            }
+            if stats.components > 1 {
+                reporter.warn(&format!("the sheet has {} components", stats.components));
+            }
+            let stage = reporter.stage("write");
+            io::write_mesh(&args.output, &sheet, &options)?;
+            stage.finish();
+            reporter.summary(&summary(&stats, &args.output.display().to_string()));
+        }
+        SkeletonMethod::Nms => {
+            let params = NmsParams {
+                sigma: args.sigma.unwrap_or(NmsParams::default().sigma),
+                threshold: args.threshold,
+                ..NmsParams::default()
+            };
+            let stage = reporter.stage("smoothing and NMS");
+            let (points, stats) = nms_skeleton(&volume, &params).map_err(bad)?;
+            stage.finish();
+            let stage = reporter.stage("write");
+            let cloud = PointCloud {
+                positions: points,
+                ..PointCloud::default()
+            };
+            io::write_point_cloud(&args.output, &cloud, &options)?;
+            stage.finish();
+            reporter.summary(&format!(
+                "threshold {:.6} ({}); {} voxels above it after smoothing; {} ridge points -> {}",
+                stats.intensity.threshold,
+                if stats.intensity.automatic_threshold {
+                    "Otsu"
+                } else {
+                    "given"
+                },
+                stats.candidates,
+                stats.points,
+                args.output.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses what the pipeline cannot treat correctly: several frames, non-cubic voxels, and
+/// voxel axes that are not the world axes (up to order and sign).
+fn check_volume(args: &SkeletonArgs, volume: &Volume, info: &VolumeInfo) -> anyhow::Result<()> {
+    let name = args.input.display();
+    if info.frames() > 1 {
+        return Err(BadInput(format!(
+            "{name}: a 4D volume with {} frames; extract the frame to process first (e.g. with fslroi)",
+            info.frames()
+        ))
+        .into());
+    }
+    let size = volume.voxel_size();
+    let (lo, hi) = (size.min_element(), size.max_element());
+    if hi - lo > CUBIC_TOLERANCE * hi {
+        return Err(BadInput(format!(
+            "{name}: voxels of {:.6} x {:.6} x {:.6} are not cubic; resample to cubic voxels first",
+            size.x, size.y, size.z
+        ))
+        .into());
+    }
+    let m = volume.affine().matrix3;
+    for col in [m.x_axis, m.y_axis, m.z_axis] {
+        let big = col.abs().max_element();
+        let off_axis = col
+            .abs()
+            .to_array()
+            .iter()
+            .filter(|&&c| c > AXIS_TOLERANCE * big)
+            .count();
+        if off_axis != 1 {
+            return Err(BadInput(format!(
+                "{name}: the voxel axes are oblique to the world axes ({} affine); resample to an axis-aligned grid first",
+                info.axes_source()
+            ))
+            .into());
+        }
+    }
+    Ok(())
+}
+
+fn summary(s: &SkeletonStats, output: &str) -> String {
+    format!(
+        "threshold {:.6} ({}), noise {:.4}, eps {:.4}; {} object voxels, {} supports (radii {:.4}..{:.4}), {} tetrahedra, {} ridge points, {} triangles ({} dropped in {} fragments, {} holes filled), {} component{}, Euler characteristic {}; {:.2} s -> {output}",
+        s.intensity.threshold,
+        if s.intensity.automatic_threshold {
+            "Otsu"
+        } else {
+            "given"
+        },
+        s.intensity.noise_std,
+        s.tolerance,
+        s.cover.object_points,
+        s.cover.supports,
+        s.cover.radius_min,
+        s.cover.radius_max,
+        s.tetrahedra,
+        s.ridge_points,
+        s.triangles,
+        s.cleaning.dropped_triangles,
+        s.cleaning.dropped_components,
+        s.cleaning.holes_filled,
+        s.components,
+        if s.components == 1 { "" } else { "s" },
+        s.euler_characteristic,
+        s.timings.total().as_secs_f64(),
+    )
+}

@@ -1,0 +1,483 @@
+//! Cleaning of the raw patch mesh (SPEC beyond of thesis §6.4): weld coincident vertices,
+//! drop degenerate triangles, drop fragments, fill tiny holes.
+//!
+//! * Welding: a tetrahedron crossed by a single ridge point puts its vertex `q_t` on that
+//!   point; welding makes the fans meeting there share it instead of leaving a crack.
+//! * Fragments: noise and spurious ridges make small separate pieces. A component is kept
+//!   when its area weighted by the ridge strength `|λ1|` reaches a fraction of the largest
+//!   component's (faint ridges weigh little, whatever their size) and its plain area reaches
+//!   a minimum.
+//! * Spurious holes: a boundary loop whose vertices all have exactly two boundary edges, with
+//!   a bounded number of edges and perimeter, and with material at its centroid, is a hole
+//!   left by tetrahedra where the ridge test failed (eigenvectors turning near rims and
+//!   junctions), not a hole of the part (which has air in its middle); it is closed by a fan
+//!   around its centroid.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+use sphcover_core::TriMesh;
+use sphcover_core::mesh_topology::MeshTopology;
+
+/// Parameters of [`clean_sheet`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CleaningParams {
+    /// A component is dropped when its strength-weighted area is below this fraction of the
+    /// largest component's.
+    pub min_component_fraction: f64,
+    /// A component is dropped when its area is below this (world units²).
+    pub min_component_area: f64,
+    /// Largest number of edges of a hole that is filled (with material at its centroid).
+    pub max_hole_edges: usize,
+    /// Largest perimeter of a hole that is filled (world units).
+    pub max_hole_perimeter: f64,
+}
+
+/// What [`clean_sheet`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CleaningStats {
+    /// Vertices merged into a coincident one.
+    pub welded_vertices: usize,
+    /// Triangles dropped because two of their corners coincide.
+    pub degenerate_triangles: usize,
+    /// Components before dropping fragments.
+    pub components_before: usize,
+    /// Components dropped.
+    pub dropped_components: usize,
+    /// Triangles dropped with them.
+    pub dropped_triangles: usize,
+    /// Holes filled.
+    pub holes_filled: usize,
+    /// Triangles removed to undo pinched (bow-tie) vertices.
+    pub pinch_triangles: usize,
+}
+
+/// Cleans a patch mesh whose per-vertex values are ridge strengths (missing values count
+/// as 1). The output has no unused vertex.
+///
+/// `is_material(x)` says whether there is material at `x`: a hole is filled only when there
+/// is material at its centroid, so holes of the part itself (air in the middle) stay open
+/// whatever their size.
+pub fn clean_sheet(
+    mesh: &TriMesh,
+    params: &CleaningParams,
+    is_material: impl Fn(DVec3) -> bool,
+) -> (TriMesh, CleaningStats) {
+    let mut stats = CleaningStats::default();
+    let mut mesh = weld_coincident(mesh, &mut stats);
+    resolve_pinches(&mut mesh, &mut stats);
+    fill_small_holes(&mut mesh, params, &is_material, &mut stats);
+    resolve_pinches(&mut mesh, &mut stats);
+    drop_fragments(&mut mesh, params, &mut stats);
+    (compact(&mesh), stats)
+}
+
+fn weld_coincident(mesh: &TriMesh, stats: &mut CleaningStats) -> TriMesh {
+    let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(mesh.vertices.len());
+    let mut map = Vec::with_capacity(mesh.vertices.len());
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        // +0.0 and −0.0 are the same point.
+        let key = (*v + DVec3::ZERO).to_array().map(f64::to_bits);
+        let target = *first.entry(key).or_insert(i as u32);
+        if target != i as u32 {
+            stats.welded_vertices += 1;
+        }
+        map.push(target);
+    }
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for tri in &mesh.triangles {
+        let t = tri.map(|v| map[v as usize]);
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            stats.degenerate_triangles += 1;
+        } else {
+            triangles.push(t);
+        }
+    }
+    TriMesh {
+        vertices: mesh.vertices.clone(),
+        triangles,
+        normals: mesh.normals.clone(),
+        values: mesh.values.clone(),
+    }
+}
+
+/// Undoes pinched vertices: where the triangles around a vertex form several fans that meet
+/// only at that vertex (a bow-tie, typically left where trimming removed a triangle between
+/// two others along the boundary), only the largest fan is kept (ties: the one with the
+/// lowest triangle index). Repeats while removals create new pinches (at most 4 rounds).
+fn resolve_pinches(mesh: &mut TriMesh, stats: &mut CleaningStats) {
+    for _ in 0..4 {
+        let n = mesh.vertices.len();
+        let mut offsets = vec![0u32; n + 1];
+        for t in &mesh.triangles {
+            for &v in t {
+                offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut incident = vec![0u32; 3 * mesh.triangles.len()];
+        for (ti, t) in mesh.triangles.iter().enumerate() {
+            for &v in t {
+                incident[fill[v as usize] as usize] = ti as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        let mut remove = vec![false; mesh.triangles.len()];
+        let mut any = false;
+        for v in 0..n {
+            let around = &incident[offsets[v] as usize..offsets[v + 1] as usize];
+            if around.len() < 2 {
+                continue;
+            }
+            // Union-find over the triangles around v, joined through a shared second vertex.
+            let mut parent: Vec<usize> = (0..around.len()).collect();
+            fn find(p: &mut [usize], mut x: usize) -> usize {
+                while p[x] != x {
+                    p[x] = p[p[x]];
+                    x = p[x];
+                }
+                x
+            }
+            let mut by_vertex: HashMap<u32, usize> = HashMap::new();
+            for (k, &t) in around.iter().enumerate() {
+                for &w in &mesh.triangles[t as usize] {
+                    if w as usize == v {
+                        continue;
+                    }
+                    if let Some(&j) = by_vertex.get(&w) {
+                        let (a, b) = (find(&mut parent, k), find(&mut parent, j));
+                        parent[a.max(b)] = a.min(b);
+                    } else {
+                        by_vertex.insert(w, k);
+                    }
+                }
+            }
+            let mut size: HashMap<usize, usize> = HashMap::new();
+            for k in 0..around.len() {
+                *size.entry(find(&mut parent, k)).or_insert(0) += 1;
+            }
+            if size.len() < 2 {
+                continue;
+            }
+            let best = size
+                .iter()
+                .max_by(|a, b| a.1.cmp(b.1).then_with(|| b.0.cmp(a.0)))
+                .map(|(&root, _)| root)
+                .unwrap_or(0);
+            for k in 0..around.len() {
+                if find(&mut parent, k) != best {
+                    remove[around[k] as usize] = true;
+                    any = true;
+                }
+            }
+        }
+        if !any {
+            return;
+        }
+        let before = mesh.triangles.len();
+        let mut t = 0;
+        mesh.triangles.retain(|_| {
+            let keep = !remove[t];
+            t += 1;
+            keep
+        });
+        stats.pinch_triangles += before - mesh.triangles.len();
+    }
+}
+
+/// Area of a triangle.
+pub fn triangle_area(mesh: &TriMesh, tri: &[u32; 3]) -> f64 {
+    let [a, b, c] = tri.map(|v| mesh.vertices[v as usize]);
+    0.5 * (b - a).cross(c - a).length()
+}
+
+fn drop_fragments(mesh: &mut TriMesh, params: &CleaningParams, stats: &mut CleaningStats) {
+    let topo = MeshTopology::of(mesh);
+    stats.components_before = topo.components;
+    if topo.components == 0 {
+        return;
+    }
+    let mut area = vec![0.0; topo.components];
+    let mut weighted = vec![0.0; topo.components];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let c = topo.triangle_component[t] as usize;
+        let a = triangle_area(mesh, tri);
+        let s = match &mesh.values {
+            Some(v) => tri.iter().map(|&i| v[i as usize].abs()).sum::<f64>() / 3.0,
+            None => 1.0,
+        };
+        area[c] += a;
+        weighted[c] += a * s;
+    }
+    let largest = weighted.iter().copied().fold(0.0, f64::max);
+    let keep: Vec<bool> = (0..topo.components)
+        .map(|c| {
+            weighted[c] >= params.min_component_fraction * largest
+                && area[c] >= params.min_component_area
+        })
+        .collect();
+    stats.dropped_components = keep.iter().filter(|&&k| !k).count();
+    let before = mesh.triangles.len();
+    let mut t = 0;
+    mesh.triangles.retain(|_| {
+        let k = keep[topo.triangle_component[t] as usize];
+        t += 1;
+        k
+    });
+    stats.dropped_triangles = before - mesh.triangles.len();
+}
+
+fn fill_small_holes(
+    mesh: &mut TriMesh,
+    params: &CleaningParams,
+    is_material: &impl Fn(DVec3) -> bool,
+    stats: &mut CleaningStats,
+) {
+    let mut edge_count: HashMap<(u32, u32), u32> = HashMap::new();
+    for tri in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            *edge_count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let mut boundary: Vec<(u32, u32)> = edge_count
+        .into_iter()
+        .filter(|&(_, c)| c == 1)
+        .map(|(e, _)| e)
+        .collect();
+    boundary.sort_unstable();
+    let mut adjacency: HashMap<u32, Vec<u32>> = HashMap::new();
+    for &(a, b) in &boundary {
+        adjacency.entry(a).or_default().push(b);
+        adjacency.entry(b).or_default().push(a);
+    }
+    let mut visited: HashMap<u32, bool> = HashMap::new();
+    let mut starts: Vec<u32> = adjacency.keys().copied().collect();
+    starts.sort_unstable();
+    for start in starts {
+        if visited.contains_key(&start) || adjacency[&start].len() != 2 {
+            continue;
+        }
+        let mut loop_vertices = vec![start];
+        visited.insert(start, true);
+        let (mut prev, mut cur) = (start, adjacency[&start][0]);
+        let mut simple = true;
+        while cur != start {
+            let next = &adjacency[&cur];
+            if next.len() != 2 || visited.contains_key(&cur) {
+                simple = false;
+                break;
+            }
+            visited.insert(cur, true);
+            loop_vertices.push(cur);
+            let n = if next[0] == prev { next[1] } else { next[0] };
+            (prev, cur) = (cur, n);
+            if loop_vertices.len() > params.max_hole_edges {
+                simple = false;
+                break;
+            }
+        }
+        if !simple || loop_vertices.len() < 3 {
+            continue;
+        }
+        let pos: Vec<DVec3> = loop_vertices
+            .iter()
+            .map(|&v| mesh.vertices[v as usize])
+            .collect();
+        let perimeter: f64 = (0..pos.len())
+            .map(|k| pos[k].distance(pos[(k + 1) % pos.len()]))
+            .sum();
+        if perimeter > params.max_hole_perimeter {
+            continue;
+        }
+        let centre = pos.iter().copied().sum::<DVec3>() / pos.len() as f64;
+        if !is_material(centre) {
+            continue;
+        }
+        let c = mesh.vertices.len() as u32;
+        mesh.vertices.push(centre);
+        if let Some(normals) = &mut mesh.normals {
+            let n = normals[loop_vertices[0] as usize];
+            normals.push(n);
+        }
+        if let Some(values) = &mut mesh.values {
+            let mean = loop_vertices
+                .iter()
+                .map(|&v| values[v as usize])
+                .sum::<f64>()
+                / loop_vertices.len() as f64;
+            values.push(mean);
+        }
+        for k in 0..loop_vertices.len() {
+            let (a, b) = (
+                loop_vertices[k],
+                loop_vertices[(k + 1) % loop_vertices.len()],
+            );
+            mesh.triangles.push([a, b, c]);
+        }
+        stats.holes_filled += 1;
+    }
+}
+
+/// Drops unused vertices, keeping the order of the used ones.
+fn compact(mesh: &TriMesh) -> TriMesh {
+    let mut map = vec![u32::MAX; mesh.vertices.len()];
+    let mut vertices = Vec::new();
+    let mut values = mesh.values.as_ref().map(|_| Vec::new());
+    let mut normals = mesh.normals.as_ref().map(|_| Vec::new());
+    for tri in &mesh.triangles {
+        for &v in tri {
+            map[v as usize] = 0;
+        }
+    }
+    for (i, m) in map.iter_mut().enumerate() {
+        if *m == 0 {
+            *m = vertices.len() as u32;
+            vertices.push(mesh.vertices[i]);
+            if let (Some(out), Some(src)) = (&mut values, &mesh.values) {
+                out.push(src[i]);
+            }
+            if let (Some(out), Some(src)) = (&mut normals, &mesh.normals) {
+                out.push(src[i]);
+            }
+        }
+    }
+    let triangles = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
+    TriMesh {
+        vertices,
+        triangles,
+        normals,
+        values,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `n × n` grid of unit squares, two triangles each, at height `z`, offset by `x0`.
+    fn grid(n: u32, x0: f64, z: f64) -> TriMesh {
+        let mut v = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                v.push(DVec3::new(x0 + i as f64, j as f64, z));
+            }
+        }
+        let id = |i: u32, j: u32| j * (n + 1) + i;
+        let mut t = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                t.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                t.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        TriMesh::new(v, t)
+    }
+
+    fn append(a: &mut TriMesh, b: &TriMesh) {
+        let off = a.vertices.len() as u32;
+        a.vertices.extend_from_slice(&b.vertices);
+        a.triangles
+            .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
+    }
+
+    const PARAMS: CleaningParams = CleaningParams {
+        min_component_fraction: 0.05,
+        min_component_area: 0.5,
+        max_hole_edges: 8,
+        max_hole_perimeter: 6.0,
+    };
+
+    #[test]
+    fn small_fragment_is_dropped_and_large_kept() {
+        let mut m = grid(10, 0.0, 0.0);
+        append(&mut m, &grid(1, 20.0, 0.0));
+        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        assert_eq!(stats.components_before, 2);
+        assert_eq!(stats.dropped_components, 1);
+        assert_eq!(out.triangles.len(), 200);
+        assert_eq!(out.vertices.len(), 121);
+        assert_eq!(MeshTopology::of(&out).components, 1);
+    }
+
+    #[test]
+    fn tiny_hole_is_filled_and_large_hole_kept() {
+        let m = grid(10, 0.0, 0.0);
+        // Remove the two triangles of square (4, 4): a 4-edge hole of perimeter 4.
+        let mut small = m.clone();
+        small.triangles.remove(2 * (4 * 10 + 4));
+        small.triangles.remove(2 * (4 * 10 + 4));
+        let (out, stats) = clean_sheet(&small, &PARAMS, |_| true);
+        assert_eq!(stats.holes_filled, 1);
+        assert_eq!(MeshTopology::of(&out).euler_characteristic(), 1);
+        // Remove a 3 × 3 block: perimeter 12 stays open (χ = 0, an annulus).
+        let mut big = m.clone();
+        big.triangles = m
+            .triangles
+            .iter()
+            .enumerate()
+            .filter(|(t, _)| {
+                let (i, j) = ((t / 2) % 10, (t / 2) / 10);
+                !((3..6).contains(&i) && (3..6).contains(&j))
+            })
+            .map(|(_, t)| *t)
+            .collect();
+        let (out, stats) = clean_sheet(&big, &PARAMS, |_| true);
+        assert_eq!(stats.holes_filled, 0);
+        assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
+        // A small hole over air stays open.
+        let (out, stats) = clean_sheet(&small, &PARAMS, |_| false);
+        assert_eq!(stats.holes_filled, 0);
+        assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
+    }
+
+    #[test]
+    fn pinched_vertex_keeps_its_largest_fan() {
+        // Two grids sharing one corner vertex: a bow-tie.
+        let mut m = grid(3, 0.0, 0.0);
+        let small = grid(1, -1.0, 0.0);
+        let off = m.vertices.len() as u32;
+        m.vertices.extend_from_slice(&small.vertices);
+        // Vertex 1 of `small` is (0, 0, 0): identify it with vertex 0 of the big grid.
+        m.triangles.extend(
+            small
+                .triangles
+                .iter()
+                .map(|t| t.map(|v| if v == 1 { 0 } else { v + off })),
+        );
+        assert_eq!(MeshTopology::of(&m).non_manifold_vertices, 1);
+        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        assert_eq!(stats.pinch_triangles, 2);
+        let topo = MeshTopology::of(&out);
+        assert_eq!((topo.non_manifold_vertices, topo.components), (0, 1));
+        assert_eq!(out.triangles.len(), 18);
+    }
+
+    #[test]
+    fn coincident_vertices_are_welded() {
+        let mut m = grid(2, 0.0, 0.0);
+        let n = m.vertices.len() as u32;
+        // A second copy of vertex 4 (the centre) used by one triangle.
+        m.vertices.push(m.vertices[4]);
+        for t in &mut m.triangles {
+            if t.contains(&4) && t.contains(&0) {
+                for v in t.iter_mut() {
+                    if *v == 4 {
+                        *v = n;
+                    }
+                }
+            }
+        }
+        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        assert!(stats.welded_vertices == 1);
+        assert_eq!(out.vertices.len(), 9);
+        assert_eq!(MeshTopology::of(&out).euler_characteristic(), 1);
+    }
+}
