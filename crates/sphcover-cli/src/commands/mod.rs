@@ -2,5 +2,6 @@
 
 pub mod cover;
 pub mod info;
+pub mod render;
 pub mod tetra;
 pub mod unavailable;
