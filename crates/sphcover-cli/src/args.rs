@@ -147,13 +147,19 @@ pub struct RenderArgs {
     #[arg(long, visible_alias = "no-color-bar")]
     pub no_colour_bar: bool,
     /// Splat diameter of points, in pixels [default: from the point density].
-    #[arg(long, value_name = "PX")]
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     pub point_size: Option<f64>,
     /// Background: white, black, grey, transparent or #RRGGBB.
     #[arg(long, default_value = "white", value_name = "COLOUR")]
     pub background: String,
     /// Perspective projection with this vertical field of view (default orthographic).
-    #[arg(long, value_name = "DEGREES", num_args = 0..=1, default_missing_value = "35")]
+    #[arg(
+        long,
+        value_name = "DEGREES",
+        num_args = 0..=1,
+        default_missing_value = "35",
+        allow_negative_numbers = true
+    )]
     pub perspective: Option<f64>,
     /// One normal per triangle instead of normals interpolated from the vertices.
     #[arg(long)]

@@ -418,9 +418,9 @@ mod tests {
                     let (e, inside) = s.edges_at(i as i64, j as i64);
                     if inside {
                         // The same arithmetic as the renderer, so that depth ties agree.
-                        let k = s.reorder(*keys);
+                        let z = s.reorder(*keys);
                         let w = e.map(|e| e as f64 * (1.0 / s.area as f64));
-                        let key = w[0] * k[0] + w[1] * k[1] + w[2] * k[2];
+                        let key = w[0] * z[0] + w[1] * z[1] + w[2] * z[2];
                         if key < best {
                             best = key;
                             out[j * W + i] = k as u32;
@@ -447,11 +447,12 @@ mod tests {
         /// exactly through sample centres.
         #[test]
         fn meshes_are_watertight(
-            jitter in prop::collection::vec((-2i64..=2, -2i64..=2), 36),
+            jitter in prop::collection::vec((-1i64..=1, -1i64..=1), 36),
             diagonals in prop::collection::vec(any::<bool>(), 25),
         ) {
             // 6×6 vertices over samples [2, 20) × [2, 17); the outer border lies between
-            // sample centres and interior vertices move in half-sample steps.
+            // sample centres and interior vertices move by half a sample, little enough
+            // that every cell stays convex (so both diagonals split it without overlap).
             let (x0, y0, x1, y1) = (2 * 256, 2 * 256, 20 * 256, 17 * 256);
             let vertex = |a: usize, b: usize| -> Fixed {
                 let x = x0 + (x1 - x0) * a as i64 / 5;
