@@ -69,11 +69,16 @@ impl ColourBar {
     /// The layout for an image of `width × height` pixels and a scale's range; `None` when
     /// the image is too small to hold a readable bar beside the geometry.
     pub fn layout(width: usize, height: usize, scale: &ColourScale) -> Option<ColourBar> {
-        let labels = [
-            label(scale.high),
-            label(0.5 * (scale.low + scale.high)),
-            label(scale.low),
-        ];
+        let middle = 0.5 * (scale.low + scale.high);
+        // A midpoint that is zero but for rounding (a symmetric range) reads as 0, not as
+        // a long exponent.
+        let span = scale.high - scale.low;
+        let middle = if middle.abs() < 5e-4 * span {
+            0.0
+        } else {
+            middle
+        };
+        let labels = [label(scale.high), label(middle), label(scale.low)];
         let font = (height / 450).max(1);
         let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(1);
         let pad = (width / 100).max(6);

@@ -195,13 +195,14 @@ pub struct Splat {
 impl Splat {
     /// Inclusive sample rows the splat may cover; `None` for a splat not drawn.
     pub fn rows(&self) -> Option<(i64, i64)> {
-        if !(self.radius > 0.0) {
+        // Also refuses a NaN radius.
+        if self.radius.is_nan() || self.radius <= 0.0 {
             return None;
         }
         let first = (self.y - self.radius - 0.5).ceil();
         let last = (self.y + self.radius - 0.5).floor();
         (first <= last && first.is_finite() && last.is_finite())
-            .then(|| (first as i64, last as i64))
+            .then_some((first as i64, last as i64))
     }
 
     /// The offset of a sample centre from the splat's centre, in radii (inside the disc
