@@ -57,14 +57,18 @@ pub fn run(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<()> {
     })?;
     stage.finish();
 
+    reporter.detail(&format!(
+        "  drawn: {} triangles, {} splats (the others have no area, lie behind the camera or between sample rows)",
+        rendered.triangles, rendered.splats
+    ));
     let what = if mesh {
-        format!("{} triangles", rendered.triangles)
+        format!("{} triangles", geometry.triangles.len())
     } else if geometry.radii.is_some() {
-        format!("{} balls", rendered.splats)
+        format!("{} balls", geometry.points.len())
     } else {
         format!(
             "{} points as {:.1}-pixel splats",
-            rendered.splats,
+            geometry.points.len(),
             rendered.point_diameter.unwrap_or(0.0)
         )
     };
