@@ -41,6 +41,8 @@ pub enum Command {
     Cover(CoverArgs),
     /// Build the tetrahedral mesh of a cover: the dual complex of its union of balls.
     Tetra(TetraArgs),
+    /// Draw a mesh, point cloud or sphere set to a PNG (software rasteriser, no display needed).
+    Render(RenderArgs),
 }
 
 /// Arguments of `sphcover info`.
@@ -214,6 +216,67 @@ pub struct SkeletonArgs {
     /// Write the PLY as ascii instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,
+}
+
+/// Arguments of `sphcover render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// A mesh or point cloud (PLY, OBJ, OFF, STL, XYZ/PWN, LAS), or a sphere set or cover
+    /// file (drawn as balls). A file with faces is drawn as a surface, one without as points.
+    #[arg(value_name = "MESH_OR_POINTS")]
+    pub input: PathBuf,
+    /// Output image (`.png`).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Direction of view: front, back, left, right, top, bottom, iso, or AZ,EL in degrees
+    /// (azimuth around the up axis from the front towards the right, elevation above the
+    /// horizon).
+    #[arg(
+        long,
+        default_value = "iso",
+        value_name = "VIEW",
+        allow_hyphen_values = true
+    )]
+    pub view: String,
+    /// World axis drawn upwards: x, y or z [default: y; z for LAS].
+    #[arg(long, value_name = "AXIS")]
+    pub up: Option<String>,
+    /// Image size in pixels.
+    #[arg(long, default_value = "1200x900", value_name = "WxH")]
+    pub size: String,
+    /// Colour by a per-vertex scalar (viridis): any scalar PLY vertex property (confidence,
+    /// quality, an outlier label…), or value, radius, x, y, z for any format.
+    #[arg(long, visible_alias = "colour-by", value_name = "PROPERTY")]
+    pub color_by: Option<String>,
+    /// Values at the ends of the colormap [default: the range of the values].
+    #[arg(long, value_name = "LO,HI", allow_hyphen_values = true)]
+    pub range: Option<String>,
+    /// Leave out the colour bar drawn with --color-by.
+    #[arg(long, visible_alias = "no-color-bar")]
+    pub no_colour_bar: bool,
+    /// Splat diameter of points, in pixels [default: from the point density].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    pub point_size: Option<f64>,
+    /// Background: white, black, grey, transparent or #RRGGBB.
+    #[arg(long, default_value = "white", value_name = "COLOUR")]
+    pub background: String,
+    /// Perspective projection with this vertical field of view (default orthographic).
+    #[arg(
+        long,
+        value_name = "DEGREES",
+        num_args = 0..=1,
+        default_missing_value = "35",
+        allow_negative_numbers = true
+    )]
+    pub perspective: Option<f64>,
+    /// One normal per triangle instead of normals interpolated from the vertices.
+    #[arg(long)]
+    pub flat: bool,
+    /// Samples per pixel along each axis, for anti-aliasing (1 to 4).
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    pub supersample: usize,
+    #[command(flatten)]
+    pub read: InputArgs,
 }
 
 /// How input files are read.

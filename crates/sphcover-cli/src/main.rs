@@ -3,6 +3,7 @@
 mod args;
 mod commands;
 mod exit;
+mod render;
 mod report;
 
 use std::process::ExitCode;
@@ -37,6 +38,7 @@ fn main() -> ExitCode {
         Command::Skeleton(a) => commands::skeleton::run(a, &reporter),
         Command::Cover(a) => commands::cover::run(a, &reporter),
         Command::Tetra(a) => commands::tetra::run(a, &reporter),
+        Command::Render(a) => commands::render::run(a, &reporter),
     };
     match result {
         Ok(()) => ExitCode::from(exit::SUCCESS),

@@ -3,5 +3,6 @@
 pub mod cover;
 pub mod info;
 pub mod recon;
+pub mod render;
 pub mod skeleton;
 pub mod tetra;
