@@ -40,7 +40,7 @@
 //! their given order; values are pure functions of grid positions; the mesh is written in
 //! ascending cell order. So the output is bit-identical whatever the thread count.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 use std::time::{Duration, Instant};
 
@@ -170,8 +170,12 @@ pub struct PolygoniseStats {
     pub trimmed_triangles: usize,
     /// Vertices split because their triangles formed several fans.
     pub split_vertices: usize,
-    /// Time spent evaluating `f` at grid vertices.
+    /// Time spent evaluating `f` at grid vertices (part of the search).
     pub evaluation_time: Duration,
+    /// Time of the search over cells, from the seeds.
+    pub search_time: Duration,
+    /// Time of placing vertices (with their Newton step) and building triangles.
+    pub extraction_time: Duration,
     /// Total time.
     pub total_time: Duration,
 }
@@ -224,6 +228,17 @@ pub fn polygonise(
     };
     let mut search = Search::new(eval, &grid, params.max_cells);
     let reach = params.seed_reach * step;
+    // Clean samples lie in or next to a cell the surface crosses: searching from all their
+    // cells at once evaluates `f` in a few large batches, instead of one thin wavefront
+    // crawling over the whole surface. Seeds left away from the meshed cells (noise) are
+    // pulled onto the surface below.
+    let mut seed_cells: Vec<u64> = finite_seeds
+        .iter()
+        .map(|&p| pack_clamped(grid.cell_of(p)))
+        .collect();
+    seed_cells.sort_unstable();
+    seed_cells.dedup();
+    search.run(seed_cells.into_iter().filter_map(unpack_clamped).collect())?;
     for chunk in finite_seeds.chunks(SEED_CHUNK) {
         let unmet: Vec<DVec3> = chunk
             .iter()
@@ -247,28 +262,23 @@ pub fn polygonise(
             }
         }
     }
-    if search.active.is_empty() {
+    if search.cells.is_empty() {
         return Err(PolygoniseError::NoSurfaceNearSeeds {
             seeds: finite_seeds.len(),
         });
     }
-    stats.cells_visited = search.visited.len();
-    stats.grid_evaluations = search.values.len();
+    stats.cells_visited = search.visited_cells;
+    stats.grid_evaluations = search.evaluations;
     stats.evaluation_time = search.evaluation_time;
+    stats.search_time = start.elapsed();
 
+    let extraction_start = Instant::now();
     let mut mesh = extract(&search, &grid, params, &mut stats);
+    stats.extraction_time = extraction_start.elapsed();
     if let Some(limit) = params.trim {
         stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
     }
     stats.split_vertices = split_fans(&mut mesh);
-    if params.normals {
-        mesh.normals = Some(
-            eval.values_gradients(&mesh.vertices)
-                .into_iter()
-                .map(|vg| vg.map_or(DVec3::ZERO, |vg| (-vg.gradient).normalize_or_zero()))
-                .collect(),
-        );
-    }
     stats.total_time = start.elapsed();
     Ok((mesh, stats))
 }
@@ -387,6 +397,19 @@ impl Grid {
     }
 }
 
+/// A cell index packed when in range, else a key no cell has.
+fn pack_clamped(v: Index3) -> u64 {
+    if v.iter().all(|&c| (0..GRID_LIMIT).contains(&c)) {
+        pack(v)
+    } else {
+        u64::MAX
+    }
+}
+
+fn unpack_clamped(key: u64) -> Option<Index3> {
+    (key != u64::MAX).then(|| unpack(key))
+}
+
 fn pack(v: Index3) -> u64 {
     (v[0] as u64) | ((v[1] as u64) << 21) | ((v[2] as u64) << 42)
 }
@@ -417,7 +440,6 @@ impl Hasher for KeyHasher {
 }
 
 type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
-type KeySet = HashSet<u64, BuildHasherDefault<KeyHasher>>;
 
 /// Corner `c` of a cube (bit 0: +x, bit 1: +y, bit 2: +z).
 fn corner_offset(c: usize) -> Index3 {
@@ -553,15 +575,89 @@ struct ActiveCell {
     sheets: u8,
 }
 
+/// Side of a brick in grid vertices (and cells).
+const BRICK_SHIFT: u32 = 2;
+const BRICK_MASK: i64 = (1 << BRICK_SHIFT) - 1;
+const BRICK_LEN: usize = 1 << (3 * BRICK_SHIFT);
+
+/// The state of a 4×4×4 block of grid vertices, and of the cells whose lowest corner they
+/// are. Storing the grid sparsely by bricks keeps one hash lookup per brick rather than per
+/// vertex, and neighbouring vertices mostly share a brick.
+#[derive(Clone, Debug)]
+struct Brick {
+    /// `f` at each vertex (NaN where undefined), once its bit in `evaluated` is set.
+    values: [f64; BRICK_LEN],
+    evaluated: u64,
+    /// Cells queued or examined by the search.
+    visited: u64,
+    /// Slot in [`Search::cells`] of each active cell, or `u32::MAX`.
+    active: [u32; BRICK_LEN],
+}
+
+impl Brick {
+    const EMPTY: Brick = Brick {
+        values: [f64::NAN; BRICK_LEN],
+        evaluated: 0,
+        visited: 0,
+        active: [u32::MAX; BRICK_LEN],
+    };
+}
+
+/// The brick key of a grid index and its position in the brick.
+fn brick_of(v: Index3) -> (u64, usize) {
+    let key = pack(v.map(|c| c >> BRICK_SHIFT));
+    let local = (v[0] & BRICK_MASK)
+        | ((v[1] & BRICK_MASK) << BRICK_SHIFT)
+        | ((v[2] & BRICK_MASK) << (2 * BRICK_SHIFT));
+    (key, local as usize)
+}
+
+/// Read access to bricks that remembers the last brick found, since queries come in
+/// neighbourhoods.
+struct BrickReader<'s> {
+    index: &'s KeyMap<u32>,
+    bricks: &'s [Brick],
+    last: Option<(u64, Option<&'s Brick>)>,
+}
+
+impl<'s> BrickReader<'s> {
+    fn get(&mut self, v: Index3) -> Option<(&'s Brick, usize)> {
+        let (key, local) = brick_of(v);
+        let brick = match self.last {
+            Some((k, b)) if k == key => b,
+            _ => {
+                let b = self.index.get(&key).map(|&i| &self.bricks[i as usize]);
+                self.last = Some((key, b));
+                b
+            }
+        };
+        brick.map(|b| (b, local))
+    }
+
+    fn value(&mut self, v: Index3) -> Option<f64> {
+        self.get(v)
+            .and_then(|(b, l)| (b.evaluated >> l & 1 == 1).then_some(b.values[l]))
+    }
+
+    fn active_slot(&mut self, c: Index3) -> Option<u32> {
+        self.get(c)
+            .map(|(b, l)| b.active[l])
+            .filter(|&s| s != u32::MAX)
+    }
+}
+
 /// The breadth-first search over active cells.
 struct Search<'e, 'c> {
     eval: &'e PuEvaluator<'c>,
     grid: &'e Grid,
     max_cells: usize,
-    /// `f` at visited grid vertices (NaN where undefined).
-    values: KeyMap<f64>,
-    visited: KeySet,
-    active: KeyMap<ActiveCell>,
+    /// Slot in `bricks` of each brick key.
+    brick_index: KeyMap<u32>,
+    bricks: Vec<Brick>,
+    /// Active cells with their keys, in the order found.
+    cells: Vec<(u64, ActiveCell)>,
+    visited_cells: usize,
+    evaluations: usize,
     evaluation_time: Duration,
 }
 
@@ -571,34 +667,71 @@ impl<'e, 'c> Search<'e, 'c> {
             eval,
             grid,
             max_cells,
-            values: KeyMap::default(),
-            visited: KeySet::default(),
-            active: KeyMap::default(),
+            brick_index: KeyMap::default(),
+            bricks: Vec::new(),
+            cells: Vec::new(),
+            visited_cells: 0,
+            evaluations: 0,
             evaluation_time: Duration::ZERO,
         }
     }
 
+    fn reader(&self) -> BrickReader<'_> {
+        BrickReader {
+            index: &self.brick_index,
+            bricks: &self.bricks,
+            last: None,
+        }
+    }
+
+    /// The brick holding `v` (created if needed) and `v`'s position in it; `cache` holds the
+    /// last brick key and slot.
+    fn brick_mut(&mut self, v: Index3, cache: &mut (u64, u32)) -> (&mut Brick, usize) {
+        let (key, local) = brick_of(v);
+        if cache.0 != key {
+            let next = self.bricks.len() as u32;
+            let slot = *self.brick_index.entry(key).or_insert(next);
+            if slot == next {
+                self.bricks.push(Brick::EMPTY);
+            }
+            *cache = (key, slot);
+        }
+        (&mut self.bricks[cache.1 as usize], local)
+    }
+
+    /// Marks cell `c` visited; true when it was not before.
+    fn visit(&mut self, c: Index3, cache: &mut (u64, u32)) -> bool {
+        let (brick, l) = self.brick_mut(c, cache);
+        let fresh = brick.visited >> l & 1 == 0;
+        brick.visited |= 1 << l;
+        self.visited_cells += usize::from(fresh);
+        fresh
+    }
+
     /// Whether the cell or one of its 26 neighbours is active.
     fn near_active(&self, c: Index3) -> bool {
+        let mut reader = self.reader();
         self.grid
             .block_around(c)
-            .any(|n| self.grid.in_range(n) && self.active.contains_key(&pack(n)))
+            .any(|n| self.grid.in_range(n) && reader.active_slot(n).is_some())
+    }
+
+    /// A cell needs its far corner in range too.
+    fn cell_in_range(&self, c: Index3) -> bool {
+        self.grid.in_range(c) && self.grid.in_range(c.map(|x| x + 1))
     }
 
     /// Visits the cells `starts` not yet visited and everything reachable from them.
     fn run(&mut self, starts: Vec<Index3>) -> Result<(), PolygoniseError> {
+        let mut cache = (u64::MAX, 0);
         let mut frontier: Vec<Index3> = Vec::new();
         for c in starts {
-            // A cell needs its far corner in range too.
-            if self.grid.in_range(c.map(|x| x + 1))
-                && self.grid.in_range(c)
-                && self.visited.insert(pack(c))
-            {
+            if self.cell_in_range(c) && self.visit(c, &mut cache) {
                 frontier.push(c);
             }
         }
         while !frontier.is_empty() {
-            if self.visited.len() > self.max_cells {
+            if self.visited_cells > self.max_cells {
                 return Err(PolygoniseError::TooManyCells {
                     max_cells: self.max_cells,
                     step: self.grid.step,
@@ -606,9 +739,14 @@ impl<'e, 'c> Search<'e, 'c> {
             }
             self.evaluate_corners(&frontier);
             let classified: Vec<Option<ActiveCell>> = frontier
-                .par_iter()
-                .with_min_len(256)
-                .map(|&c| self.classify(c))
+                .par_chunks(256)
+                .flat_map_iter(|chunk| {
+                    let mut reader = self.reader();
+                    chunk
+                        .iter()
+                        .map(|&c| classify(&mut reader, c))
+                        .collect::<Vec<_>>()
+                })
                 .collect();
             let mut next = Vec::new();
             for (&c, cell) in frontier.iter().zip(classified) {
@@ -618,16 +756,15 @@ impl<'e, 'c> Search<'e, 'c> {
                         continue;
                     }
                     for n in cells_around_edge(c, e) {
-                        if n != c
-                            && self.grid.in_range(n)
-                            && self.grid.in_range(n.map(|x| x + 1))
-                            && self.visited.insert(pack(n))
-                        {
+                        if n != c && self.cell_in_range(n) && self.visit(n, &mut cache) {
                             next.push(n);
                         }
                     }
                 }
-                self.active.insert(pack(c), cell);
+                let slot = self.cells.len() as u32;
+                let (brick, l) = self.brick_mut(c, &mut cache);
+                brick.active[l] = slot;
+                self.cells.push((pack(c), cell));
             }
             frontier = next;
         }
@@ -635,52 +772,54 @@ impl<'e, 'c> Search<'e, 'c> {
     }
 
     fn evaluate_corners(&mut self, cells: &[Index3]) {
-        let mut keys = Vec::new();
+        let mut cache = (u64::MAX, 0);
+        let mut targets = Vec::new();
         let mut points = Vec::new();
         for &c in cells {
             for k in 0..8 {
                 let o = corner_offset(k);
                 let v = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                let key = pack(v);
-                if let std::collections::hash_map::Entry::Vacant(slot) = self.values.entry(key) {
-                    slot.insert(f64::NAN);
-                    keys.push(key);
+                let (brick, l) = self.brick_mut(v, &mut cache);
+                if brick.evaluated >> l & 1 == 0 {
+                    brick.evaluated |= 1 << l;
+                    targets.push((cache.1, l));
                     points.push(self.grid.position(v));
                 }
             }
         }
+        self.evaluations += points.len();
         let start = Instant::now();
         let values = self.eval.values(&points);
         self.evaluation_time += start.elapsed();
-        for (key, v) in keys.into_iter().zip(values) {
-            self.values.insert(key, v.unwrap_or(f64::NAN));
+        for ((brick, l), v) in targets.into_iter().zip(values) {
+            self.bricks[brick as usize].values[l] = v.unwrap_or(f64::NAN);
         }
     }
+}
 
-    fn classify(&self, c: Index3) -> Option<ActiveCell> {
-        let mut values = [0.0; 8];
-        let mut inside_count = 0;
-        for (k, value) in values.iter_mut().enumerate() {
-            let o = corner_offset(k);
-            let v = *self
-                .values
-                .get(&pack([c[0] + o[0], c[1] + o[1], c[2] + o[2]]))?;
-            if v.is_nan() {
-                return None;
-            }
-            inside_count += usize::from(inside(v));
-            *value = v;
-        }
-        if inside_count == 0 || inside_count == 8 {
+/// The active-cell data of cell `c`, or `None` when it is not active or `f` is undefined at
+/// a corner.
+fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
+    let mut values = [0.0; 8];
+    let mut inside_count = 0;
+    for (k, value) in values.iter_mut().enumerate() {
+        let o = corner_offset(k);
+        let v = reader.value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])?;
+        if v.is_nan() {
             return None;
         }
-        let (sheet, sheets) = cell_sheets(&values);
-        Some(ActiveCell {
-            values,
-            sheet,
-            sheets,
-        })
+        inside_count += usize::from(inside(v));
+        *value = v;
     }
+    if inside_count == 0 || inside_count == 8 {
+        return None;
+    }
+    let (sheet, sheets) = cell_sheets(&values);
+    Some(ActiveCell {
+        values,
+        sheet,
+        sheets,
+    })
 }
 
 /// The four cells around cube edge `e` of cell `c`, counter-clockwise seen from the edge's
@@ -714,9 +853,15 @@ fn extract(
     params: &PolygoniseParams,
     stats: &mut PolygoniseStats,
 ) -> TriMesh {
-    let mut keys: Vec<u64> = search.active.keys().copied().collect();
-    keys.sort_unstable();
-    let cells: Vec<&ActiveCell> = keys.iter().map(|k| &search.active[k]).collect();
+    // Ascending cell order, whatever order the search found them in.
+    let mut order: Vec<u32> = (0..search.cells.len() as u32).collect();
+    order.par_sort_unstable_by_key(|&i| search.cells[i as usize].0);
+    let mut rank = vec![0u32; order.len()];
+    for (r, &i) in order.iter().enumerate() {
+        rank[i as usize] = r as u32;
+    }
+    let keys: Vec<u64> = order.iter().map(|&i| search.cells[i as usize].0).collect();
+    let cells: Vec<&ActiveCell> = order.iter().map(|&i| &search.cells[i as usize].1).collect();
     let mut first_vertex = Vec::with_capacity(keys.len() + 1);
     let mut total = 0u32;
     for cell in &cells {
@@ -754,85 +899,96 @@ fn extract(
         })
         .collect();
 
-    if params.project {
+    let mut normals = None;
+    if params.project || params.normals {
         let owner: Vec<Index3> = keys
             .iter()
             .zip(&cells)
             .flat_map(|(&k, cell)| std::iter::repeat_n(unpack(k), usize::from(cell.sheets)))
             .collect();
         let fg = search.eval.values_gradients(&vertices);
-        vertices
-            .par_iter_mut()
-            .zip(fg)
-            .zip(owner)
-            .for_each(|((x, vg), c)| {
-                let Some(vg) = vg else { return };
-                let g2 = vg.gradient.length_squared();
-                if !(g2 > 0.0 && g2.is_finite()) {
-                    return;
-                }
-                let lo = grid.position(c);
-                let hi = lo + DVec3::splat(grid.step);
-                let moved = (*x - vg.gradient * (vg.value / g2)).clamp(lo, hi);
-                if moved.is_finite() {
-                    *x = moved;
-                }
-            });
+        // The gradient before the Newton step serves as the normal: the step is shorter than
+        // a cell, and another evaluation would cost as much as the whole projection.
+        normals = Some(
+            fg.par_iter()
+                .map(|vg| vg.map_or(DVec3::ZERO, |vg| (-vg.gradient).normalize_or_zero()))
+                .collect::<Vec<DVec3>>(),
+        );
+        if params.project {
+            vertices
+                .par_iter_mut()
+                .zip(fg)
+                .zip(owner)
+                .for_each(|((x, vg), c)| {
+                    let Some(vg) = vg else { return };
+                    let g2 = vg.gradient.length_squared();
+                    if !(g2 > 0.0 && g2.is_finite()) {
+                        return;
+                    }
+                    let lo = grid.position(c);
+                    let hi = lo + DVec3::splat(grid.step);
+                    let moved = (*x - vg.gradient * (vg.value / g2)).clamp(lo, hi);
+                    if moved.is_finite() {
+                        *x = moved;
+                    }
+                });
+        }
     }
 
     // Quads: each crossing grid edge is emitted by the cell where it is cube edge 0, 4 or 8.
-    let index: KeyMap<u32> = keys
-        .iter()
-        .enumerate()
-        .map(|(i, &k)| (k, i as u32))
-        .collect();
     let per_cell: Vec<(Vec<[u32; 3]>, usize)> = keys
         .par_iter()
         .zip(&cells)
-        .map(|(&key, cell)| {
-            let c = unpack(key);
-            let mut tris = Vec::new();
-            let mut open = 0;
-            for d in 0..3 {
-                let e = 4 * d;
-                if cell.sheet[e] == NO_SHEET {
-                    continue;
-                }
-                let around = cells_and_edges_around(c, e);
-                let mut quad = [0u32; 4];
-                let mut complete = true;
-                for (slot, (n, ne)) in quad.iter_mut().zip(around) {
-                    let found = grid
-                        .in_range(n)
-                        .then(|| index.get(&pack(n)))
-                        .flatten()
-                        .map(|&i| (i, cells[i as usize].sheet[ne]));
-                    match found {
-                        Some((i, s)) if s != NO_SHEET => {
-                            *slot = first_vertex[i as usize] + u32::from(s)
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let mut tris = Vec::new();
+                let mut open = 0;
+                for d in 0..3 {
+                    let e = 4 * d;
+                    if cell.sheet[e] == NO_SHEET {
+                        continue;
+                    }
+                    let around = cells_and_edges_around(c, e);
+                    let mut quad = [0u32; 4];
+                    let mut complete = true;
+                    for (slot, (n, ne)) in quad.iter_mut().zip(around) {
+                        let found = grid
+                            .in_range(n)
+                            .then(|| reader.active_slot(n))
+                            .flatten()
+                            .map(|slot| {
+                                let i = rank[slot as usize];
+                                (i, cells[i as usize].sheet[ne])
+                            });
+                        match found {
+                            Some((i, s)) if s != NO_SHEET => {
+                                *slot = first_vertex[i as usize] + u32::from(s)
+                            }
+                            _ => complete = false,
                         }
-                        _ => complete = false,
+                    }
+                    if !complete {
+                        open += 1;
+                        continue;
+                    }
+                    let (a, _) = edge_ends(e);
+                    if !inside(cell.values[a]) {
+                        quad.reverse();
+                    }
+                    let p = quad.map(|v| vertices[v as usize]);
+                    if p[0].distance_squared(p[2]) <= p[1].distance_squared(p[3]) {
+                        tris.push([quad[0], quad[1], quad[2]]);
+                        tris.push([quad[0], quad[2], quad[3]]);
+                    } else {
+                        tris.push([quad[0], quad[1], quad[3]]);
+                        tris.push([quad[1], quad[2], quad[3]]);
                     }
                 }
-                if !complete {
-                    open += 1;
-                    continue;
-                }
-                let (a, _) = edge_ends(e);
-                if !inside(cell.values[a]) {
-                    quad.reverse();
-                }
-                let p = quad.map(|v| vertices[v as usize]);
-                if p[0].distance_squared(p[2]) <= p[1].distance_squared(p[3]) {
-                    tris.push([quad[0], quad[1], quad[2]]);
-                    tris.push([quad[0], quad[2], quad[3]]);
-                } else {
-                    tris.push([quad[0], quad[1], quad[3]]);
-                    tris.push([quad[1], quad[2], quad[3]]);
-                }
-            }
-            (tris, open)
-        })
+                (tris, open)
+            },
+        )
         .collect();
     let mut triangles = Vec::with_capacity(per_cell.iter().map(|(t, _)| t.len()).sum());
     for (tris, open) in per_cell {
@@ -840,6 +996,7 @@ fn extract(
         stats.open_quads += open;
     }
     let mut mesh = TriMesh::new(vertices, triangles);
+    mesh.normals = if params.normals { normals } else { None };
     drop_unused_vertices(&mut mesh);
     mesh
 }
@@ -864,6 +1021,10 @@ fn drop_unused_vertices(mesh: &mut TriMesh) {
         }
     }
     mesh.vertices = kept;
+    if let Some(normals) = &mut mesh.normals {
+        let mut k = used.iter();
+        normals.retain(|_| *k.next().unwrap_or(&false));
+    }
     for t in &mut mesh.triangles {
         *t = t.map(|v| remap[v as usize]);
     }
@@ -928,6 +1089,9 @@ fn split_fans(mesh: &mut TriMesh) -> usize {
             .collect();
         for _ in 1..count {
             mesh.vertices.push(mesh.vertices[v]);
+            if let Some(normals) = &mut mesh.normals {
+                normals.push(normals[v]);
+            }
         }
         added += count - 1;
         let tris = &incident[offsets[v] as usize..offsets[v + 1] as usize];
@@ -1059,7 +1223,8 @@ mod tests {
                 .all(|(v, n)| v.normalize().dot(*n) > 0.9)
         );
         assert_eq!(stats.open_quads, 0);
-        assert_eq!(stats.seeds_searched, 1);
+        // Clean samples sit next to the surface: none needs pulling onto it.
+        assert_eq!(stats.seeds_searched, 0);
     }
 
     #[test]
@@ -1154,6 +1319,60 @@ mod tests {
         let topo = MeshTopology::of(&mesh);
         assert!(topo.is_manifold() && topo.boundary_edges > 0, "{topo:?}");
         assert_eq!(topo.components, 1);
+    }
+
+    #[test]
+    fn seeds_off_the_surface_are_pulled_onto_it_or_dropped() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 2000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = params(6);
+        // Three steps outside: too far to touch a meshed cell, close enough to pull in.
+        let step = Aabb::from_points(&cloud.positions).longest_edge() / 64.0;
+        let near: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|&q| q * (1.0 + 3.0 * step / 0.4))
+            .collect();
+        let (mesh, stats) = polygonise(&eval, &near, &p).unwrap();
+        assert!(stats.seeds_searched >= 1);
+        let topo = MeshTopology::of(&mesh);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!((topo.components, topo.euler_characteristic()), (1, 2));
+        // Eight steps away is beyond the default reach of four.
+        let far: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|&q| q * (1.0 + 8.0 * step / 0.4))
+            .collect();
+        assert!(matches!(
+            polygonise(&eval, &far, &p),
+            Err(PolygoniseError::NoSurfaceNearSeeds { .. })
+        ));
+    }
+
+    #[test]
+    fn only_the_surface_reached_from_the_seeds_is_meshed() {
+        let mut left = sphere(DVec3::new(-0.25, 0.0, 0.0), 0.15, 1500);
+        let right = sphere(DVec3::new(0.25, 0.0, 0.0), 0.15, 1500);
+        let left_seeds = left.positions.clone();
+        left.positions.extend(&right.positions);
+        if let (Some(a), Some(b)) = (left.normals.as_mut(), right.normals.as_ref()) {
+            a.extend(b);
+        }
+        let cover = cover_of(&left);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = PolygoniseParams {
+            step: GridStep::Absolute(0.01),
+            ..PolygoniseParams::default()
+        };
+        let (one, _) = polygonise(&eval, &left_seeds, &p).unwrap();
+        assert_eq!(MeshTopology::of(&one).components, 1);
+        assert!(one.vertices.iter().all(|v| v.x < 0.0));
+        let (both, _) = polygonise(&eval, &left.positions, &p).unwrap();
+        let topo = MeshTopology::of(&both);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
     }
 
     #[test]
