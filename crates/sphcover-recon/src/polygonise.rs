@@ -252,8 +252,9 @@ pub fn polygonise(
             match p {
                 Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
                     let cell = grid.cell_of(q);
-                    // The search from an earlier seed may have reached it already.
-                    if !search.near_active(cell) {
+                    // The search from an earlier seed may have reached it already, or
+                    // started from the same place and found nothing.
+                    if !search.near_active(cell) && !search.visited(cell) {
                         stats.seeds_searched += 1;
                         search.run(grid.block_around(cell).collect())?;
                     }
@@ -706,6 +707,13 @@ impl<'e, 'c> Search<'e, 'c> {
         brick.visited |= 1 << l;
         self.visited_cells += usize::from(fresh);
         fresh
+    }
+
+    /// Whether the search has queued or examined cell `c`.
+    fn visited(&self, c: Index3) -> bool {
+        self.reader()
+            .get(c)
+            .is_some_and(|(b, l)| b.visited >> l & 1 == 1)
     }
 
     /// Whether the cell or one of its 26 neighbours is active.
@@ -1373,6 +1381,62 @@ mod tests {
         let topo = MeshTopology::of(&both);
         assert!(topo.is_closed_oriented_manifold());
         assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+    }
+
+    #[test]
+    fn a_plate_thinner_than_a_cell_keeps_its_two_sides_apart() {
+        // Both faces of a plate of thickness 0.008 pass through the same cells at step 0.02:
+        // one vertex per cell would glue them; one per sheet keeps a manifold.
+        // Tilted, so that grid vertices fall inside the plate all over it.
+        let tilt = glam::DMat3::from_rotation_x(0.5) * glam::DMat3::from_rotation_y(0.3);
+        let n = 40;
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for i in 0..n * n {
+            let (x, y) = (
+                (i % n) as f64 / n as f64 - 0.5,
+                (i / n) as f64 / n as f64 - 0.5,
+            );
+            for side in [-1.0, 1.0] {
+                points.push(tilt * DVec3::new(0.6 * x, 0.6 * y, 0.004 * side));
+                normals.push(tilt * DVec3::Z * side);
+            }
+        }
+        let params = SurfaceCoverParams {
+            eps: 2e-3,
+            ..SurfaceCoverParams::default()
+        };
+        let (cover, _) = build_surface_cover(&points, &normals, &params).unwrap();
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = PolygoniseParams {
+            step: GridStep::Absolute(0.02),
+            project: false,
+            ..PolygoniseParams::default()
+        };
+        let (mesh, stats) = polygonise(&eval, &points, &p).unwrap();
+        assert!(stats.multi_sheet_cells > 100, "{stats:?}");
+        let topo = MeshTopology::of(&mesh);
+        assert!(
+            topo.is_manifold() && topo.inconsistent_edges == 0,
+            "{topo:?}"
+        );
+        // The two faces are separate sheets: normals up on top, down below.
+        // Both faces are there, wound outwards: as much area faces up as down.
+        let up = tilt * DVec3::Z;
+        let (mut top, mut bottom) = (0.0, 0.0);
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|v| mesh.vertices[v as usize]);
+            let along = (b - a).cross(c - a).dot(up);
+            if along > 0.0 {
+                top += along;
+            } else {
+                bottom -= along;
+            }
+        }
+        assert!(
+            top > 0.0 && (top / bottom - 1.0).abs() < 0.2,
+            "{top} {bottom}"
+        );
     }
 
     #[test]
