@@ -10,8 +10,11 @@
 #![deny(missing_docs)]
 
 pub mod mesh_smoothing;
+pub mod polygonise;
+pub mod small_components;
+pub mod unused_vertices;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
-pub mod polygonise;
-
 pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
+pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
+pub use unused_vertices::remove_unused_vertices;

@@ -48,6 +48,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::{Aabb, PointIndex, PointIndexError, PuEvaluator, TriMesh};
 
+use crate::unused_vertices::remove_unused_vertices;
+
 /// How the grid step is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GridStep {
@@ -1005,37 +1007,8 @@ fn extract(
     }
     let mut mesh = TriMesh::new(vertices, triangles);
     mesh.normals = if params.normals { normals } else { None };
-    drop_unused_vertices(&mut mesh);
+    remove_unused_vertices(&mut mesh);
     mesh
-}
-
-/// Removes vertices no triangle uses, keeping the order of the rest.
-fn drop_unused_vertices(mesh: &mut TriMesh) {
-    let mut used = vec![false; mesh.vertices.len()];
-    for t in &mesh.triangles {
-        for &v in t {
-            used[v as usize] = true;
-        }
-    }
-    if used.iter().all(|&u| u) {
-        return;
-    }
-    let mut remap = vec![u32::MAX; used.len()];
-    let mut kept = Vec::with_capacity(used.len());
-    for (v, &u) in used.iter().enumerate() {
-        if u {
-            remap[v] = kept.len() as u32;
-            kept.push(mesh.vertices[v]);
-        }
-    }
-    mesh.vertices = kept;
-    if let Some(normals) = &mut mesh.normals {
-        let mut k = used.iter();
-        normals.retain(|_| *k.next().unwrap_or(&false));
-    }
-    for t in &mut mesh.triangles {
-        *t = t.map(|v| remap[v as usize]);
-    }
 }
 
 /// Drops triangles whose centroid is farther than `limit` from every seed; returns how many.
@@ -1053,7 +1026,7 @@ fn trim(mesh: &mut TriMesh, seeds: &[DVec3], limit: f64) -> Result<usize, Polygo
     let before = mesh.triangles.len();
     let mut k = keep.iter();
     mesh.triangles.retain(|_| *k.next().unwrap_or(&false));
-    drop_unused_vertices(mesh);
+    remove_unused_vertices(mesh);
     Ok(before - mesh.triangles.len())
 }
 
