@@ -570,10 +570,12 @@ fn cell_sheets(f: &[f64; 8]) -> ([u8; 12], u8) {
     (sheet, sheets)
 }
 
-/// An active cell: corner values and the sheet of each crossing cube edge.
+/// An active cell: which corners are inside and the sheet of each crossing cube edge. (The
+/// corner values stay in the bricks: a copy here would double the search's memory.)
 #[derive(Clone, Copy, Debug)]
 struct ActiveCell {
-    values: [f64; 8],
+    /// Bit `k` is set when corner `k` is inside.
+    inside: u8,
     sheet: [u8; 12],
     sheets: u8,
 }
@@ -826,7 +828,7 @@ fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
     }
     let (sheet, sheets) = cell_sheets(&values);
     Some(ActiveCell {
-        values,
+        inside: (0..8).fold(0, |m, k| m | (u8::from(inside(values[k])) << k)),
         sheet,
         sheets,
     })
@@ -886,27 +888,38 @@ fn extract(
     let mut vertices: Vec<DVec3> = keys
         .par_iter()
         .zip(&cells)
-        .flat_map_iter(|(&key, cell)| {
-            let c = unpack(key);
-            let base = grid.position(c);
-            let mut sums = vec![(DVec3::ZERO, 0u32); usize::from(cell.sheets)];
-            for e in 0..12 {
-                let s = cell.sheet[e];
-                if s == NO_SHEET {
-                    continue;
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let base = grid.position(c);
+                let value = |reader: &mut BrickReader<'_>, k: usize| {
+                    let o = corner_offset(k);
+                    reader
+                        .value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
+                        .unwrap_or(f64::NAN)
+                };
+                let mut sums = vec![(DVec3::ZERO, 0u32); usize::from(cell.sheets)];
+                for e in 0..12 {
+                    let s = cell.sheet[e];
+                    if s == NO_SHEET {
+                        continue;
+                    }
+                    let (a, b) = edge_ends(e);
+                    let (fa, fb) = (value(reader, a), value(reader, b));
+                    let t = fa / (fa - fb);
+                    let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
+                    let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
+                    let slot = &mut sums[usize::from(s)];
+                    slot.0 += pa + (pb - pa) * t;
+                    slot.1 += 1;
                 }
-                let (a, b) = edge_ends(e);
-                let (fa, fb) = (cell.values[a], cell.values[b]);
-                let t = fa / (fa - fb);
-                let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
-                let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
-                let slot = &mut sums[usize::from(s)];
-                slot.0 += pa + (pb - pa) * t;
-                slot.1 += 1;
-            }
-            sums.into_iter()
-                .map(move |(sum, n)| base + sum / f64::from(n) * grid.step)
-        })
+                sums.into_iter()
+                    .map(|(sum, n)| base + sum / f64::from(n) * grid.step)
+                    .collect::<Vec<DVec3>>()
+            },
+        )
+        .flatten_iter()
         .collect();
 
     let mut normals = None;
@@ -984,7 +997,7 @@ fn extract(
                         continue;
                     }
                     let (a, _) = edge_ends(e);
-                    if !inside(cell.values[a]) {
+                    if cell.inside >> a & 1 == 0 {
                         quad.reverse();
                     }
                     let p = quad.map(|v| vertices[v as usize]);
