@@ -186,6 +186,12 @@ pub struct PolygoniseStats {
 ///
 /// Returns a mesh in the cover's units, wound counter-clockwise seen from outside, closed
 /// wherever the surface is closed and `f` defined around it.
+///
+/// Seeds should be samples the caller trusts (high confidence, not outliers): every surface
+/// component that passes through a seed's cell, or that a seed's Newton steps reach within
+/// [`PolygoniseParams::seed_reach`], is meshed, including a small piece of `f = 0` around
+/// an outlier that was given as a seed. [`crate::remove_small_components`] removes such
+/// pieces afterwards if needed.
 pub fn polygonise(
     eval: &PuEvaluator<'_>,
     seeds: &[DVec3],
@@ -715,9 +721,11 @@ impl<'e, 'c> Search<'e, 'c> {
 
     /// Whether the search has queued or examined cell `c`.
     fn visited(&self, c: Index3) -> bool {
-        self.reader()
-            .get(c)
-            .is_some_and(|(b, l)| b.visited >> l & 1 == 1)
+        self.grid.in_range(c)
+            && self
+                .reader()
+                .get(c)
+                .is_some_and(|(b, l)| b.visited >> l & 1 == 1)
     }
 
     /// Whether the cell or one of its 26 neighbours is active.
@@ -1032,8 +1040,8 @@ fn trim(mesh: &mut TriMesh, seeds: &[DVec3], limit: f64) -> Result<usize, Polygo
         .par_iter()
         .map_init(Vec::new, |found, t| {
             let centroid = t.iter().map(|&v| mesh.vertices[v as usize]).sum::<DVec3>() / 3.0;
-            index.within(centroid, limit, found);
-            !found.is_empty()
+            index.nearest_k_with_distances(centroid, 1, found);
+            found.first().is_some_and(|&(d2, _)| d2 <= limit * limit)
         })
         .collect();
     let before = mesh.triangles.len();
