@@ -208,26 +208,7 @@ pub fn polygonise(
         return Err(PolygoniseError::EmptyCover);
     }
     let step = grid_step(params.step, &finite_seeds, cover.radii())?;
-    let mut defined = Aabb::EMPTY;
-    for (&c, &r) in cover.centers().iter().zip(cover.radii()) {
-        let r = r * eval.sigma();
-        defined.add(c - DVec3::splat(r));
-        defined.add(c + DVec3::splat(r));
-    }
-    let extent = defined.longest_edge();
-    let cells_per_axis = (extent / step).ceil() + 3.0;
-    if cells_per_axis.is_nan() || cells_per_axis >= GRID_LIMIT as f64 {
-        return Err(PolygoniseError::GridTooFine { step, extent });
-    }
-    let grid = Grid {
-        origin: defined.min - DVec3::splat(step),
-        step,
-        dims: (defined.extent() / step)
-            .ceil()
-            .as_ivec3()
-            .to_array()
-            .map(|d| d as i64 + 3),
-    };
+    let grid = Grid::around(eval, step)?;
 
     let mut stats = PolygoniseStats {
         step,
@@ -387,6 +368,32 @@ struct Grid {
 type Index3 = [i64; 3];
 
 impl Grid {
+    /// The grid of step `step` over the box where `eval`'s function can be defined (the
+    /// expanded balls), with one spare cell on every side.
+    fn around(eval: &PuEvaluator<'_>, step: f64) -> Result<Grid, PolygoniseError> {
+        let cover = eval.cover();
+        let mut defined = Aabb::EMPTY;
+        for (&c, &r) in cover.centers().iter().zip(cover.radii()) {
+            let r = r * eval.sigma();
+            defined.add(c - DVec3::splat(r));
+            defined.add(c + DVec3::splat(r));
+        }
+        let extent = defined.longest_edge();
+        let cells_per_axis = (extent / step).ceil() + 3.0;
+        if cells_per_axis.is_nan() || cells_per_axis >= GRID_LIMIT as f64 {
+            return Err(PolygoniseError::GridTooFine { step, extent });
+        }
+        Ok(Grid {
+            origin: defined.min - DVec3::splat(step),
+            step,
+            dims: (defined.extent() / step)
+                .ceil()
+                .as_ivec3()
+                .to_array()
+                .map(|d| d as i64 + 3),
+        })
+    }
+
     fn position(&self, v: Index3) -> DVec3 {
         self.origin + DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) * self.step
     }
@@ -1431,6 +1438,70 @@ mod tests {
             top > 0.0 && (top / bottom - 1.0).abs() < 0.2,
             "{top} {bottom}"
         );
+    }
+
+    /// The search from seeds on every component finds exactly the active cells (with the
+    /// same sheets) that classifying every cell of the grid finds.
+    #[test]
+    fn search_finds_what_a_scan_of_the_whole_grid_finds() {
+        let mut cloud = sphere(DVec3::new(-0.2, 0.0, 0.0), 0.15, 1200);
+        let other = torus(0.15, 0.06, 2000);
+        let shifted: Vec<DVec3> = other
+            .positions
+            .iter()
+            .map(|&p| p + DVec3::X * 0.2)
+            .collect();
+        cloud.positions.extend(&shifted);
+        if let (Some(a), Some(b)) = (cloud.normals.as_mut(), other.normals.as_ref()) {
+            a.extend(b);
+        }
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let grid = Grid::around(&eval, 0.025).unwrap();
+        let mut search = Search::new(&eval, &grid, usize::MAX);
+        // One seed per component is enough.
+        let seeds = [cloud.positions[0], shifted[0]];
+        search
+            .run(
+                seeds
+                    .iter()
+                    .flat_map(|&p| grid.block_around(grid.cell_of(p)))
+                    .collect(),
+            )
+            .unwrap();
+        let mut found: Vec<(u64, [u8; 12])> =
+            search.cells.iter().map(|(k, c)| (*k, c.sheet)).collect();
+        found.sort_unstable();
+
+        let [nx, ny, nz] = grid.dims;
+        let index = |v: Index3| ((v[2] * ny + v[1]) * nx + v[0]) as usize;
+        let vertices: Vec<DVec3> = (0..nx * ny * nz)
+            .map(|i| grid.position([i % nx, (i / nx) % ny, i / (nx * ny)]))
+            .collect();
+        let values = eval.values(&vertices);
+        let mut scanned = Vec::new();
+        for i in 0..(nx - 1) * (ny - 1) * (nz - 1) {
+            let c = [
+                i % (nx - 1),
+                (i / (nx - 1)) % (ny - 1),
+                i / ((nx - 1) * (ny - 1)),
+            ];
+            let corners: Option<Vec<f64>> = (0..8)
+                .map(|k| {
+                    let o = corner_offset(k);
+                    values[index([c[0] + o[0], c[1] + o[1], c[2] + o[2]])]
+                })
+                .collect();
+            let Some(corners) = corners else { continue };
+            let f: [f64; 8] = std::array::from_fn(|k| corners[k]);
+            let inside_count = f.iter().filter(|&&v| inside(v)).count();
+            if inside_count != 0 && inside_count != 8 {
+                scanned.push((pack(c), cell_sheets(&f).0));
+            }
+        }
+        scanned.sort_unstable();
+        assert!(found.len() > 1000);
+        assert_eq!(found, scanned);
     }
 
     #[test]
