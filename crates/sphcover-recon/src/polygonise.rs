@@ -26,7 +26,12 @@
 //! same four values, so they agree), and each polygon gets its own vertex, as in manifold
 //! dual contouring. The star of such a vertex is the ring of quads around the polygon's
 //! edges, a disc. Where the meshed region ends (undefined `f`, trimming) a vertex can keep
-//! two separate fans; it is then split into one vertex per fan.
+//! two separate fans; it is then split into one vertex per fan. One saddle configuration
+//! remains: when the polygons of both cells sharing a face each use both segments of that
+//! face, the edge between their vertices carries four triangles. Splitting fans (an edge
+//! with more than two triangles joins no fans) turns it into two manifold edges, or,
+//! depending on how the two polygons run, into a hole of four boundary edges; it was not met
+//! in the tests, and [`sphcover_core::mesh_topology::MeshTopology`] reports it if it occurs.
 //!
 //! # Orientation and placement
 //!
@@ -1663,6 +1668,37 @@ mod tests {
             prop_assert!(sizes.iter().all(|&s| s >= 3), "{:?}", sizes);
             prop_assert_eq!(cell_sheets(&values.map(|v| -v)), (sheet, count));
         }
+    }
+
+    /// Two closed tetrahedra glued at a vertex (a bow tie) or along an edge (four triangles
+    /// on it) come apart into two closed oriented manifolds.
+    #[test]
+    fn split_fans_separates_pinched_sheets() {
+        let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let tet = |v: [u32; 4]| faces.map(|f: [u32; 3]| f.map(|k| v[k as usize]));
+        let mut vertices = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        vertices.extend([-DVec3::X, -DVec3::Y, -DVec3::Z]);
+        // Sharing vertex 0.
+        let mut pinched = TriMesh::new(
+            vertices.clone(),
+            [tet([0, 1, 2, 3]), tet([0, 4, 5, 6])].concat(),
+        );
+        pinched.normals = Some(vertices.clone());
+        assert_eq!(MeshTopology::of(&pinched).non_manifold_vertices, 1);
+        assert_eq!(split_fans(&mut pinched), 1);
+        let topo = MeshTopology::of(&pinched);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+        assert_eq!(pinched.normals.as_ref().map(Vec::len), Some(8));
+        assert_eq!(pinched.vertices[7], DVec3::ZERO);
+        // Sharing the edge 0–1: the second tetrahedron is the first turned half a turn about
+        // the x axis, so it is wound outwards too.
+        let mut glued = TriMesh::new(vertices, [tet([0, 1, 2, 3]), tet([0, 1, 5, 6])].concat());
+        assert_eq!(MeshTopology::of(&glued).non_manifold_edges, 1);
+        assert_eq!(split_fans(&mut glued), 2);
+        let topo = MeshTopology::of(&glued);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
     }
 
     #[test]
