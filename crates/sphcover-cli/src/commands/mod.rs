@@ -2,5 +2,6 @@
 
 pub mod cover;
 pub mod info;
+pub mod recon;
 pub mod tetra;
 pub mod unavailable;
