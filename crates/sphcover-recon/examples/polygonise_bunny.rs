@@ -1,13 +1,15 @@
 //! Times polygonisation of a dense sample of a mesh (the bundled bunny by default).
 //!
 //! ```text
-//! cargo run --release -p sphcover-recon --example polygonise_bunny -- [MESH] [POINTS] [DEPTH] [OUT.ply]
+//! cargo run --release -p sphcover-recon --example polygonise_bunny -- [MESH] [POINTS] [DEPTH] [OUT.ply] [NOISE]
 //! ```
 //!
 //! The mesh's triangles are sampled area-uniformly (deterministically) with their face
 //! normals, the sample is normalised to the unit frame, a surface cover is built with the
 //! default parameters, and its zero set is polygonised from all samples at
-//! `step = box / 2^DEPTH`. Prints the time of each stage and the topology of the result.
+//! `step = box / 2^DEPTH`. NOISE (default 0) moves every sample by Gaussian noise of that
+//! standard deviation per axis, as a fraction of the box diagonal, after the normals were
+//! taken. Prints the time of each stage and the topology of the result.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -78,6 +80,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut points, normals) = sample(&mesh, n);
     let norm = Normalisation::of_points(&points).ok_or("the mesh has no extent")?;
     norm.points_to_unit(&mut points);
+    let noise: f64 = args.get(4).map_or(Ok(0.0), |s| s.parse())?;
+    if noise > 0.0 {
+        let sigma = noise * sphcover_core::Aabb::from_points(&points).diagonal();
+        for (i, p) in points.iter_mut().enumerate() {
+            // Box–Muller from two hashed uniforms per axis.
+            let g = |k: u64| {
+                let (u, v) = (
+                    unit(1 << 40 | (6 * i as u64 + 2 * k)),
+                    unit(1 << 40 | (6 * i as u64 + 2 * k + 1)),
+                );
+                (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+            };
+            *p += DVec3::new(g(0), g(1), g(2)) * sigma;
+        }
+    }
 
     let start = Instant::now();
     let (cover, _) = build_surface_cover(&points, &normals, &SurfaceCoverParams::default())?;
@@ -107,6 +124,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         stats.extraction_time,
         surface.vertices.len(),
         surface.triangles.len()
+    );
+    println!(
+        "seeds projected {}, searched {}, dropped {}",
+        stats.seeds_projected, stats.seeds_searched, stats.seeds_dropped
     );
     println!(
         "components {}, euler {}, watertight {}, manifold {}, consistently wound {}, multi-sheet cells {}, split vertices {}",

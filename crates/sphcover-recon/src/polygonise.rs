@@ -9,8 +9,9 @@
 //!
 //! # Continuation from seeds
 //!
-//! Only active cells are ever visited: from the cells near the seed points (high-confidence
-//! samples, each first pulled onto `f = 0` by Newton steps), a breadth-first search crosses
+//! Only active cells are ever visited: from the cells holding the seed points (samples the
+//! caller trusts) and, for seeds not next to the surface (noise), from where Newton steps
+//! pull them onto `f = 0`, a breadth-first search crosses
 //! from an active cell to the three other cells around each of its crossing edges. So the
 //! cost follows the area of the surface, not the volume of the box, and a spurious sheet far
 //! from every seed is never meshed. Each round of the search evaluates the new grid vertices
@@ -157,7 +158,10 @@ pub enum PolygoniseError {
 pub struct PolygoniseStats {
     /// The grid step used.
     pub step: f64,
-    /// Seeds that started a search (they were not already next to a meshed cell).
+    /// Seeds pulled onto `f = 0` because they were not next to a cell the surface crosses
+    /// (one per brick of 4×4×4 cells).
+    pub seeds_projected: usize,
+    /// Projected seeds that started a search of their own (their surface was not met yet).
     pub seeds_searched: usize,
     /// Seeds dropped: not finite, `f` undefined there, or off the surface by more than the
     /// seed reach.
@@ -233,28 +237,30 @@ pub fn polygonise(
     seed_cells.sort_unstable();
     seed_cells.dedup();
     search.run(seed_cells.into_iter().filter_map(unpack_clamped).collect())?;
-    for chunk in finite_seeds.chunks(SEED_CHUNK) {
-        let unmet: Vec<DVec3> = chunk
-            .iter()
-            .copied()
-            .filter(|&p| !search.near_active(grid.cell_of(p)))
-            .collect();
-        if unmet.is_empty() {
-            continue;
-        }
-        for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
-            match p {
-                Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
-                    let cell = grid.cell_of(q);
-                    // The search from an earlier seed may have reached it already, or
-                    // started from the same place and found nothing.
-                    if !search.near_active(cell) && !search.visited(cell) {
-                        stats.seeds_searched += 1;
-                        search.run(grid.block_around(cell).collect())?;
-                    }
+    // Noisy seeds that met no surface: one per brick of 4×4×4 cells is pulled onto `f = 0`
+    // (more would find the same surface again), all in one batch.
+    let mut bricks_seen = KeyMap::<()>::default();
+    let unmet: Vec<DVec3> = finite_seeds
+        .iter()
+        .copied()
+        .filter(|&p| {
+            let cell = grid.cell_of(p);
+            !search.near_active(cell) && bricks_seen.insert(brick_of(cell).0, ()).is_none()
+        })
+        .collect();
+    stats.seeds_projected = unmet.len();
+    for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
+        match p {
+            Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
+                let cell = grid.cell_of(q);
+                // The search from an earlier seed may have reached it already, or started
+                // from the same place and found nothing.
+                if !search.near_active(cell) && !search.visited(cell) {
+                    stats.seeds_searched += 1;
+                    search.run(grid.block_around(cell).collect())?;
                 }
-                _ => stats.seeds_dropped += 1,
             }
+            _ => stats.seeds_dropped += 1,
         }
     }
     if search.cells.is_empty() {
@@ -280,9 +286,6 @@ pub fn polygonise(
 
 /// Cells along an axis stay below this so that three indices pack into a `u64`.
 const GRID_LIMIT: i64 = 1 << 21;
-
-/// Seeds examined together: one batch of Newton steps per chunk.
-const SEED_CHUNK: usize = 256;
 
 /// Newton steps that pull a seed onto `f = 0`.
 const SEED_NEWTON_STEPS: usize = 2;
