@@ -36,11 +36,14 @@ pub use graphcut_reconstruction::{
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
 pub mod mesh_smoothing;
+pub mod polygonise;
+pub mod small_components;
+pub mod unused_vertices;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
-pub mod polygonise;
-
 pub use pipeline::{
     Method, ReconError, ReconParams, ReconStats, Reconstruction, default_depth, reconstruct,
 };
 pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
+pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
+pub use unused_vertices::remove_unused_vertices;

@@ -9,8 +9,9 @@
 //!
 //! # Continuation from seeds
 //!
-//! Only active cells are ever visited: from the cells near the seed points (high-confidence
-//! samples, each first pulled onto `f = 0` by Newton steps), a breadth-first search crosses
+//! Only active cells are ever visited: from the cells holding the seed points (samples the
+//! caller trusts) and, for seeds not next to the surface (noise), from where Newton steps
+//! pull them onto `f = 0`, a breadth-first search crosses
 //! from an active cell to the three other cells around each of its crossing edges. So the
 //! cost follows the area of the surface, not the volume of the box, and a spurious sheet far
 //! from every seed is never meshed. Each round of the search evaluates the new grid vertices
@@ -26,7 +27,12 @@
 //! same four values, so they agree), and each polygon gets its own vertex, as in manifold
 //! dual contouring. The star of such a vertex is the ring of quads around the polygon's
 //! edges, a disc. Where the meshed region ends (undefined `f`, trimming) a vertex can keep
-//! two separate fans; it is then split into one vertex per fan.
+//! two separate fans; it is then split into one vertex per fan. One saddle configuration
+//! remains: when the polygons of both cells sharing a face each use both segments of that
+//! face, the edge between their vertices carries four triangles. Splitting fans (an edge
+//! with more than two triangles joins no fans) turns it into two manifold edges, or,
+//! depending on how the two polygons run, into a hole of four boundary edges; it was not met
+//! in the tests, and [`sphcover_core::mesh_topology::MeshTopology`] reports it if it occurs.
 //!
 //! # Orientation and placement
 //!
@@ -40,13 +46,15 @@
 //! their given order; values are pure functions of grid positions; the mesh is written in
 //! ascending cell order. So the output is bit-identical whatever the thread count.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::{Aabb, PointIndex, PointIndexError, PuEvaluator, TriMesh};
+
+use crate::unused_vertices::remove_unused_vertices;
 
 /// How the grid step is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -150,7 +158,10 @@ pub enum PolygoniseError {
 pub struct PolygoniseStats {
     /// The grid step used.
     pub step: f64,
-    /// Seeds that started a search (they were not already next to a meshed cell).
+    /// Seeds pulled onto `f = 0` because they were not next to a cell the surface crosses
+    /// (one per brick of 4×4×4 cells).
+    pub seeds_projected: usize,
+    /// Projected seeds that started a search of their own (their surface was not met yet).
     pub seeds_searched: usize,
     /// Seeds dropped: not finite, `f` undefined there, or off the surface by more than the
     /// seed reach.
@@ -170,8 +181,12 @@ pub struct PolygoniseStats {
     pub trimmed_triangles: usize,
     /// Vertices split because their triangles formed several fans.
     pub split_vertices: usize,
-    /// Time spent evaluating `f` at grid vertices.
+    /// Time spent evaluating `f` at grid vertices (part of the search).
     pub evaluation_time: Duration,
+    /// Time of the search over cells, from the seeds.
+    pub search_time: Duration,
+    /// Time of placing vertices (with their Newton step) and building triangles.
+    pub extraction_time: Duration,
     /// Total time.
     pub total_time: Duration,
 }
@@ -180,6 +195,12 @@ pub struct PolygoniseStats {
 ///
 /// Returns a mesh in the cover's units, wound counter-clockwise seen from outside, closed
 /// wherever the surface is closed and `f` defined around it.
+///
+/// Seeds should be samples the caller trusts (high confidence, not outliers): every surface
+/// component that passes through a seed's cell, or that a seed's Newton steps reach within
+/// [`PolygoniseParams::seed_reach`], is meshed, including a small piece of `f = 0` around
+/// an outlier that was given as a seed. [`crate::remove_small_components`] removes such
+/// pieces afterwards if needed.
 pub fn polygonise(
     eval: &PuEvaluator<'_>,
     seeds: &[DVec3],
@@ -196,26 +217,7 @@ pub fn polygonise(
         return Err(PolygoniseError::EmptyCover);
     }
     let step = grid_step(params.step, &finite_seeds, cover.radii())?;
-    let mut defined = Aabb::EMPTY;
-    for (&c, &r) in cover.centers().iter().zip(cover.radii()) {
-        let r = r * eval.sigma();
-        defined.add(c - DVec3::splat(r));
-        defined.add(c + DVec3::splat(r));
-    }
-    let extent = defined.longest_edge();
-    let cells_per_axis = (extent / step).ceil() + 3.0;
-    if cells_per_axis.is_nan() || cells_per_axis >= GRID_LIMIT as f64 {
-        return Err(PolygoniseError::GridTooFine { step, extent });
-    }
-    let grid = Grid {
-        origin: defined.min - DVec3::splat(step),
-        step,
-        dims: (defined.extent() / step)
-            .ceil()
-            .as_ivec3()
-            .to_array()
-            .map(|d| d as i64 + 3),
-    };
+    let grid = Grid::around(eval, step)?;
 
     let mut stats = PolygoniseStats {
         step,
@@ -224,60 +226,66 @@ pub fn polygonise(
     };
     let mut search = Search::new(eval, &grid, params.max_cells);
     let reach = params.seed_reach * step;
-    for chunk in finite_seeds.chunks(SEED_CHUNK) {
-        let unmet: Vec<DVec3> = chunk
-            .iter()
-            .copied()
-            .filter(|&p| !search.near_active(grid.cell_of(p)))
-            .collect();
-        if unmet.is_empty() {
-            continue;
-        }
-        for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
-            match p {
-                Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
-                    let cell = grid.cell_of(q);
-                    // The search from an earlier seed may have reached it already.
-                    if !search.near_active(cell) {
-                        stats.seeds_searched += 1;
-                        search.run(grid.block_around(cell).collect())?;
-                    }
+    // Clean samples lie in or next to a cell the surface crosses: searching from all their
+    // cells at once evaluates `f` in a few large batches, instead of one thin wavefront
+    // crawling over the whole surface. Seeds left away from the meshed cells (noise) are
+    // pulled onto the surface below.
+    let mut seed_cells: Vec<u64> = finite_seeds
+        .iter()
+        .map(|&p| pack_clamped(grid.cell_of(p)))
+        .collect();
+    seed_cells.sort_unstable();
+    seed_cells.dedup();
+    search.run(seed_cells.into_iter().filter_map(unpack_clamped).collect())?;
+    // Noisy seeds that met no surface: one per brick of 4×4×4 cells is pulled onto `f = 0`
+    // (more would find the same surface again), all in one batch.
+    let mut bricks_seen = KeyMap::<()>::default();
+    let unmet: Vec<DVec3> = finite_seeds
+        .iter()
+        .copied()
+        .filter(|&p| {
+            let cell = grid.cell_of(p);
+            !search.near_active(cell) && bricks_seen.insert(brick_of(cell).0, ()).is_none()
+        })
+        .collect();
+    stats.seeds_projected = unmet.len();
+    for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
+        match p {
+            Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
+                let cell = grid.cell_of(q);
+                // The search from an earlier seed may have reached it already, or started
+                // from the same place and found nothing.
+                if !search.near_active(cell) && !search.visited(cell) {
+                    stats.seeds_searched += 1;
+                    search.run(grid.block_around(cell).collect())?;
                 }
-                _ => stats.seeds_dropped += 1,
             }
+            _ => stats.seeds_dropped += 1,
         }
     }
-    if search.active.is_empty() {
+    if search.cells.is_empty() {
         return Err(PolygoniseError::NoSurfaceNearSeeds {
             seeds: finite_seeds.len(),
         });
     }
-    stats.cells_visited = search.visited.len();
-    stats.grid_evaluations = search.values.len();
+    stats.cells_visited = search.visited_cells;
+    stats.grid_evaluations = search.evaluations;
     stats.evaluation_time = search.evaluation_time;
+    stats.search_time = start.elapsed();
 
+    let extraction_start = Instant::now();
     let mut mesh = extract(&search, &grid, params, &mut stats);
+    stats.extraction_time = extraction_start.elapsed();
     if let Some(limit) = params.trim {
         stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
     }
     stats.split_vertices = split_fans(&mut mesh);
-    if params.normals {
-        mesh.normals = Some(
-            eval.values_gradients(&mesh.vertices)
-                .into_iter()
-                .map(|vg| vg.map_or(DVec3::ZERO, |vg| (-vg.gradient).normalize_or_zero()))
-                .collect(),
-        );
-    }
     stats.total_time = start.elapsed();
     Ok((mesh, stats))
 }
 
 /// Cells along an axis stay below this so that three indices pack into a `u64`.
 const GRID_LIMIT: i64 = 1 << 21;
-
-/// Seeds examined together: one batch of Newton steps per chunk.
-const SEED_CHUNK: usize = 256;
 
 /// Newton steps that pull a seed onto `f = 0`.
 const SEED_NEWTON_STEPS: usize = 2;
@@ -368,6 +376,32 @@ struct Grid {
 type Index3 = [i64; 3];
 
 impl Grid {
+    /// The grid of step `step` over the box where `eval`'s function can be defined (the
+    /// expanded balls), with one spare cell on every side.
+    fn around(eval: &PuEvaluator<'_>, step: f64) -> Result<Grid, PolygoniseError> {
+        let cover = eval.cover();
+        let mut defined = Aabb::EMPTY;
+        for (&c, &r) in cover.centers().iter().zip(cover.radii()) {
+            let r = r * eval.sigma();
+            defined.add(c - DVec3::splat(r));
+            defined.add(c + DVec3::splat(r));
+        }
+        let extent = defined.longest_edge();
+        let cells_per_axis = (extent / step).ceil() + 3.0;
+        if cells_per_axis.is_nan() || cells_per_axis >= GRID_LIMIT as f64 {
+            return Err(PolygoniseError::GridTooFine { step, extent });
+        }
+        Ok(Grid {
+            origin: defined.min - DVec3::splat(step),
+            step,
+            dims: (defined.extent() / step)
+                .ceil()
+                .as_ivec3()
+                .to_array()
+                .map(|d| d as i64 + 3),
+        })
+    }
+
     fn position(&self, v: Index3) -> DVec3 {
         self.origin + DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) * self.step
     }
@@ -385,6 +419,19 @@ impl Grid {
     fn block_around(&self, c: Index3) -> impl Iterator<Item = Index3> + '_ {
         (0..27).map(move |n| [c[0] + n % 3 - 1, c[1] + (n / 3) % 3 - 1, c[2] + n / 9 - 1])
     }
+}
+
+/// A cell index packed when in range, else a key no cell has.
+fn pack_clamped(v: Index3) -> u64 {
+    if v.iter().all(|&c| (0..GRID_LIMIT).contains(&c)) {
+        pack(v)
+    } else {
+        u64::MAX
+    }
+}
+
+fn unpack_clamped(key: u64) -> Option<Index3> {
+    (key != u64::MAX).then(|| unpack(key))
 }
 
 fn pack(v: Index3) -> u64 {
@@ -417,7 +464,6 @@ impl Hasher for KeyHasher {
 }
 
 type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
-type KeySet = HashSet<u64, BuildHasherDefault<KeyHasher>>;
 
 /// Corner `c` of a cube (bit 0: +x, bit 1: +y, bit 2: +z).
 fn corner_offset(c: usize) -> Index3 {
@@ -545,12 +591,85 @@ fn cell_sheets(f: &[f64; 8]) -> ([u8; 12], u8) {
     (sheet, sheets)
 }
 
-/// An active cell: corner values and the sheet of each crossing cube edge.
+/// An active cell: which corners are inside and the sheet of each crossing cube edge. (The
+/// corner values stay in the bricks: a copy here would double the search's memory.)
 #[derive(Clone, Copy, Debug)]
 struct ActiveCell {
-    values: [f64; 8],
+    /// Bit `k` is set when corner `k` is inside.
+    inside: u8,
     sheet: [u8; 12],
     sheets: u8,
+}
+
+/// Side of a brick in grid vertices (and cells).
+const BRICK_SHIFT: u32 = 2;
+const BRICK_MASK: i64 = (1 << BRICK_SHIFT) - 1;
+const BRICK_LEN: usize = 1 << (3 * BRICK_SHIFT);
+
+/// The state of a 4×4×4 block of grid vertices, and of the cells whose lowest corner they
+/// are. Storing the grid sparsely by bricks keeps one hash lookup per brick rather than per
+/// vertex, and neighbouring vertices mostly share a brick.
+#[derive(Clone, Debug)]
+struct Brick {
+    /// `f` at each vertex (NaN where undefined), once its bit in `evaluated` is set.
+    values: [f64; BRICK_LEN],
+    evaluated: u64,
+    /// Cells queued or examined by the search.
+    visited: u64,
+    /// Slot in [`Search::cells`] of each active cell, or `u32::MAX`.
+    active: [u32; BRICK_LEN],
+}
+
+impl Brick {
+    const EMPTY: Brick = Brick {
+        values: [f64::NAN; BRICK_LEN],
+        evaluated: 0,
+        visited: 0,
+        active: [u32::MAX; BRICK_LEN],
+    };
+}
+
+/// The brick key of a grid index and its position in the brick.
+fn brick_of(v: Index3) -> (u64, usize) {
+    let key = pack(v.map(|c| c >> BRICK_SHIFT));
+    let local = (v[0] & BRICK_MASK)
+        | ((v[1] & BRICK_MASK) << BRICK_SHIFT)
+        | ((v[2] & BRICK_MASK) << (2 * BRICK_SHIFT));
+    (key, local as usize)
+}
+
+/// Read access to bricks that remembers the last brick found, since queries come in
+/// neighbourhoods.
+struct BrickReader<'s> {
+    index: &'s KeyMap<u32>,
+    bricks: &'s [Brick],
+    last: Option<(u64, Option<&'s Brick>)>,
+}
+
+impl<'s> BrickReader<'s> {
+    fn get(&mut self, v: Index3) -> Option<(&'s Brick, usize)> {
+        let (key, local) = brick_of(v);
+        let brick = match self.last {
+            Some((k, b)) if k == key => b,
+            _ => {
+                let b = self.index.get(&key).map(|&i| &self.bricks[i as usize]);
+                self.last = Some((key, b));
+                b
+            }
+        };
+        brick.map(|b| (b, local))
+    }
+
+    fn value(&mut self, v: Index3) -> Option<f64> {
+        self.get(v)
+            .and_then(|(b, l)| (b.evaluated >> l & 1 == 1).then_some(b.values[l]))
+    }
+
+    fn active_slot(&mut self, c: Index3) -> Option<u32> {
+        self.get(c)
+            .map(|(b, l)| b.active[l])
+            .filter(|&s| s != u32::MAX)
+    }
 }
 
 /// The breadth-first search over active cells.
@@ -558,10 +677,13 @@ struct Search<'e, 'c> {
     eval: &'e PuEvaluator<'c>,
     grid: &'e Grid,
     max_cells: usize,
-    /// `f` at visited grid vertices (NaN where undefined).
-    values: KeyMap<f64>,
-    visited: KeySet,
-    active: KeyMap<ActiveCell>,
+    /// Slot in `bricks` of each brick key.
+    brick_index: KeyMap<u32>,
+    bricks: Vec<Brick>,
+    /// Active cells with their keys, in the order found.
+    cells: Vec<(u64, ActiveCell)>,
+    visited_cells: usize,
+    evaluations: usize,
     evaluation_time: Duration,
 }
 
@@ -571,34 +693,80 @@ impl<'e, 'c> Search<'e, 'c> {
             eval,
             grid,
             max_cells,
-            values: KeyMap::default(),
-            visited: KeySet::default(),
-            active: KeyMap::default(),
+            brick_index: KeyMap::default(),
+            bricks: Vec::new(),
+            cells: Vec::new(),
+            visited_cells: 0,
+            evaluations: 0,
             evaluation_time: Duration::ZERO,
         }
     }
 
+    fn reader(&self) -> BrickReader<'_> {
+        BrickReader {
+            index: &self.brick_index,
+            bricks: &self.bricks,
+            last: None,
+        }
+    }
+
+    /// The brick holding `v` (created if needed) and `v`'s position in it; `cache` holds the
+    /// last brick key and slot.
+    fn brick_mut(&mut self, v: Index3, cache: &mut (u64, u32)) -> (&mut Brick, usize) {
+        let (key, local) = brick_of(v);
+        if cache.0 != key {
+            let next = self.bricks.len() as u32;
+            let slot = *self.brick_index.entry(key).or_insert(next);
+            if slot == next {
+                self.bricks.push(Brick::EMPTY);
+            }
+            *cache = (key, slot);
+        }
+        (&mut self.bricks[cache.1 as usize], local)
+    }
+
+    /// Marks cell `c` visited; true when it was not before.
+    fn visit(&mut self, c: Index3, cache: &mut (u64, u32)) -> bool {
+        let (brick, l) = self.brick_mut(c, cache);
+        let fresh = brick.visited >> l & 1 == 0;
+        brick.visited |= 1 << l;
+        self.visited_cells += usize::from(fresh);
+        fresh
+    }
+
+    /// Whether the search has queued or examined cell `c`.
+    fn visited(&self, c: Index3) -> bool {
+        self.grid.in_range(c)
+            && self
+                .reader()
+                .get(c)
+                .is_some_and(|(b, l)| b.visited >> l & 1 == 1)
+    }
+
     /// Whether the cell or one of its 26 neighbours is active.
     fn near_active(&self, c: Index3) -> bool {
+        let mut reader = self.reader();
         self.grid
             .block_around(c)
-            .any(|n| self.grid.in_range(n) && self.active.contains_key(&pack(n)))
+            .any(|n| self.grid.in_range(n) && reader.active_slot(n).is_some())
+    }
+
+    /// A cell needs its far corner in range too.
+    fn cell_in_range(&self, c: Index3) -> bool {
+        self.grid.in_range(c) && self.grid.in_range(c.map(|x| x + 1))
     }
 
     /// Visits the cells `starts` not yet visited and everything reachable from them.
     fn run(&mut self, starts: Vec<Index3>) -> Result<(), PolygoniseError> {
+        let mut cache = (u64::MAX, 0);
         let mut frontier: Vec<Index3> = Vec::new();
         for c in starts {
-            // A cell needs its far corner in range too.
-            if self.grid.in_range(c.map(|x| x + 1))
-                && self.grid.in_range(c)
-                && self.visited.insert(pack(c))
-            {
+            if self.cell_in_range(c) && self.visit(c, &mut cache) {
                 frontier.push(c);
             }
         }
         while !frontier.is_empty() {
-            if self.visited.len() > self.max_cells {
+            if self.visited_cells > self.max_cells {
                 return Err(PolygoniseError::TooManyCells {
                     max_cells: self.max_cells,
                     step: self.grid.step,
@@ -606,9 +774,14 @@ impl<'e, 'c> Search<'e, 'c> {
             }
             self.evaluate_corners(&frontier);
             let classified: Vec<Option<ActiveCell>> = frontier
-                .par_iter()
-                .with_min_len(256)
-                .map(|&c| self.classify(c))
+                .par_chunks(256)
+                .flat_map_iter(|chunk| {
+                    let mut reader = self.reader();
+                    chunk
+                        .iter()
+                        .map(|&c| classify(&mut reader, c))
+                        .collect::<Vec<_>>()
+                })
                 .collect();
             let mut next = Vec::new();
             for (&c, cell) in frontier.iter().zip(classified) {
@@ -618,16 +791,15 @@ impl<'e, 'c> Search<'e, 'c> {
                         continue;
                     }
                     for n in cells_around_edge(c, e) {
-                        if n != c
-                            && self.grid.in_range(n)
-                            && self.grid.in_range(n.map(|x| x + 1))
-                            && self.visited.insert(pack(n))
-                        {
+                        if n != c && self.cell_in_range(n) && self.visit(n, &mut cache) {
                             next.push(n);
                         }
                     }
                 }
-                self.active.insert(pack(c), cell);
+                let slot = self.cells.len() as u32;
+                let (brick, l) = self.brick_mut(c, &mut cache);
+                brick.active[l] = slot;
+                self.cells.push((pack(c), cell));
             }
             frontier = next;
         }
@@ -635,52 +807,54 @@ impl<'e, 'c> Search<'e, 'c> {
     }
 
     fn evaluate_corners(&mut self, cells: &[Index3]) {
-        let mut keys = Vec::new();
+        let mut cache = (u64::MAX, 0);
+        let mut targets = Vec::new();
         let mut points = Vec::new();
         for &c in cells {
             for k in 0..8 {
                 let o = corner_offset(k);
                 let v = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                let key = pack(v);
-                if let std::collections::hash_map::Entry::Vacant(slot) = self.values.entry(key) {
-                    slot.insert(f64::NAN);
-                    keys.push(key);
+                let (brick, l) = self.brick_mut(v, &mut cache);
+                if brick.evaluated >> l & 1 == 0 {
+                    brick.evaluated |= 1 << l;
+                    targets.push((cache.1, l));
                     points.push(self.grid.position(v));
                 }
             }
         }
+        self.evaluations += points.len();
         let start = Instant::now();
         let values = self.eval.values(&points);
         self.evaluation_time += start.elapsed();
-        for (key, v) in keys.into_iter().zip(values) {
-            self.values.insert(key, v.unwrap_or(f64::NAN));
+        for ((brick, l), v) in targets.into_iter().zip(values) {
+            self.bricks[brick as usize].values[l] = v.unwrap_or(f64::NAN);
         }
     }
+}
 
-    fn classify(&self, c: Index3) -> Option<ActiveCell> {
-        let mut values = [0.0; 8];
-        let mut inside_count = 0;
-        for (k, value) in values.iter_mut().enumerate() {
-            let o = corner_offset(k);
-            let v = *self
-                .values
-                .get(&pack([c[0] + o[0], c[1] + o[1], c[2] + o[2]]))?;
-            if v.is_nan() {
-                return None;
-            }
-            inside_count += usize::from(inside(v));
-            *value = v;
-        }
-        if inside_count == 0 || inside_count == 8 {
+/// The active-cell data of cell `c`, or `None` when it is not active or `f` is undefined at
+/// a corner.
+fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
+    let mut values = [0.0; 8];
+    let mut inside_count = 0;
+    for (k, value) in values.iter_mut().enumerate() {
+        let o = corner_offset(k);
+        let v = reader.value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])?;
+        if v.is_nan() {
             return None;
         }
-        let (sheet, sheets) = cell_sheets(&values);
-        Some(ActiveCell {
-            values,
-            sheet,
-            sheets,
-        })
+        inside_count += usize::from(inside(v));
+        *value = v;
     }
+    if inside_count == 0 || inside_count == 8 {
+        return None;
+    }
+    let (sheet, sheets) = cell_sheets(&values);
+    Some(ActiveCell {
+        inside: (0..8).fold(0, |m, k| m | (u8::from(inside(values[k])) << k)),
+        sheet,
+        sheets,
+    })
 }
 
 /// The four cells around cube edge `e` of cell `c`, counter-clockwise seen from the edge's
@@ -714,9 +888,15 @@ fn extract(
     params: &PolygoniseParams,
     stats: &mut PolygoniseStats,
 ) -> TriMesh {
-    let mut keys: Vec<u64> = search.active.keys().copied().collect();
-    keys.sort_unstable();
-    let cells: Vec<&ActiveCell> = keys.iter().map(|k| &search.active[k]).collect();
+    // Ascending cell order, whatever order the search found them in.
+    let mut order: Vec<u32> = (0..search.cells.len() as u32).collect();
+    order.par_sort_unstable_by_key(|&i| search.cells[i as usize].0);
+    let mut rank = vec![0u32; order.len()];
+    for (r, &i) in order.iter().enumerate() {
+        rank[i as usize] = r as u32;
+    }
+    let keys: Vec<u64> = order.iter().map(|&i| search.cells[i as usize].0).collect();
+    let cells: Vec<&ActiveCell> = order.iter().map(|&i| &search.cells[i as usize].1).collect();
     let mut first_vertex = Vec::with_capacity(keys.len() + 1);
     let mut total = 0u32;
     for cell in &cells {
@@ -731,108 +911,130 @@ fn extract(
     let mut vertices: Vec<DVec3> = keys
         .par_iter()
         .zip(&cells)
-        .flat_map_iter(|(&key, cell)| {
-            let c = unpack(key);
-            let base = grid.position(c);
-            let mut sums = vec![(DVec3::ZERO, 0u32); usize::from(cell.sheets)];
-            for e in 0..12 {
-                let s = cell.sheet[e];
-                if s == NO_SHEET {
-                    continue;
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let base = grid.position(c);
+                let value = |reader: &mut BrickReader<'_>, k: usize| {
+                    let o = corner_offset(k);
+                    reader
+                        .value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
+                        .unwrap_or(f64::NAN)
+                };
+                let mut sums = vec![(DVec3::ZERO, 0u32); usize::from(cell.sheets)];
+                for e in 0..12 {
+                    let s = cell.sheet[e];
+                    if s == NO_SHEET {
+                        continue;
+                    }
+                    let (a, b) = edge_ends(e);
+                    let (fa, fb) = (value(reader, a), value(reader, b));
+                    let t = fa / (fa - fb);
+                    let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
+                    let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
+                    let slot = &mut sums[usize::from(s)];
+                    slot.0 += pa + (pb - pa) * t;
+                    slot.1 += 1;
                 }
-                let (a, b) = edge_ends(e);
-                let (fa, fb) = (cell.values[a], cell.values[b]);
-                let t = fa / (fa - fb);
-                let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
-                let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
-                let slot = &mut sums[usize::from(s)];
-                slot.0 += pa + (pb - pa) * t;
-                slot.1 += 1;
-            }
-            sums.into_iter()
-                .map(move |(sum, n)| base + sum / f64::from(n) * grid.step)
-        })
+                sums.into_iter()
+                    .map(|(sum, n)| base + sum / f64::from(n) * grid.step)
+                    .collect::<Vec<DVec3>>()
+            },
+        )
+        .flatten_iter()
         .collect();
 
-    if params.project {
+    let mut normals = None;
+    if params.project || params.normals {
         let owner: Vec<Index3> = keys
             .iter()
             .zip(&cells)
             .flat_map(|(&k, cell)| std::iter::repeat_n(unpack(k), usize::from(cell.sheets)))
             .collect();
         let fg = search.eval.values_gradients(&vertices);
-        vertices
-            .par_iter_mut()
-            .zip(fg)
-            .zip(owner)
-            .for_each(|((x, vg), c)| {
-                let Some(vg) = vg else { return };
-                let g2 = vg.gradient.length_squared();
-                if !(g2 > 0.0 && g2.is_finite()) {
-                    return;
-                }
-                let lo = grid.position(c);
-                let hi = lo + DVec3::splat(grid.step);
-                let moved = (*x - vg.gradient * (vg.value / g2)).clamp(lo, hi);
-                if moved.is_finite() {
-                    *x = moved;
-                }
-            });
+        // The gradient before the Newton step serves as the normal: the step is shorter than
+        // a cell, and another evaluation would cost as much as the whole projection.
+        normals = Some(
+            fg.par_iter()
+                .map(|vg| vg.map_or(DVec3::ZERO, |vg| (-vg.gradient).normalize_or_zero()))
+                .collect::<Vec<DVec3>>(),
+        );
+        if params.project {
+            vertices
+                .par_iter_mut()
+                .zip(fg)
+                .zip(owner)
+                .for_each(|((x, vg), c)| {
+                    let Some(vg) = vg else { return };
+                    let g2 = vg.gradient.length_squared();
+                    if !(g2 > 0.0 && g2.is_finite()) {
+                        return;
+                    }
+                    let lo = grid.position(c);
+                    let hi = lo + DVec3::splat(grid.step);
+                    let moved = (*x - vg.gradient * (vg.value / g2)).clamp(lo, hi);
+                    if moved.is_finite() {
+                        *x = moved;
+                    }
+                });
+        }
     }
 
     // Quads: each crossing grid edge is emitted by the cell where it is cube edge 0, 4 or 8.
-    let index: KeyMap<u32> = keys
-        .iter()
-        .enumerate()
-        .map(|(i, &k)| (k, i as u32))
-        .collect();
     let per_cell: Vec<(Vec<[u32; 3]>, usize)> = keys
         .par_iter()
         .zip(&cells)
-        .map(|(&key, cell)| {
-            let c = unpack(key);
-            let mut tris = Vec::new();
-            let mut open = 0;
-            for d in 0..3 {
-                let e = 4 * d;
-                if cell.sheet[e] == NO_SHEET {
-                    continue;
-                }
-                let around = cells_and_edges_around(c, e);
-                let mut quad = [0u32; 4];
-                let mut complete = true;
-                for (slot, (n, ne)) in quad.iter_mut().zip(around) {
-                    let found = grid
-                        .in_range(n)
-                        .then(|| index.get(&pack(n)))
-                        .flatten()
-                        .map(|&i| (i, cells[i as usize].sheet[ne]));
-                    match found {
-                        Some((i, s)) if s != NO_SHEET => {
-                            *slot = first_vertex[i as usize] + u32::from(s)
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let mut tris = Vec::new();
+                let mut open = 0;
+                for d in 0..3 {
+                    let e = 4 * d;
+                    if cell.sheet[e] == NO_SHEET {
+                        continue;
+                    }
+                    let around = cells_and_edges_around(c, e);
+                    let mut quad = [0u32; 4];
+                    let mut complete = true;
+                    for (slot, (n, ne)) in quad.iter_mut().zip(around) {
+                        let found = grid
+                            .in_range(n)
+                            .then(|| reader.active_slot(n))
+                            .flatten()
+                            .map(|slot| {
+                                let i = rank[slot as usize];
+                                (i, cells[i as usize].sheet[ne])
+                            });
+                        match found {
+                            Some((i, s)) if s != NO_SHEET => {
+                                *slot = first_vertex[i as usize] + u32::from(s)
+                            }
+                            _ => complete = false,
                         }
-                        _ => complete = false,
+                    }
+                    if !complete {
+                        open += 1;
+                        continue;
+                    }
+                    let (a, _) = edge_ends(e);
+                    if cell.inside >> a & 1 == 0 {
+                        quad.reverse();
+                    }
+                    let p = quad.map(|v| vertices[v as usize]);
+                    if p[0].distance_squared(p[2]) <= p[1].distance_squared(p[3]) {
+                        tris.push([quad[0], quad[1], quad[2]]);
+                        tris.push([quad[0], quad[2], quad[3]]);
+                    } else {
+                        tris.push([quad[0], quad[1], quad[3]]);
+                        tris.push([quad[1], quad[2], quad[3]]);
                     }
                 }
-                if !complete {
-                    open += 1;
-                    continue;
-                }
-                let (a, _) = edge_ends(e);
-                if !inside(cell.values[a]) {
-                    quad.reverse();
-                }
-                let p = quad.map(|v| vertices[v as usize]);
-                if p[0].distance_squared(p[2]) <= p[1].distance_squared(p[3]) {
-                    tris.push([quad[0], quad[1], quad[2]]);
-                    tris.push([quad[0], quad[2], quad[3]]);
-                } else {
-                    tris.push([quad[0], quad[1], quad[3]]);
-                    tris.push([quad[1], quad[2], quad[3]]);
-                }
-            }
-            (tris, open)
-        })
+                (tris, open)
+            },
+        )
         .collect();
     let mut triangles = Vec::with_capacity(per_cell.iter().map(|(t, _)| t.len()).sum());
     for (tris, open) in per_cell {
@@ -840,33 +1042,9 @@ fn extract(
         stats.open_quads += open;
     }
     let mut mesh = TriMesh::new(vertices, triangles);
-    drop_unused_vertices(&mut mesh);
+    mesh.normals = if params.normals { normals } else { None };
+    remove_unused_vertices(&mut mesh);
     mesh
-}
-
-/// Removes vertices no triangle uses, keeping the order of the rest.
-fn drop_unused_vertices(mesh: &mut TriMesh) {
-    let mut used = vec![false; mesh.vertices.len()];
-    for t in &mesh.triangles {
-        for &v in t {
-            used[v as usize] = true;
-        }
-    }
-    if used.iter().all(|&u| u) {
-        return;
-    }
-    let mut remap = vec![u32::MAX; used.len()];
-    let mut kept = Vec::with_capacity(used.len());
-    for (v, &u) in used.iter().enumerate() {
-        if u {
-            remap[v] = kept.len() as u32;
-            kept.push(mesh.vertices[v]);
-        }
-    }
-    mesh.vertices = kept;
-    for t in &mut mesh.triangles {
-        *t = t.map(|v| remap[v as usize]);
-    }
 }
 
 /// Drops triangles whose centroid is farther than `limit` from every seed; returns how many.
@@ -877,14 +1055,14 @@ fn trim(mesh: &mut TriMesh, seeds: &[DVec3], limit: f64) -> Result<usize, Polygo
         .par_iter()
         .map_init(Vec::new, |found, t| {
             let centroid = t.iter().map(|&v| mesh.vertices[v as usize]).sum::<DVec3>() / 3.0;
-            index.within(centroid, limit, found);
-            !found.is_empty()
+            index.nearest_k_with_distances(centroid, 1, found);
+            found.first().is_some_and(|&(d2, _)| d2 <= limit * limit)
         })
         .collect();
     let before = mesh.triangles.len();
     let mut k = keep.iter();
     mesh.triangles.retain(|_| *k.next().unwrap_or(&false));
-    drop_unused_vertices(mesh);
+    remove_unused_vertices(mesh);
     Ok(before - mesh.triangles.len())
 }
 
@@ -928,6 +1106,9 @@ fn split_fans(mesh: &mut TriMesh) -> usize {
             .collect();
         for _ in 1..count {
             mesh.vertices.push(mesh.vertices[v]);
+            if let Some(normals) = &mut mesh.normals {
+                normals.push(normals[v]);
+            }
         }
         added += count - 1;
         let tris = &incident[offsets[v] as usize..offsets[v + 1] as usize];
@@ -1059,7 +1240,8 @@ mod tests {
                 .all(|(v, n)| v.normalize().dot(*n) > 0.9)
         );
         assert_eq!(stats.open_quads, 0);
-        assert_eq!(stats.seeds_searched, 1);
+        // Clean samples sit next to the surface: none needs pulling onto it.
+        assert_eq!(stats.seeds_searched, 0);
     }
 
     #[test]
@@ -1154,6 +1336,180 @@ mod tests {
         let topo = MeshTopology::of(&mesh);
         assert!(topo.is_manifold() && topo.boundary_edges > 0, "{topo:?}");
         assert_eq!(topo.components, 1);
+    }
+
+    #[test]
+    fn seeds_off_the_surface_are_pulled_onto_it_or_dropped() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 2000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = params(6);
+        // Three steps outside: too far to touch a meshed cell, close enough to pull in.
+        let step = Aabb::from_points(&cloud.positions).longest_edge() / 64.0;
+        let near: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|&q| q * (1.0 + 3.0 * step / 0.4))
+            .collect();
+        let (mesh, stats) = polygonise(&eval, &near, &p).unwrap();
+        assert!(stats.seeds_searched >= 1);
+        let topo = MeshTopology::of(&mesh);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!((topo.components, topo.euler_characteristic()), (1, 2));
+        // Eight steps away is beyond the default reach of four.
+        let far: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|&q| q * (1.0 + 8.0 * step / 0.4))
+            .collect();
+        assert!(matches!(
+            polygonise(&eval, &far, &p),
+            Err(PolygoniseError::NoSurfaceNearSeeds { .. })
+        ));
+    }
+
+    #[test]
+    fn only_the_surface_reached_from_the_seeds_is_meshed() {
+        let mut left = sphere(DVec3::new(-0.25, 0.0, 0.0), 0.15, 1500);
+        let right = sphere(DVec3::new(0.25, 0.0, 0.0), 0.15, 1500);
+        let left_seeds = left.positions.clone();
+        left.positions.extend(&right.positions);
+        if let (Some(a), Some(b)) = (left.normals.as_mut(), right.normals.as_ref()) {
+            a.extend(b);
+        }
+        let cover = cover_of(&left);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = PolygoniseParams {
+            step: GridStep::Absolute(0.01),
+            ..PolygoniseParams::default()
+        };
+        let (one, _) = polygonise(&eval, &left_seeds, &p).unwrap();
+        assert_eq!(MeshTopology::of(&one).components, 1);
+        assert!(one.vertices.iter().all(|v| v.x < 0.0));
+        let (both, _) = polygonise(&eval, &left.positions, &p).unwrap();
+        let topo = MeshTopology::of(&both);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+    }
+
+    #[test]
+    fn a_plate_thinner_than_a_cell_keeps_its_two_sides_apart() {
+        // Both faces of a plate of thickness 0.008 pass through the same cells at step 0.02:
+        // one vertex per cell would glue them; one per sheet keeps a manifold.
+        // Tilted, so that grid vertices fall inside the plate all over it.
+        let tilt = glam::DMat3::from_rotation_x(0.5) * glam::DMat3::from_rotation_y(0.3);
+        let n = 40;
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for i in 0..n * n {
+            let (x, y) = (
+                (i % n) as f64 / n as f64 - 0.5,
+                (i / n) as f64 / n as f64 - 0.5,
+            );
+            for side in [-1.0, 1.0] {
+                points.push(tilt * DVec3::new(0.6 * x, 0.6 * y, 0.004 * side));
+                normals.push(tilt * DVec3::Z * side);
+            }
+        }
+        let params = SurfaceCoverParams {
+            eps: 2e-3,
+            ..SurfaceCoverParams::default()
+        };
+        let (cover, _) = build_surface_cover(&points, &normals, &params).unwrap();
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = PolygoniseParams {
+            step: GridStep::Absolute(0.02),
+            project: false,
+            ..PolygoniseParams::default()
+        };
+        let (mesh, stats) = polygonise(&eval, &points, &p).unwrap();
+        assert!(stats.multi_sheet_cells > 100, "{stats:?}");
+        let topo = MeshTopology::of(&mesh);
+        assert!(
+            topo.is_manifold() && topo.inconsistent_edges == 0,
+            "{topo:?}"
+        );
+        // The two faces are separate sheets: normals up on top, down below.
+        // Both faces are there, wound outwards: as much area faces up as down.
+        let up = tilt * DVec3::Z;
+        let (mut top, mut bottom) = (0.0, 0.0);
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|v| mesh.vertices[v as usize]);
+            let along = (b - a).cross(c - a).dot(up);
+            if along > 0.0 {
+                top += along;
+            } else {
+                bottom -= along;
+            }
+        }
+        assert!(
+            top > 0.0 && (top / bottom - 1.0).abs() < 0.2,
+            "{top} {bottom}"
+        );
+    }
+
+    /// The search from seeds on every component finds exactly the active cells (with the
+    /// same sheets) that classifying every cell of the grid finds.
+    #[test]
+    fn search_finds_what_a_scan_of_the_whole_grid_finds() {
+        let mut cloud = sphere(DVec3::new(-0.2, 0.0, 0.0), 0.15, 1200);
+        let other = torus(0.15, 0.06, 2000);
+        let shifted: Vec<DVec3> = other
+            .positions
+            .iter()
+            .map(|&p| p + DVec3::X * 0.2)
+            .collect();
+        cloud.positions.extend(&shifted);
+        if let (Some(a), Some(b)) = (cloud.normals.as_mut(), other.normals.as_ref()) {
+            a.extend(b);
+        }
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let grid = Grid::around(&eval, 0.025).unwrap();
+        let mut search = Search::new(&eval, &grid, usize::MAX);
+        // One seed per component is enough.
+        let seeds = [cloud.positions[0], shifted[0]];
+        search
+            .run(
+                seeds
+                    .iter()
+                    .flat_map(|&p| grid.block_around(grid.cell_of(p)))
+                    .collect(),
+            )
+            .unwrap();
+        let mut found: Vec<(u64, [u8; 12])> =
+            search.cells.iter().map(|(k, c)| (*k, c.sheet)).collect();
+        found.sort_unstable();
+
+        let [nx, ny, nz] = grid.dims;
+        let index = |v: Index3| ((v[2] * ny + v[1]) * nx + v[0]) as usize;
+        let vertices: Vec<DVec3> = (0..nx * ny * nz)
+            .map(|i| grid.position([i % nx, (i / nx) % ny, i / (nx * ny)]))
+            .collect();
+        let values = eval.values(&vertices);
+        let mut scanned = Vec::new();
+        for i in 0..(nx - 1) * (ny - 1) * (nz - 1) {
+            let c = [
+                i % (nx - 1),
+                (i / (nx - 1)) % (ny - 1),
+                i / ((nx - 1) * (ny - 1)),
+            ];
+            let corners: Option<Vec<f64>> = (0..8)
+                .map(|k| {
+                    let o = corner_offset(k);
+                    values[index([c[0] + o[0], c[1] + o[1], c[2] + o[2]])]
+                })
+                .collect();
+            let Some(corners) = corners else { continue };
+            let f: [f64; 8] = std::array::from_fn(|k| corners[k]);
+            let inside_count = f.iter().filter(|&&v| inside(v)).count();
+            if inside_count != 0 && inside_count != 8 {
+                scanned.push((pack(c), cell_sheets(&f).0));
+            }
+        }
+        scanned.sort_unstable();
+        assert!(found.len() > 1000);
+        assert_eq!(found, scanned);
     }
 
     #[test]
@@ -1315,6 +1671,37 @@ mod tests {
             prop_assert!(sizes.iter().all(|&s| s >= 3), "{:?}", sizes);
             prop_assert_eq!(cell_sheets(&values.map(|v| -v)), (sheet, count));
         }
+    }
+
+    /// Two closed tetrahedra glued at a vertex (a bow tie) or along an edge (four triangles
+    /// on it) come apart into two closed oriented manifolds.
+    #[test]
+    fn split_fans_separates_pinched_sheets() {
+        let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let tet = |v: [u32; 4]| faces.map(|f: [u32; 3]| f.map(|k| v[k as usize]));
+        let mut vertices = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        vertices.extend([-DVec3::X, -DVec3::Y, -DVec3::Z]);
+        // Sharing vertex 0.
+        let mut pinched = TriMesh::new(
+            vertices.clone(),
+            [tet([0, 1, 2, 3]), tet([0, 4, 5, 6])].concat(),
+        );
+        pinched.normals = Some(vertices.clone());
+        assert_eq!(MeshTopology::of(&pinched).non_manifold_vertices, 1);
+        assert_eq!(split_fans(&mut pinched), 1);
+        let topo = MeshTopology::of(&pinched);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+        assert_eq!(pinched.normals.as_ref().map(Vec::len), Some(8));
+        assert_eq!(pinched.vertices[7], DVec3::ZERO);
+        // Sharing the edge 0–1: the second tetrahedron is the first turned half a turn about
+        // the x axis, so it is wound outwards too.
+        let mut glued = TriMesh::new(vertices, [tet([0, 1, 2, 3]), tet([0, 1, 5, 6])].concat());
+        assert_eq!(MeshTopology::of(&glued).non_manifold_edges, 1);
+        assert_eq!(split_fans(&mut glued), 2);
+        let topo = MeshTopology::of(&glued);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
     }
 
     #[test]
