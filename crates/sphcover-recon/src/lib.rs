@@ -16,6 +16,7 @@ pub mod maxflow;
 pub mod normals;
 mod pca;
 pub mod pipeline;
+pub mod scan_statistics;
 
 pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
@@ -45,5 +46,6 @@ pub use pipeline::{
     Method, ReconError, ReconParams, ReconStats, Reconstruction, default_depth, reconstruct,
 };
 pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
+pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
 pub use unused_vertices::remove_unused_vertices;
