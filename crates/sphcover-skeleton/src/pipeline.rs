@@ -8,7 +8,7 @@ use sphcover_core::{
     DVec3, Kernel, PuEvaluator, Threshold, TriMesh, Volume, VolumeCoverParams, VolumeCoverStats,
     build_volume_cover,
 };
-use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex};
+use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 
 use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 use crate::error::SkeletonError;
@@ -226,7 +226,14 @@ pub fn extract_skeleton(
             shrink: params.tet_shrink,
             seed: params.seed,
         },
-    )?;
+    )
+    .map_err(|e| match e {
+        TetraError::NotFullDimensional { .. } => SkeletonError::EmptyResult {
+            stage: "the tetrahedral mesh",
+            hint: "the object's supports do not span 3D: it is a speck or a single layer of voxels; check the threshold",
+        },
+        e => SkeletonError::Tetra(e),
+    })?;
     let mesh = TetMesh::from_dual_complex(&complex);
     drop(complex);
     timings.tetrahedral_mesh = start.elapsed();
