@@ -170,7 +170,7 @@ fn bad_inputs_exit_2_without_writing() {
     write_nifti(
         &aniso,
         &[24, 24, 24],
-        [0.5, 0.5, 1.0],
+        [0.5, 0.5, 1.5],
         None,
         &slab_values(1),
     );
@@ -197,7 +197,7 @@ fn bad_inputs_exit_2_without_writing() {
 
     let cases: Vec<(&Path, Vec<&str>, &str)> = vec![
         (&four_d, vec![], "4D volume with 2 frames"),
-        (&aniso, vec![], "not cubic"),
+        (&aniso, vec![], "too anisotropic"),
         (&oblique, vec![], "oblique"),
         (&ok, vec!["--threshold", "1e6"], "selects no voxel"),
         (&ok, vec!["--threshold=-1e6"], "selects every voxel"),

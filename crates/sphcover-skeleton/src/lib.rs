@@ -8,7 +8,8 @@
 //!        ─► ridge_points (∇f, ∇²f with support expansion σ; eq. 6.1, 6.4, 6.5)
 //!        ─► patches (fans around ridge edges, open at the mesh boundary)
 //!        ─► cleaning (weld, fill tiny holes, drop fragments)
-//!        ─► rim trimming (medial-axis test) ─► cleaning again ─► TriMesh in world units
+//!        ─► rim trimming (medial-axis test) ─► cleaning again
+//!        ─► smoothing across the sheet ─► TriMesh in world units
 //! ```
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
@@ -26,6 +27,7 @@ pub mod patches;
 pub mod pipeline;
 pub mod ridge_points;
 pub mod rim_trimming;
+pub mod sheet_smoothing;
 pub mod symmetric_eigen;
 
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
@@ -39,3 +41,4 @@ pub use ridge_points::{
     RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
 };
 pub use rim_trimming::{RimTrimParams, trim_rims};
+pub use sheet_smoothing::smooth_across;

@@ -18,6 +18,7 @@ use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
 use crate::ridge_points::{RidgeFilter, orient_eigenvectors, ridge_points, vertex_derivatives};
 use crate::rim_trimming::{RimTrimParams, trim_rims};
+use crate::sheet_smoothing::smooth_across;
 
 /// Parameters of [`extract_skeleton`]. `Default` is the one parameter set the phantom
 /// tests use; lengths given in voxels are converted with the volume's voxel size.
@@ -57,6 +58,11 @@ pub struct SkeletonParams {
     /// Rim trimming: a sheet vertex is in the rim when the object's surface lies closer than
     /// this factor times the local half-thickness along the sheet; `0` disables trimming.
     pub rim_trim_factor: f64,
+    /// Rounds of smoothing across the sheet (see [`crate::sheet_smoothing`]); 0 disables it.
+    /// Off by default: on the 10 % phantoms three rounds lower the 95th-percentile distance
+    /// of flat plates (0.23 → 0.19 voxel) but raise it at the T-junction (0.45 → 0.52) and on
+    /// the spherical cap (0.32 → 0.37), where the umbrella step pulls towards chords.
+    pub smoothing_rounds: usize,
     /// Holes with at most this many edges…
     pub max_hole_edges: usize,
     /// …and at most this perimeter (voxels) are filled.
@@ -82,6 +88,7 @@ impl Default for SkeletonParams {
             min_component_fraction: 0.05,
             min_component_area_voxels: 4.0,
             rim_trim_factor: 0.9,
+            smoothing_rounds: 0,
             max_hole_edges: 200,
             max_hole_perimeter_voxels: 60.0,
             seed: 0,
@@ -302,6 +309,7 @@ pub fn extract_skeleton(
         cleaning.pinch_triangles += second.pinch_triangles;
         sheet = again;
     }
+    smooth_across(&mut sheet, params.smoothing_rounds, 0.5);
     let topology = MeshTopology::of(&sheet);
     timings.cleaning = start.elapsed();
     if sheet.triangles.is_empty() {
