@@ -1,4 +1,4 @@
-//! Cleaning of the raw patch mesh (SPEC beyond of thesis §6.4): weld coincident vertices,
+//! Cleaning of the raw patch mesh (future work in thesis §6.4): weld coincident vertices,
 //! drop degenerate triangles, drop fragments, fill tiny holes.
 //!
 //! * Welding: a tetrahedron crossed by a single ridge point puts its vertex `q_t` on that

@@ -1,4 +1,4 @@
-//! Trimming the sheet back from the rounded rims of the part (SPEC beyond of thesis §6.4).
+//! Trimming the sheet back from the rounded rims of the part (future work in thesis §6.4).
 //!
 //! A plate of thickness `t` ends in a rounded rim that sticks out `t/2` beyond the true
 //! sheet's boundary, and the intensity ridge runs on to the rim's tip: left alone, the
