@@ -10,7 +10,8 @@
 //!        ─► patches (fans around ridge edges, open at the mesh boundary)
 //!        ─► cleaning (weld, undo pinches, fill holes over material, drop fragments)
 //!        ─► rim trimming (medial-axis test) ─► cleaning again
-//!        ─► optional smoothing across the sheet ─► TriMesh in world units
+//!        ─► re-centring between the faces ─► optional smoothing across the sheet
+//!        ─► TriMesh in world units
 //! ```
 //!
 //! Departures from the thesis, each measured on the phantoms and documented where it is
@@ -30,6 +31,7 @@ pub mod cleaning;
 pub mod error;
 pub mod gaussian_filter;
 pub mod intensity_model;
+pub mod medial_correction;
 pub mod nms_baseline;
 pub mod object_mask;
 pub mod patches;
@@ -42,6 +44,7 @@ pub mod symmetric_eigen;
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
 pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
+pub use medial_correction::centre_between_faces;
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};
 pub use patches::ridge_patches;

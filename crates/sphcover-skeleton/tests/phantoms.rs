@@ -34,14 +34,14 @@ fn noise_10_percent_meets_the_goals() {
         let (phantom, m) = run(shape, 0.1);
         let name = shape.name();
         let junction = shape == ThinShape::TJunction;
-        // Goal ≥ 0.99; the T-junction loses a strip along the junction (measured 0.979).
+        // Goal ≥ 0.99; the T-junction loses a strip along the junction (measured 0.980).
         let coverage = if junction { 0.97 } else { 0.99 };
         assert!(m.coverage >= coverage, "{name}: {m:?}");
         assert!(m.spurious <= 0.03, "{name}: {m:?}");
         assert!(m.spurious_interior <= 0.01, "{name}: {m:?}");
-        // Goal ≤ 0.3 voxel: met on four shapes; measured 0.31–0.45 on the T-junction, the
-        // wedge (its 8-voxel end) and the spherical cap.
-        assert!(m.distance_interior_p95 <= 0.5, "{name}: {m:?}");
+        // Goal ≤ 0.3 voxel: met on six shapes (0.10–0.15); measured 0.46 at the T-junction.
+        let p95 = if junction { 0.5 } else { 0.3 };
+        assert!(m.distance_interior_p95 <= p95, "{name}: {m:?}");
         assert!(m.boundary_reach_mean <= 0.5, "{name}: {m:?}");
         assert_eq!(m.components, 1, "{name}: {m:?}");
         // The Euler characteristic of the true sheet, except at the T-junction (goal not
@@ -61,13 +61,7 @@ fn noise_30_percent_meets_the_goals() {
     for shape in ThinShape::ALL {
         let (_, m) = run(shape, 0.3);
         let name = shape.name();
-        // Goal ≥ 0.97: met on five shapes; measured 0.963 on the T-junction (along the
-        // junction) and 0.967 on the wedge (its 2-voxel end fades into the noise).
-        let coverage = match shape {
-            ThinShape::TJunction | ThinShape::Wedge => 0.96,
-            _ => 0.97,
-        };
-        assert!(m.coverage >= coverage, "{name}: {m:?}");
+        assert!(m.coverage >= 0.97, "{name}: {m:?}");
         assert!(m.spurious <= 0.05, "{name}: {m:?}");
         assert_eq!(m.components, 1, "{name}: {m:?}");
     }
@@ -83,7 +77,7 @@ fn noise_free_sheets_are_accurate() {
         let (phantom, m) = run(shape, 0.0);
         let name = shape.name();
         assert!(m.coverage >= 0.99 && m.spurious <= 0.01, "{name}: {m:?}");
-        assert!(m.distance_interior_p95 <= 0.25, "{name}: {m:?}");
+        assert!(m.distance_interior_p95 <= 0.15, "{name}: {m:?}");
         assert_eq!(
             m.euler_characteristic,
             Some(phantom.truth.euler_characteristic),
