@@ -17,7 +17,7 @@
 //! Departures from the thesis, each measured on the phantoms and documented where it is
 //! made: σ_t = 1 instead of 0.75 ([`SkeletonParams::tet_shrink`]), a consistent eigenvector
 //! sign over the mesh ([`orient_eigenvectors`]), eq. 6.5 relaxed where `f` is concave
-//! ([`ridge_points`]), and the cleaning stages, which the thesis left as future work. The
+//! ([`ridge_points()`]), and the cleaning stages, which the thesis left as future work. The
 //! derivative smoothing the thesis names but never formulates (§6.2.3: a linear cover and
 //! discrete operators) is not implemented: the plain pipeline meets the noise goals
 //! without it.
