@@ -1,8 +1,109 @@
-//! End-to-end benchmark harness for `sphcover`.
+//! End-to-end benchmark harness for `sphcover`, with peers side by side.
 //!
-//! It will generate the standard synthetic scans from ground-truth meshes, run
-//! `sphcover recon` and, when given, peer tools on the same input, and print time, peak memory
-//! and accuracy side by side. The per-function criterion benchmarks live next to each crate
-//! (`cargo bench -p sphcover-core`); this member holds the whole-pipeline harness once the
-//! pipelines exist.
+//! Two binaries live here:
+//!
+//! * `recon-bench` generates the standard synthetic scans of ground-truth meshes
+//!   (`sphcover_fixtures::scan`), runs `sphcover recon` and any peer given as a command
+//!   template on each, measures wall time, CPU time and peak memory, scores every output
+//!   against the ground truth (`sphcover_fixtures::recon_metrics`) and prints one markdown
+//!   table;
+//! * `skeleton-bench` runs `sphcover skeleton` with `--method ridge` and `--method nms` on the
+//!   CT phantoms and tabulates cost and topology.
+//!
+//! A tool that fails or is missing gets a row that says so; the run goes on. The
+//! per-function criterion benchmarks live next to each crate (`cargo bench -p
+//! sphcover-core`). This library holds what both binaries share.
 #![deny(missing_docs)]
+
+pub mod command_template;
+pub mod markdown_table;
+pub mod measured_run;
+
+use std::path::{Path, PathBuf};
+
+/// The workspace root (the parent of this crate's directory).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+/// Where cargo puts release binaries: `$CARGO_TARGET_DIR/release` when that is set, else
+/// `target/release` under the workspace root.
+pub fn release_dir() -> PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(dir) if !dir.is_empty() => {
+            let dir = PathBuf::from(dir);
+            if dir.is_absolute() {
+                dir.join("release")
+            } else {
+                workspace_root().join(dir).join("release")
+            }
+        }
+        _ => workspace_root().join("target").join("release"),
+    }
+}
+
+/// This process's command line, each argument quoted for a POSIX shell where needed, so a
+/// table's header can be pasted back into a terminal.
+pub fn command_line() -> String {
+    std::env::args()
+        .map(|a| shell_quote(&a))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `word` as a POSIX shell would need it: unchanged when it holds only safe characters,
+/// otherwise in single quotes (a single quote inside becomes `'\''`).
+pub fn shell_quote(word: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
+    if !word.is_empty() && word.chars().all(safe) {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
+}
+
+/// The last line of a tool's stderr, shortened for a table cell.
+pub fn short_message(message: &str, max_chars: usize) -> String {
+    let m = message.trim();
+    if m.chars().count() <= max_chars {
+        m.to_string()
+    } else {
+        let cut: String = m.chars().take(max_chars.saturating_sub(1)).collect();
+        format!("{cut}…")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words_are_quoted_only_when_needed() {
+        assert_eq!(shell_quote("--sizes"), "--sizes");
+        assert_eq!(shell_quote("a=b/c.ply"), "a=b/c.ply");
+        assert_eq!(shell_quote("p=x {in} {out}"), "'p=x {in} {out}'");
+        assert_eq!(shell_quote("it's"), "'it'\\''s'");
+        assert_eq!(shell_quote(""), "''");
+        // Splitting the quoted form gives the word back.
+        for w in ["p=x {in} {out}", "it's", "a\"b", ""] {
+            assert_eq!(
+                command_template::split_words(&shell_quote(w)).unwrap(),
+                vec![w.to_string()]
+            );
+        }
+    }
+
+    #[test]
+    fn messages_are_shortened_on_char_boundaries() {
+        assert_eq!(short_message("  short ", 10), "short");
+        assert_eq!(short_message("ééééé", 3), "éé…");
+    }
+
+    #[test]
+    fn the_workspace_root_holds_the_workspace_manifest() {
+        assert!(workspace_root().join("Cargo.toml").is_file());
+        assert!(workspace_root().join("benches").is_dir());
+    }
+}

@@ -33,14 +33,16 @@ pub struct GlobalArgs {
 pub enum Command {
     /// Report what a geometry file holds: counts, bounding box, attributes, normals, non-finite values.
     Info(InfoArgs),
-    /// Reconstruct a surface mesh from scanned points (not available yet).
-    Recon(PendingArgs),
+    /// Reconstruct a surface mesh from scanned points (oriented or not), robust to noise and outliers.
+    Recon(ReconArgs),
     /// Extract the skeletal sheet (mid-surface) of a thin part from a CT volume.
     Skeleton(SkeletonArgs),
     /// Build a spherical cover of oriented scan points or of a CT volume.
     Cover(CoverArgs),
     /// Build the tetrahedral mesh of a cover: the dual complex of its union of balls.
     Tetra(TetraArgs),
+    /// Draw a mesh, point cloud or sphere set to a PNG (software rasteriser, no display needed).
+    Render(RenderArgs),
 }
 
 /// Arguments of `sphcover info`.
@@ -71,6 +73,70 @@ pub struct TetraArgs {
     /// Seed of the insertion order and point-location walks (the mesh does not depend on it).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    #[command(flatten)]
+    pub read: InputArgs,
+}
+
+/// Reconstruction methods of `sphcover recon`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReconMethodArg {
+    /// Cover, graph cut against outliers, diffusion against noise, polygonisation (default).
+    Integrated,
+    /// Graph cut on the tetrahedral mesh, marching tetrahedra on the labels (thesis §5.2.2).
+    Graphcut,
+    /// Cover, diffusion, polygonisation (no graph cut).
+    Diffusion,
+    /// The plain partition-of-unity function of the cover.
+    Pu,
+}
+
+/// Arguments of `sphcover recon`.
+#[derive(Debug, Args)]
+pub struct ReconArgs {
+    /// Scanned points: PLY, OBJ, OFF, STL, XYZ/PWN, LAS; with normals or without (they are
+    /// then estimated); a PLY `confidence` property is used as the scanner's confidence.
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// Output mesh (PLY keeps the per-vertex confidence as `value`; OBJ, OFF, STL).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Cover tolerance ε, relative to the longest bounding-box edge (default 2.5e-3).
+    #[arg(long, value_name = "E")]
+    pub eps: Option<f64>,
+    /// Pipeline.
+    #[arg(long, value_enum, default_value_t = ReconMethodArg::Integrated)]
+    pub method: ReconMethodArg,
+    /// Graph-cut ratio k of terminal to edge cost (default 28 on the sphere intersection
+    /// graph, 5 for --method graphcut).
+    #[arg(long, value_name = "K")]
+    pub k: Option<f64>,
+    /// Remove surface farther than D from every confident sample, D relative to the longest
+    /// bounding-box edge (default when given without a value: 0.01).
+    #[arg(long, value_name = "D", num_args = 0..=1, default_missing_value = "0.01")]
+    pub trim: Option<f64>,
+    /// Polygonisation grid: step = longest edge / 2^DEPTH (default from the point count,
+    /// 6..=10).
+    #[arg(long, value_name = "DEPTH")]
+    pub depth: Option<u32>,
+    /// Neighbours for normal estimation of unoriented input.
+    #[arg(long, default_value_t = 12, value_name = "N")]
+    pub normal_neighbors: usize,
+    /// Estimate normals even when the input has them (for unreliable normals).
+    #[arg(long)]
+    pub estimate_normals: bool,
+    /// Seed of the random choices (cover expansion order).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Also write the input points with their confidence and outlier label (PLY
+    /// properties `confidence` and `value` = 1 for outliers).
+    #[arg(long, value_name = "FILE")]
+    pub points_out: Option<PathBuf>,
+    /// Also write the final cover (cover PLY, readable by `sphcover tetra` and the library).
+    #[arg(long, value_name = "FILE")]
+    pub cover_out: Option<PathBuf>,
+    /// Also write the report (counts, timings) as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
     #[command(flatten)]
     pub read: InputArgs,
 }
@@ -152,6 +218,67 @@ pub struct SkeletonArgs {
     pub ascii: bool,
 }
 
+/// Arguments of `sphcover render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// A mesh or point cloud (PLY, OBJ, OFF, STL, XYZ/PWN, LAS), or a sphere set or cover
+    /// file (drawn as balls). A file with faces is drawn as a surface, one without as points.
+    #[arg(value_name = "MESH_OR_POINTS")]
+    pub input: PathBuf,
+    /// Output image (`.png`).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Direction of view: front, back, left, right, top, bottom, iso, or AZ,EL in degrees
+    /// (azimuth around the up axis from the front towards the right, elevation above the
+    /// horizon).
+    #[arg(
+        long,
+        default_value = "iso",
+        value_name = "VIEW",
+        allow_hyphen_values = true
+    )]
+    pub view: String,
+    /// World axis drawn upwards: x, y or z [default: y; z for LAS].
+    #[arg(long, value_name = "AXIS")]
+    pub up: Option<String>,
+    /// Image size in pixels.
+    #[arg(long, default_value = "1200x900", value_name = "WxH")]
+    pub size: String,
+    /// Colour by a per-vertex scalar (viridis): any scalar PLY vertex property (confidence,
+    /// quality, an outlier label…), or value, radius, x, y, z for any format.
+    #[arg(long, visible_alias = "colour-by", value_name = "PROPERTY")]
+    pub color_by: Option<String>,
+    /// Values at the ends of the colormap [default: the range of the values].
+    #[arg(long, value_name = "LO,HI", allow_hyphen_values = true)]
+    pub range: Option<String>,
+    /// Leave out the colour bar drawn with --color-by.
+    #[arg(long, visible_alias = "no-color-bar")]
+    pub no_colour_bar: bool,
+    /// Splat diameter of points, in pixels [default: from the point density].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    pub point_size: Option<f64>,
+    /// Background: white, black, grey, transparent or #RRGGBB.
+    #[arg(long, default_value = "white", value_name = "COLOUR")]
+    pub background: String,
+    /// Perspective projection with this vertical field of view (default orthographic).
+    #[arg(
+        long,
+        value_name = "DEGREES",
+        num_args = 0..=1,
+        default_missing_value = "35",
+        allow_negative_numbers = true
+    )]
+    pub perspective: Option<f64>,
+    /// One normal per triangle instead of normals interpolated from the vertices.
+    #[arg(long)]
+    pub flat: bool,
+    /// Samples per pixel along each axis, for anti-aliasing (1 to 4).
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    pub supersample: usize,
+    #[command(flatten)]
+    pub read: InputArgs,
+}
+
 /// How input files are read.
 #[derive(Debug, Args)]
 pub struct InputArgs {
@@ -159,15 +286,6 @@ pub struct InputArgs {
     /// the file.
     #[arg(long)]
     pub drop_non_finite: bool,
-}
-
-/// Arguments of a subcommand whose pipeline is not built yet: accepted so that the command
-/// can say plainly what is missing instead of failing on the first option.
-#[derive(Debug, Args)]
-pub struct PendingArgs {
-    /// Whatever was given.
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
-    pub rest: Vec<String>,
 }
 
 impl InputArgs {

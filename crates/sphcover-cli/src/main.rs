@@ -3,6 +3,7 @@
 mod args;
 mod commands;
 mod exit;
+mod render;
 mod report;
 
 use std::process::ExitCode;
@@ -33,10 +34,11 @@ fn main() -> ExitCode {
     }
     let result = match &cli.command {
         Command::Info(a) => commands::info::run(a, &reporter),
-        Command::Recon(a) => commands::unavailable::run("recon", a, &reporter),
+        Command::Recon(a) => commands::recon::run(a, &reporter),
         Command::Skeleton(a) => commands::skeleton::run(a, &reporter),
         Command::Cover(a) => commands::cover::run(a, &reporter),
         Command::Tetra(a) => commands::tetra::run(a, &reporter),
+        Command::Render(a) => commands::render::run(a, &reporter),
     };
     match result {
         Ok(()) => ExitCode::from(exit::SUCCESS),

@@ -89,13 +89,6 @@ fn info_keeps_going_past_a_bad_file_and_still_fails() {
 }
 
 #[test]
-fn pending_subcommands_say_so_and_exit_1() {
-    let out = sphcover(&["recon", "in.ply", "-o", "out.ply"]);
-    assert_eq!(out.status.code(), Some(1));
-    assert!(text(&out.stderr).contains("not available"));
-}
-
-#[test]
 fn bad_usage_exits_2() {
     assert_eq!(
         sphcover(&["--threads", "0", "info", "x.ply"]).status.code(),

@@ -56,6 +56,7 @@ mod off;
 mod ply;
 mod stl;
 mod text;
+mod vertex_property;
 #[cfg(feature = "nifti")]
 mod volume_file;
 mod xyz;
@@ -74,6 +75,7 @@ pub use error::{IoError, Location, Problem};
 pub use inrimage::{InrimageInfo, parse_inrimage, read_inrimage};
 #[cfg(feature = "nifti")]
 pub use nifti::{AffineSource, NiftiInfo, parse_nifti, read_nifti};
+pub use vertex_property::{parse_ply_with_vertex_property, read_geometry_with_vertex_property};
 #[cfg(feature = "nifti")]
 pub use volume_file::{SampleType, VolumeInfo, is_volume_path, read_volume};
 

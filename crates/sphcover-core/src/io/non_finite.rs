@@ -24,9 +24,20 @@ fn bad_values(parsed: &Parsed, i: usize) -> u64 {
 }
 
 pub(crate) fn apply(
+    parsed: Parsed,
+    policy: NonFinitePolicy,
+    path: &Path,
+) -> Result<Geometry, IoError> {
+    apply_with_columns(parsed, policy, path, &mut [])
+}
+
+/// As [`apply`], with extra per-vertex `columns` (read beside the geometry) kept in step:
+/// dropping a vertex drops its entry in every column.
+pub(crate) fn apply_with_columns(
     mut parsed: Parsed,
     policy: NonFinitePolicy,
     path: &Path,
+    columns: &mut [Vec<f64>],
 ) -> Result<Geometry, IoError> {
     let n = parsed.points.positions.len();
     // Per chunk: (bad vertices, bad values, first bad vertex); summed in chunk order.
@@ -63,7 +74,7 @@ pub(crate) fn apply(
                 });
             }
             NonFinitePolicy::Keep => {}
-            NonFinitePolicy::Drop => drop_non_finite(&mut parsed),
+            NonFinitePolicy::Drop => drop_non_finite(&mut parsed, columns),
         }
     }
     Ok(Geometry {
@@ -75,7 +86,7 @@ pub(crate) fn apply(
 }
 
 /// Removes the non-finite vertices and the triangles that use them, renumbering the rest.
-fn drop_non_finite(parsed: &mut Parsed) {
+fn drop_non_finite(parsed: &mut Parsed, columns: &mut [Vec<f64>]) {
     let n = parsed.points.positions.len();
     let keep: Vec<bool> = (0..n)
         .into_par_iter()
@@ -90,9 +101,9 @@ fn drop_non_finite(parsed: &mut Parsed) {
         }
     }
     parsed.points.retain_indices(|i| keep[i]);
-    if let Some(r) = parsed.radii.as_mut() {
+    for column in parsed.radii.iter_mut().chain(columns.iter_mut()) {
         let mut i = 0;
-        r.retain(|_| {
+        column.retain(|_| {
             i += 1;
             keep[i - 1]
         });

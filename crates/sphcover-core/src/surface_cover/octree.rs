@@ -15,8 +15,11 @@
 //! grown radius is several times the octant's own: subdividing then multiplies supports
 //! without fitting the data any better (around a crease or a tip no plane fits the nearest
 //! points, and the subdivision would run to the maximum depth all along it). So a grown
-//! octant is subdivided only while its grown radius is below [`REFINABLE_GROWTH`] times its
-//! own radius, and an *empty* octant (own ball without any point) never is.
+//! octant is subdivided only while its grown radius is at most [`REFINABLE_GROWTH`] times its
+//! own radius, and an *empty* octant (own ball without any point) never is. The factor is 1
+//! (a grown octant is never subdivided): with 2, the 5,210-point kitten scan at ε = 2.5e-3
+//! got 47,081 supports (9 per point) and a sphere intersection graph of mean degree 265;
+//! with 1, 15,370 supports and degree 84, and the same reconstruction.
 //!
 //! When the plane fitted to its nearest points misses them by more than ε, an empty octant
 //! keeps the plane but not the grown radius: its support stays the octant's own ball, which
@@ -50,9 +53,9 @@ pub const MAX_DEPTH: u32 = 20;
 /// a small positive weight (the kernels vanish on the sphere).
 pub(crate) const REACH: f64 = 1.0625;
 
-/// A grown octant is subdivided only while its grown radius is below this factor times its
+/// A grown octant is subdivided only while its grown radius is at most this factor times its
 /// own radius (see the module docs).
-pub(crate) const REFINABLE_GROWTH: f64 = 2.0;
+pub(crate) const REFINABLE_GROWTH: f64 = 1.0;
 
 /// One octree leaf: its support and fit.
 #[derive(Clone, Copy, Debug)]
@@ -272,7 +275,7 @@ impl Octree<'_> {
             // No refinement will follow: keep the exact error.
             f64::INFINITY
         };
-        let refinable = !empty && radius < REFINABLE_GROWTH * natural;
+        let refinable = !empty && radius <= REFINABLE_GROWTH * natural;
         let limit = if refinable { limit } else { f64::INFINITY };
         let mut fit = cand.fit(radius, self.params.kernel, limit)?;
         if empty && fit.error > self.params.eps {

@@ -1,0 +1,371 @@
+//! `recon-bench`: synthetic scans of ground-truth meshes, reconstructed by `sphcover recon`
+//! and by peers, timed and scored side by side in one markdown table.
+//!
+//! ```text
+//! cargo build --release -p sphcover-cli
+//! cargo run --release -p sphcover-benches --bin recon-bench -- \
+//!     --sizes 100k --cases clean,noise025,outliers1 \
+//!     --peer "open3d=python3 benches/peers/open3d_poisson.py {in} {out} --depth 10" \
+//!     --out table.md
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use clap::Parser;
+use sphcover_benches::command_template::{CommandTemplate, split_words};
+use sphcover_benches::markdown_table::{MarkdownTable, fixed, format_count, parse_count};
+use sphcover_benches::measured_run::{RunMeasurement, RunOutcome, run_measured};
+use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
+use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptions, WriteOptions};
+use sphcover_core::{DVec3, TriMesh};
+use sphcover_fixtures::ground_truth_meshes::{icosphere, torus_mesh};
+use sphcover_fixtures::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
+use sphcover_fixtures::scan::{ScanCase, generate_scan};
+
+/// The ground truth used when no `--mesh` is given (relative to the workspace root).
+const DEFAULT_MESH: &str = "bunny=fixtures/real/bunny00.off";
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "recon-bench",
+    about = "Reconstruct synthetic scans with sphcover and peers; print time, memory and accuracy as a markdown table"
+)]
+struct Args {
+    /// Point counts of the scans (k and M suffixes allowed).
+    #[arg(long, value_delimiter = ',', default_value = "100k")]
+    sizes: Vec<String>,
+    /// Scan cases (default: all): clean, noise025, noise050, outliers1, outliers5, holes,
+    /// gradient, normals30, normals60, scanner, combined, combined-no-outliers, all.
+    #[arg(long, value_delimiter = ',')]
+    cases: Vec<String>,
+    /// Ground-truth mesh as NAME=PATH, or `sphere` or `torus` for an analytic shape
+    /// (repeatable); default `bunny=fixtures/real/bunny00.off`.
+    #[arg(long = "mesh")]
+    meshes: Vec<String>,
+    /// The sphcover binary (default: the release build in the cargo target directory).
+    #[arg(long)]
+    sphcover: Option<PathBuf>,
+    /// Extra arguments for `sphcover recon`, as one string.
+    #[arg(long, default_value = "")]
+    sphcover_args: String,
+    /// Do not run sphcover (peers only).
+    #[arg(long)]
+    no_sphcover: bool,
+    /// A peer as NAME=COMMAND with {in} and {out} placeholders (repeatable).
+    #[arg(long = "peer")]
+    peers: Vec<String>,
+    /// Also write the table (with the command line) to this file.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Where scans and outputs go (default: `recon-bench` next to the release directory).
+    #[arg(long)]
+    work_dir: Option<PathBuf>,
+    /// Samples per mesh for the scores.
+    #[arg(long, default_value_t = 200_000)]
+    samples: usize,
+    /// Seed of the scans and of the scoring.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Time limit per tool run, in seconds.
+    #[arg(long, default_value_t = 1800.0)]
+    timeout: f64,
+}
+
+/// Builds the command line of a tool for an input and an output path.
+type CommandBuilder = Box<dyn Fn(&Path, &Path) -> Vec<String>>;
+
+/// One tool to run on every scan.
+struct Tool {
+    name: String,
+    command: CommandBuilder,
+    /// Why it cannot run at all, if so.
+    unavailable: Option<String>,
+}
+
+fn main() -> ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: Args) -> anyhow::Result<()> {
+    let root = workspace_root();
+    let sizes: Vec<usize> = args
+        .sizes
+        .iter()
+        .map(|s| parse_count(s).with_context(|| format!("bad size `{s}` (e.g. 100k, 362k, 1M)")))
+        .collect::<anyhow::Result<_>>()?;
+    let cases: Vec<ScanCase> = if args.cases.is_empty() {
+        ScanCase::ALL.to_vec()
+    } else {
+        args.cases
+            .iter()
+            .map(|c| {
+                ScanCase::from_name(c).with_context(|| {
+                    let names: Vec<_> = ScanCase::ALL.iter().map(|c| c.name()).collect();
+                    format!("unknown case `{c}`; known: {}", names.join(", "))
+                })
+            })
+            .collect::<anyhow::Result<_>>()?
+    };
+    let mesh_specs = if args.meshes.is_empty() {
+        vec![DEFAULT_MESH.to_string()]
+    } else {
+        args.meshes.clone()
+    };
+    let mut meshes = Vec::new();
+    for spec in &mesh_specs {
+        let Some((name, path)) = spec.split_once('=') else {
+            let mesh = builtin_mesh(spec).with_context(|| {
+                format!("--mesh wants NAME=PATH or one of sphere, torus; got `{spec}`")
+            })?;
+            meshes.push((
+                spec.clone(),
+                PathBuf::from(format!("(analytic {spec})")),
+                mesh,
+            ));
+            continue;
+        };
+        let path = resolve(&root, Path::new(path));
+        let mesh = io::read_mesh(&path, &ReadOptions::default())
+            .with_context(|| format!("reading ground truth {}", path.display()))?;
+        meshes.push((name.to_string(), path, mesh));
+    }
+
+    let mut tools = Vec::new();
+    if !args.no_sphcover {
+        let exe = args
+            .sphcover
+            .clone()
+            .map_or_else(|| release_dir().join("sphcover"), |p| resolve(&root, &p));
+        let extra =
+            split_words(&args.sphcover_args).context("unbalanced quote in --sphcover-args")?;
+        let unavailable = (!exe.is_file()).then(|| {
+            format!(
+                "not built: {} (cargo build --release -p sphcover-cli)",
+                exe.display()
+            )
+        });
+        tools.push(Tool {
+            name: "sphcover".into(),
+            command: Box::new(move |i: &Path, o: &Path| {
+                let mut v = vec![
+                    exe.display().to_string(),
+                    "recon".into(),
+                    i.display().to_string(),
+                    "-o".into(),
+                    o.display().to_string(),
+                ];
+                v.extend(extra.iter().cloned());
+                v
+            }),
+            unavailable,
+        });
+    }
+    for spec in &args.peers {
+        let t = CommandTemplate::parse(spec)?;
+        tools.push(Tool {
+            name: t.name.clone(),
+            command: Box::new(move |i: &Path, o: &Path| t.expand(i, o)),
+            unavailable: None,
+        });
+    }
+    if tools.is_empty() {
+        bail!("nothing to run: --no-sphcover and no --peer");
+    }
+
+    let work = args
+        .work_dir
+        .clone()
+        .unwrap_or_else(|| release_dir().with_file_name("recon-bench"));
+    std::fs::create_dir_all(&work).with_context(|| format!("creating {}", work.display()))?;
+    // Tools run in the workspace root: hand them absolute paths.
+    let work = std::path::absolute(&work)?;
+    let timeout = Duration::from_secs_f64(args.timeout.max(0.0));
+    let score_params = ReconMetricsParams {
+        samples: args.samples,
+        seed: args.seed,
+        ..ReconMetricsParams::default()
+    };
+
+    let mut table = MarkdownTable::new([
+        "mesh",
+        "case",
+        "points",
+        "tool",
+        "wall s",
+        "CPU s",
+        "peak MiB",
+        "Chamfer %",
+        "H99 %",
+        "NC",
+        "F@0.25%",
+        "F@0.5%",
+        "F@1%",
+        "comp.",
+        "watertight",
+        "status",
+    ]);
+    for (mesh_name, _, gt) in &meshes {
+        for &size in &sizes {
+            for &case in &cases {
+                let t0 = Instant::now();
+                let scan = generate_scan(gt, &case.params(size, args.seed))
+                    .with_context(|| format!("generating {} of {mesh_name}", case.name()))?;
+                let stem = format!("{mesh_name}-{}-{}", case.name(), format_count(size));
+                let input = work.join(format!("{stem}.ply"));
+                let wopts = WriteOptions {
+                    ply_encoding: PlyEncoding::BinaryLittleEndian,
+                    precision: Precision::F32,
+                    inputs: Vec::new(),
+                };
+                io::write_point_cloud(&input, &scan.cloud, &wopts)
+                    .with_context(|| format!("writing {}", input.display()))?;
+                eprintln!(
+                    "[{stem}] {} points ({} outliers) generated in {:.2} s",
+                    scan.cloud.len(),
+                    scan.outlier_count(),
+                    t0.elapsed().as_secs_f64()
+                );
+                for tool in &tools {
+                    let output = work.join(format!("{stem}.{}.ply", tool.name));
+                    let row = run_tool(tool, &input, &output, gt, &score_params, &root, timeout);
+                    let cells = row_cells(mesh_name, case, scan.cloud.len(), &tool.name, &row);
+                    eprintln!("  {}", cells.join(" | "));
+                    table.push(cells);
+                }
+            }
+        }
+    }
+
+    let rendered = table.render();
+    println!("{rendered}");
+    if let Some(out) = &args.out {
+        let gt_list: Vec<String> = meshes
+            .iter()
+            .map(|(n, p, m)| {
+                format!(
+                    "{n} = {} ({} vertices, {} triangles)",
+                    p.display(),
+                    m.vertices.len(),
+                    m.triangles.len()
+                )
+            })
+            .collect();
+        let text = format!(
+            "Command: `{}`\n\nGround truth: {}. Scores on {} area-uniform samples per mesh; \
+             lengths in % of the ground truth's bounding-box diagonal; NC = normal \
+             consistency; comp. = connected components.\n\n{rendered}",
+            command_line(),
+            gt_list.join("; "),
+            args.samples
+        );
+        std::fs::write(out, text).with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(())
+}
+
+/// What one tool did on one scan.
+struct ToolResult {
+    run: Option<RunMeasurement>,
+    scores: Result<ReconMetrics, String>,
+}
+
+fn run_tool(
+    tool: &Tool,
+    input: &Path,
+    output: &Path,
+    gt: &TriMesh,
+    params: &ReconMetricsParams,
+    cwd: &Path,
+    timeout: Duration,
+) -> ToolResult {
+    if let Some(why) = &tool.unavailable {
+        return ToolResult {
+            run: None,
+            scores: Err(why.clone()),
+        };
+    }
+    // A stale output of an earlier run must not be scored as this run's.
+    let _ = std::fs::remove_file(output);
+    let run = run_measured(&(tool.command)(input, output), cwd, timeout);
+    let scores = match &run.outcome {
+        RunOutcome::Success if !output.is_file() => Err("exited 0 but wrote no output".into()),
+        RunOutcome::Success => {
+            let opts = ReadOptions {
+                non_finite: NonFinitePolicy::Drop,
+            };
+            io::read_mesh(output, &opts)
+                .map_err(|e| format!("unreadable output: {e}"))
+                .and_then(|rec| score_reconstruction(&rec, gt, params).map_err(|e| e.to_string()))
+        }
+        RunOutcome::Failed { code, message } => Err(format!(
+            "failed ({}): {message}",
+            code.map_or_else(|| "signal".to_string(), |c| format!("exit {c}"))
+        )),
+        RunOutcome::TimedOut => Err(format!("timed out after {} s", timeout.as_secs())),
+        RunOutcome::NotStarted(m) => Err(format!("not started: {m}")),
+    };
+    ToolResult {
+        run: Some(run),
+        scores,
+    }
+}
+
+fn row_cells(mesh: &str, case: ScanCase, points: usize, tool: &str, r: &ToolResult) -> Vec<String> {
+    let mut cells = vec![
+        mesh.to_string(),
+        case.name().to_string(),
+        points.to_string(),
+        tool.to_string(),
+        fixed(r.run.as_ref().map(|m| m.wall_seconds), 2),
+        fixed(r.run.as_ref().and_then(|m| m.cpu_seconds), 2),
+        fixed(r.run.as_ref().and_then(|m| m.peak_mib), 0),
+    ];
+    match &r.scores {
+        Ok(s) => cells.extend([
+            format!("{:.4}", s.chamfer),
+            format!("{:.4}", s.hausdorff99),
+            format!("{:.4}", s.normal_consistency),
+            fixed(s.fscore_at(0.0025), 4),
+            fixed(s.fscore_at(0.005), 4),
+            fixed(s.fscore_at(0.01), 4),
+            s.topology.components.to_string(),
+            if s.topology.watertight { "yes" } else { "no" }.to_string(),
+            "ok".to_string(),
+        ]),
+        Err(e) => {
+            cells.extend(std::iter::repeat_n("–".to_string(), 8));
+            cells.push(short_message(e, 120));
+        }
+    }
+    cells
+}
+
+/// The analytic ground truths: a sphere of radius 0.5 (81,920 triangles) and a torus of
+/// radii 0.35 and 0.15 (65,536 triangles), fine enough that their facets are far below the
+/// errors measured.
+fn builtin_mesh(name: &str) -> Option<TriMesh> {
+    match name {
+        "sphere" => Some(icosphere(DVec3::ZERO, 0.5, 6)),
+        "torus" => Some(torus_mesh(0.35, 0.15, 256, 128)),
+        _ => None,
+    }
+}
+
+/// `p` relative to the workspace root unless absolute or present from here, so the harness
+/// runs from anywhere.
+fn resolve(root: &Path, p: &Path) -> PathBuf {
+    if p.is_absolute() || p.exists() {
+        p.to_path_buf()
+    } else {
+        root.join(p)
+    }
+}

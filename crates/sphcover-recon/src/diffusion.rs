@@ -1,0 +1,509 @@
+//! Diffusion of local functions (thesis §5.2.3): smooth the linear functions of a surface
+//! cover over its sphere intersection graph while keeping them fitted to the samples.
+//!
+//! Each round:
+//!
+//! 1. `v_i = ∇f(c_i)`, the analytic gradient of the partition-of-unity function.
+//! 2. Gradients are smoothed with the anisotropic weights `ψ_ij = 1 / (1 + θ_ij²)` (θ the
+//!    angle between `v_i` and `v_j`, eq. 5.24) and pulled towards the samples' normals
+//!    (eq. 5.25–5.32):
+//!    `v̂_i = (S_i + t_i n̄_i) / (1 + t_i)` with `S_i = Σ_j φ_ij ψ_ij v_j / Σ_j φ_ij ψ_ij`
+//!    and `n̄_i` the confidence- and kernel-weighted mean of the samples' normals in the
+//!    convention of `α` (pointing inwards). This is the thesis update
+//!    `(a·(1/m_i)Σ φψ v_j + λ_n Σ σ w ñ) / (a² + λ_n Σ σ w)` divided through by `a²`, with
+//!    `a = (1/m_i) Σ φψ` and `t_i = λ_n W_i / a²`, `W_i = Σ_k σ_k w_i(p_k)`.
+//! 3. The constants solve the Poisson equation `Lap f(c_i) = Div v̂` with the fitting term
+//!    `Σ_k σ_k w_i(p_k) (β_i + v̂_i·(p_k − c_i))² → min` (eq. 5.23, 5.33–5.38). The thesis does
+//!    one Jacobi sweep per round ([`PoissonStep::ThesisJacobi`]):
+//!    `β_i = (Σ_j φψ (β_j + v̂_j·(c_i − c_j)) / Σ_j φψ + t'_i b_i) / (1 + t'_i)` with
+//!    `b_i = −v̂_i·P_i / W_i`, `P_i = Σ_k σ_k w_i(p_k)(p_k − c_i)`. Solved to convergence
+//!    ([`PoissonStep::Converged`], the default) it is the symmetric positive-definite system
+//!    `Σ_j φψ_ij (β_i − β_j − e_ij) + t'_i (Σ_j φψ_ij)(β_i − b_i) = 0` with the central flux
+//!    `e_ij = ½(v̂_i + v̂_j)·(c_i − c_j)`, solved by preconditioned conjugate gradients.
+//!
+//! **Fitting strength.** In the thesis form `t_i = λ W_i / a_i²` depends on the support
+//! size through `a_i ∝ r_i⁻²`, so one `λ` gives supports of different sizes fitting weights
+//! spread over orders of magnitude (the thesis sets λ "sufficiently large" for a unit box).
+//! [`FittingScale::Relative`] (the default) makes the weight dimensionless,
+//! `t_i = μ W_i / W̄` with `W̄` the mean of `W` over the supports holding samples, so the
+//! same `μ` means the same balance of smoothing and fitting at every scale and density.
+//! [`FittingScale::Thesis`] keeps the thesis form for fidelity.
+//!
+//! The per-support sample sums `W_i`, `N_i = Σ σ w ñ`, `P_i` do not change between rounds,
+//! so they are gathered once ([`FittingTerms::gather`]). Every sum runs over a fixed order
+//! (graph rows, tree order of the point index), so the result does not depend on the number
+//! of threads.
+
+use rayon::prelude::*;
+use sphcover_core::{Cover, CoverError, DVec3, LocalFunctions, PointIndex, PuEvaluator};
+use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// How the Poisson step of each round is solved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PoissonStep {
+    /// One Jacobi sweep per round, as the thesis does.
+    ThesisJacobi,
+    /// Conjugate gradients to the tolerance of [`DiffusionParams::cg`] (beyond the thesis).
+    Converged,
+}
+
+/// How the fitting weights are scaled against the smoothing (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FittingScale {
+    /// `t_i = μ W_i / W̄`: dimensionless, the same at every support size and sampling density.
+    Relative,
+    /// The thesis form `t_i = λ W_i / a_i²`, with λ in the units of the unit frame.
+    Thesis,
+}
+
+/// Parameters of [`diffuse`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffusionParams {
+    /// Rounds of gradient smoothing and Poisson update (thesis: 5).
+    pub rounds: usize,
+    /// Fitting strength of the normals (`μ_n` or `λ_n`, by [`DiffusionParams::scale`]); 0
+    /// ignores the samples' normals (thesis Fig. 5.32, for very noisy normals).
+    pub normal_fit: f64,
+    /// Fitting strength of the positions (`μ_p` or `λ_p`).
+    pub position_fit: f64,
+    /// Interpretation of the two strengths.
+    pub scale: FittingScale,
+    /// Use the anisotropic weights `ψ_ij` (else `ψ = 1`).
+    pub anisotropic: bool,
+    /// The Poisson step.
+    pub poisson: PoissonStep,
+    /// Conjugate-gradient settings of [`PoissonStep::Converged`].
+    pub cg: CgParams,
+}
+
+impl Default for DiffusionParams {
+    /// Five rounds, relative fitting μ_n = 1 and μ_p = 4, anisotropic, converged Poisson
+    /// step to a relative residual of 1e-6.
+    fn default() -> Self {
+        DiffusionParams {
+            rounds: 5,
+            normal_fit: 1.0,
+            position_fit: 4.0,
+            scale: FittingScale::Relative,
+            anisotropic: true,
+            poisson: PoissonStep::Converged,
+            cg: CgParams {
+                relative_tolerance: 1e-6,
+                max_iterations: 2_000,
+                ..CgParams::default()
+            },
+        }
+    }
+}
+
+/// Errors of the diffusion.
+#[derive(Debug, Error)]
+pub enum DiffusionError {
+    /// The cover does not hold linear local functions.
+    #[error("diffusion needs a cover of linear local functions")]
+    NotLinear,
+    /// Arrays of different lengths.
+    #[error("{array} has {found} entries, expected {expected}")]
+    LengthMismatch {
+        /// Which array.
+        array: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Length found.
+        found: usize,
+    },
+    /// A parameter is out of range.
+    #[error("diffusion parameter `{name}` = {value} must be finite and non-negative")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The cover could not be evaluated or updated.
+    #[error(transparent)]
+    Cover(#[from] CoverError),
+    /// The Poisson solve failed.
+    #[error("Poisson step of diffusion round {round}: {source}")]
+    Poisson {
+        /// The round (from 0).
+        round: usize,
+        /// The solver's error.
+        source: CgError,
+    },
+}
+
+/// Per-support sums over the samples in the support (module docs), gathered once.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FittingTerms {
+    /// `W_i = Σ_k σ_k w_i(p_k)`.
+    pub weight: Vec<f64>,
+    /// `N_i = Σ_k σ_k w_i(p_k) ñ_k`, with `ñ_k = −n_k / ‖n_k‖` (the convention of `α`).
+    pub normal_sum: Vec<DVec3>,
+    /// `P_i = Σ_k σ_k w_i(p_k) (p_k − c_i)`.
+    pub offset_sum: Vec<DVec3>,
+}
+
+impl FittingTerms {
+    /// Gathers the sums of every support of `cover` over the samples `points` (with outward
+    /// `normals` and a `confidence` σ_k each), in parallel. Samples with a zero or
+    /// non-finite normal contribute to `W` and `P` but not to `N`.
+    pub fn gather(
+        cover: &Cover,
+        index: &PointIndex,
+        points: &[DVec3],
+        normals: &[DVec3],
+        confidence: &[f64],
+    ) -> Result<FittingTerms, DiffusionError> {
+        for (array, found) in [("normals", normals.len()), ("confidence", confidence.len())] {
+            if found != points.len() {
+                return Err(DiffusionError::LengthMismatch {
+                    array,
+                    expected: points.len(),
+                    found,
+                });
+            }
+        }
+        if index.input_len() != points.len() {
+            return Err(DiffusionError::LengthMismatch {
+                array: "point index",
+                expected: points.len(),
+                found: index.input_len(),
+            });
+        }
+        let kernel = cover.kernel();
+        let sums: Vec<(f64, DVec3, DVec3)> = cover
+            .centers()
+            .par_iter()
+            .zip(cover.radii().par_iter())
+            .map(|(&c, &r)| {
+                let mut sum = (0.0, DVec3::ZERO, DVec3::ZERO);
+                index.for_each_within(c, r, |k, p| {
+                    let k = k as usize;
+                    let w = confidence[k] * kernel.weight(p, c, r);
+                    if w > 0.0 {
+                        sum.0 += w;
+                        let n = normals[k];
+                        let len = n.length();
+                        if len > 0.0 && len.is_finite() {
+                            sum.1 -= (w / len) * n;
+                        }
+                        sum.2 += w * (p - c);
+                    }
+                });
+                sum
+            })
+            .collect();
+        Ok(FittingTerms {
+            weight: sums.iter().map(|s| s.0).collect(),
+            normal_sum: sums.iter().map(|s| s.1).collect(),
+            offset_sum: sums.iter().map(|s| s.2).collect(),
+        })
+    }
+
+    fn len(&self) -> usize {
+        self.weight.len()
+    }
+}
+
+/// What [`diffuse`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DiffusionStats {
+    /// Rounds run.
+    pub rounds: usize,
+    /// Conjugate-gradient iterations per round ([`PoissonStep::Converged`]).
+    pub cg_iterations: Vec<usize>,
+    /// Relative residual of the last Poisson solve.
+    pub final_residual: f64,
+    /// Supports that hold samples (`W_i > 0`).
+    pub fitted_supports: usize,
+    /// Wall time.
+    pub time: Duration,
+}
+
+/// Diffuses the linear local functions of `cover` (thesis §5.2.3; module docs). `pairs` is
+/// the pair geometry of the cover over its sphere intersection graph and `terms` the
+/// samples' sums; the cover's functions are replaced.
+pub fn diffuse(
+    cover: &mut Cover,
+    pairs: &PairGeometry,
+    terms: &FittingTerms,
+    params: &DiffusionParams,
+) -> Result<DiffusionStats, DiffusionError> {
+    let start = Instant::now();
+    let n = cover.len();
+    for (array, found) in [
+        ("pair geometry", pairs.len()),
+        ("fitting terms", terms.len()),
+    ] {
+        if found != n {
+            return Err(DiffusionError::LengthMismatch {
+                array,
+                expected: n,
+                found,
+            });
+        }
+    }
+    for (name, value) in [
+        ("normal_fit", params.normal_fit),
+        ("position_fit", params.position_fit),
+    ] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(DiffusionError::InvalidParameter { name, value });
+        }
+    }
+    let LocalFunctions::Linear { alpha, beta } = cover.funcs().clone() else {
+        return Err(DiffusionError::NotLinear);
+    };
+    let (mut alpha, mut beta) = (alpha, beta);
+    let mut stats = DiffusionStats {
+        fitted_supports: terms.weight.iter().filter(|&&w| w > 0.0).count(),
+        ..DiffusionStats::default()
+    };
+    let mean_weight = {
+        let total: f64 = terms.weight.iter().sum();
+        if stats.fitted_supports > 0 {
+            total / stats.fitted_supports as f64
+        } else {
+            1.0
+        }
+    };
+    let mut scratch = CgScratch::new();
+    let mut weights = vec![0.0; pairs.stored_entries()];
+    for round in 0..params.rounds {
+        // 1. Gradients of the current function at the centres.
+        let evaluator = PuEvaluator::new(cover, 1.0)?;
+        let gradients: Vec<DVec3> = evaluator
+            .values_gradients(cover.centers())
+            .into_iter()
+            .zip(&alpha)
+            .map(|(vg, &a)| vg.map_or(a, |vg| vg.gradient))
+            .collect();
+        drop(evaluator);
+
+        // 2. Edge weights φψ, smoothed and fitted gradients.
+        edge_weights(pairs, &gradients, params.anisotropic, &mut weights);
+        let fit = |i: usize, strength: f64, weight_sum: f64| -> f64 {
+            let w = terms.weight[i];
+            if w <= 0.0 || strength == 0.0 {
+                return 0.0;
+            }
+            match params.scale {
+                FittingScale::Relative => strength * w / mean_weight,
+                FittingScale::Thesis => {
+                    let m = pairs.mass(sphcover_ops::MassKind::Thesis)[i];
+                    let a = if m > 0.0 { weight_sum / m } else { 0.0 };
+                    if a > 0.0 {
+                        strength * w / (a * a)
+                    } else {
+                        f64::INFINITY
+                    }
+                }
+            }
+        };
+        let smoothed: Vec<DVec3> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let (sum, total) = row_sum(pairs, &weights, i, |j| gradients[j]);
+                let t = fit(i, params.normal_fit, total);
+                let target = terms.normal_sum[i] / terms.weight[i].max(f64::MIN_POSITIVE);
+                blend(total, sum, t, target, gradients[i])
+            })
+            .collect();
+        alpha.clone_from(&smoothed);
+
+        // 3. Constants.
+        let centers = cover.centers();
+        let data_target = |i: usize| {
+            let w = terms.weight[i];
+            if w > 0.0 {
+                -smoothed[i].dot(terms.offset_sum[i]) / w
+            } else {
+                0.0
+            }
+        };
+        match params.poisson {
+            PoissonStep::ThesisJacobi => {
+                beta = (0..n)
+                    .into_par_iter()
+                    .map(|i| {
+                        let (sum, total) = row_sum(pairs, &weights, i, |j| {
+                            beta[j] + smoothed[j].dot(centers[i] - centers[j])
+                        });
+                        let t = fit(i, params.position_fit, total);
+                        blend(total, sum, t, data_target(i), beta[i])
+                    })
+                    .collect();
+            }
+            PoissonStep::Converged => {
+                let system = ScreenedStiffness::new(pairs, &weights, |i, total| {
+                    // A tiny screening towards the current value keeps components without
+                    // samples (and isolated supports) well posed.
+                    let t = fit(i, params.position_fit, total);
+                    if t.is_finite() {
+                        t * total + 1e-9 * total.max(1.0)
+                    } else {
+                        1.0
+                    }
+                });
+                let rhs: Vec<f64> = (0..n)
+                    .into_par_iter()
+                    .map(|i| {
+                        let (flux, total) = row_sum(pairs, &weights, i, |j| {
+                            0.5 * (smoothed[i] + smoothed[j]).dot(centers[i] - centers[j])
+                        });
+                        let t = fit(i, params.position_fit, total);
+                        let screen = system.screening[i];
+                        if t.is_finite() {
+                            flux + t * total * data_target(i) + (screen - t * total) * beta[i]
+                        } else {
+                            data_target(i)
+                        }
+                    })
+                    .collect();
+                let info = sphcover_ops::conjugate_gradient(
+                    &system,
+                    &rhs,
+                    &mut beta,
+                    &params.cg,
+                    &mut scratch,
+                )
+                .map_err(|source| DiffusionError::Poisson { round, source })?;
+                stats.cg_iterations.push(info.iterations);
+                stats.final_residual = info.relative_residual;
+            }
+        }
+        cover.set_funcs(LocalFunctions::Linear {
+            alpha: alpha.clone(),
+            beta: beta.clone(),
+        })?;
+        stats.rounds += 1;
+    }
+    stats.time = start.elapsed();
+    Ok(stats)
+}
+
+/// `φ_ij ψ_ij` for every stored entry, `ψ_ij = 1 / (1 + θ_ij²)`.
+fn edge_weights(pairs: &PairGeometry, gradients: &[DVec3], anisotropic: bool, out: &mut [f64]) {
+    let offsets = pairs.offsets();
+    out.par_chunks_mut(4096)
+        .enumerate()
+        .for_each(|(block, chunk)| {
+            let first = block * 4096;
+            // The row of entry `first`, then advanced entry by entry.
+            let mut row = offsets.partition_point(|&o| o as usize <= first) - 1;
+            for (local, w) in chunk.iter_mut().enumerate() {
+                let k = first + local;
+                while offsets[row + 1] as usize <= k {
+                    row += 1;
+                }
+                let j = pairs.neighbor_array()[k] as usize;
+                let phi = pairs.phi()[k];
+                *w = if anisotropic {
+                    let (a, b) = (gradients[row], gradients[j]);
+                    let theta = a.cross(b).length().atan2(a.dot(b));
+                    phi / (1.0 + theta * theta)
+                } else {
+                    phi
+                };
+            }
+        });
+}
+
+/// `(Σ_j w_ij value(j), Σ_j w_ij)` over row `i`, in row order.
+fn row_sum<T>(
+    pairs: &PairGeometry,
+    weights: &[f64],
+    i: usize,
+    value: impl Fn(usize) -> T,
+) -> (T, f64)
+where
+    T: std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T> + Default,
+{
+    let range = pairs.offsets()[i] as usize..pairs.offsets()[i + 1] as usize;
+    let mut sum = T::default();
+    let mut total = 0.0;
+    for k in range {
+        let w = weights[k];
+        if w > 0.0 {
+            sum = sum + value(pairs.neighbor_array()[k] as usize) * w;
+            total += w;
+        }
+    }
+    (sum, total)
+}
+
+/// `(sum/total + t·target) / (1 + t)`, the fitted mean; the target alone when `t` is
+/// infinite, `keep` when there is neither neighbour nor data.
+fn blend<T>(total: f64, sum: T, t: f64, target: T, keep: T) -> T
+where
+    T: std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T> + Copy,
+{
+    if t.is_infinite() {
+        return target;
+    }
+    if total > 0.0 {
+        (sum * (1.0 / total) + target * t) * (1.0 / (1.0 + t))
+    } else if t > 0.0 {
+        target
+    } else {
+        keep
+    }
+}
+
+/// `A = diag(s) − L_ψ`, i.e. `(A x)_i = s_i x_i + Σ_j w_ij (x_i − x_j)`: symmetric positive
+/// definite when every screening `s_i > 0`.
+struct ScreenedStiffness<'a> {
+    pairs: &'a PairGeometry,
+    weights: &'a [f64],
+    screening: Vec<f64>,
+    degree: Vec<f64>,
+}
+
+impl<'a> ScreenedStiffness<'a> {
+    fn new(
+        pairs: &'a PairGeometry,
+        weights: &'a [f64],
+        screening: impl Fn(usize, f64) -> f64 + Sync,
+    ) -> ScreenedStiffness<'a> {
+        let degree: Vec<f64> = (0..pairs.len())
+            .into_par_iter()
+            .map(|i| row_sum(pairs, weights, i, |_| 0.0).1)
+            .collect();
+        let screening = degree
+            .par_iter()
+            .enumerate()
+            .map(|(i, &d)| screening(i, d))
+            .collect();
+        ScreenedStiffness {
+            pairs,
+            weights,
+            screening,
+            degree,
+        }
+    }
+}
+
+impl SymmetricOperator for ScreenedStiffness<'_> {
+    fn dim(&self) -> usize {
+        self.pairs.len()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        y.par_chunks_mut(1024).enumerate().for_each(|(block, out)| {
+            for (local, yi) in out.iter_mut().enumerate() {
+                let i = block * 1024 + local;
+                let (neigh, _) = row_sum(self.pairs, self.weights, i, |j| x[j]);
+                *yi = (self.screening[i] + self.degree[i]) * x[i] - neigh;
+            }
+        });
+    }
+
+    fn diagonal(&self, diag: &mut [f64]) {
+        for (i, d) in diag.iter_mut().enumerate() {
+            *d = self.screening[i] + self.degree[i];
+        }
+    }
+}

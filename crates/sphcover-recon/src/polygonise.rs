@@ -1,0 +1,1727 @@
+//! Polygonisation of the zero set of a cover's function by surface nets visited only near the
+//! surface (thesis §5.2.3, Appendix C).
+//!
+//! The grid is uniform with step `h`; `f` is sampled at grid vertices. A cell is *active* when
+//! `f` is defined at its 8 corners (some support covers each of them) and the corners do not
+//! all lie on one side (inside is `f > 0`, the sign convention of the cover). Surface nets put
+//! one vertex per surface sheet in every active cell and, for every grid edge whose ends lie
+//! on opposite sides, one quad joining the vertices of the four cells around that edge.
+//!
+//! # Continuation from seeds
+//!
+//! Only active cells are ever visited: from the cells holding the seed points (samples the
+//! caller trusts) and, for seeds not next to the surface (noise), from where Newton steps
+//! pull them onto `f = 0`, a breadth-first search crosses
+//! from an active cell to the three other cells around each of its crossing edges. So the
+//! cost follows the area of the surface, not the volume of the box, and a spurious sheet far
+//! from every seed is never meshed. Each round of the search evaluates the new grid vertices
+//! of its frontier in one parallel batch ([`PuEvaluator::values`]).
+//!
+//! # A 2-manifold
+//!
+//! Plain surface nets give one vertex per cell, which pinches two sheets passing through one
+//! cell into a non-manifold vertex. Here the crossing edges of a cell are grouped into the
+//! closed polygons marching cubes would build in that cell (on each face the crossings are
+//! paired; a face with four crossings is resolved by the asymptotic decider, the sign of the
+//! bilinear interpolant at its saddle, which both cells sharing the face compute from the
+//! same four values, so they agree), and each polygon gets its own vertex, as in manifold
+//! dual contouring. The star of such a vertex is the ring of quads around the polygon's
+//! edges, a disc. Where the meshed region ends (undefined `f`, trimming) a vertex can keep
+//! two separate fans; it is then split into one vertex per fan. One saddle configuration
+//! remains: when the polygons of both cells sharing a face each use both segments of that
+//! face, the edge between their vertices carries four triangles. Splitting fans (an edge
+//! with more than two triangles joins no fans) turns it into two manifold edges, or,
+//! depending on how the two polygons run, into a hole of four boundary edges; it was not met
+//! in the tests, and [`sphcover_core::mesh_topology::MeshTopology`] reports it if it occurs.
+//!
+//! # Orientation and placement
+//!
+//! Triangles are wound counter-clockwise seen from outside (from `f < 0`). A vertex sits at
+//! the mean of its polygon's edge crossings (linear interpolation of `f` along each edge),
+//! optionally moved by one Newton step `x − f ∇f / ‖∇f‖²` onto `f = 0`, kept inside its cell.
+//!
+//! # Determinism
+//!
+//! The set of active cells is the union of the surface components reached from the seeds in
+//! their given order; values are pure functions of grid positions; the mesh is written in
+//! ascending cell order. So the output is bit-identical whatever the thread count.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use rayon::prelude::*;
+use sphcover_core::{Aabb, PointIndex, PointIndexError, PuEvaluator, TriMesh};
+
+use crate::unused_vertices::remove_unused_vertices;
+
+/// How the grid step is chosen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GridStep {
+    /// `step = longest edge of the seeds' bounding box / 2^depth` (as an octree depth of
+    /// Poisson reconstruction tools).
+    Depth(u32),
+    /// This step, in the units of the cover.
+    Absolute(f64),
+    /// This factor times the smallest support radius of the cover.
+    SmallestRadius(f64),
+}
+
+/// Parameters of [`polygonise`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PolygoniseParams {
+    /// Grid step.
+    pub step: GridStep,
+    /// Move every vertex by one Newton step onto `f = 0` (staying in its cell).
+    pub project: bool,
+    /// Drop triangles whose centroid is farther than this from every seed, in the units of
+    /// the cover (surface invented where there were no samples).
+    pub trim: Option<f64>,
+    /// Attach per-vertex outward unit normals `−∇f / ‖∇f‖`.
+    pub normals: bool,
+    /// A seed whose Newton steps towards `f = 0` move it farther than this many grid steps,
+    /// or end more than one step from `f = 0`, starts no search: it is off the surface.
+    pub seed_reach: f64,
+    /// Most grid cells the search may visit; a bound on time and memory for a step far too
+    /// fine for the object.
+    pub max_cells: usize,
+}
+
+impl Default for PolygoniseParams {
+    fn default() -> PolygoniseParams {
+        PolygoniseParams {
+            step: GridStep::Depth(9),
+            project: true,
+            trim: None,
+            normals: true,
+            seed_reach: 4.0,
+            max_cells: 1 << 25,
+        }
+    }
+}
+
+/// Why the zero set could not be polygonised.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PolygoniseError {
+    /// No seed point was given, or none is finite.
+    #[error("no seed point: {given} given, none finite; polygonisation starts from samples")]
+    NoSeeds {
+        /// Number of seeds given.
+        given: usize,
+    },
+    /// A parameter is out of its range.
+    #[error("parameter {name} = {value} is invalid: {requirement}")]
+    InvalidParameter {
+        /// Field name in [`PolygoniseParams`].
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What the value must satisfy.
+        requirement: &'static str,
+    },
+    /// The grid step is so small that the box where `f` is defined needs more than
+    /// 2²¹ − 2 cells along an axis.
+    #[error(
+        "grid step {step} is too fine for the cover's extent {extent}: more than 2^21 cells along an axis"
+    )]
+    GridTooFine {
+        /// The step.
+        step: f64,
+        /// Longest edge of the box where `f` is defined.
+        extent: f64,
+    },
+    /// The cover has no support.
+    #[error("the cover has no support, so f is defined nowhere")]
+    EmptyCover,
+    /// The search visited more cells than [`PolygoniseParams::max_cells`].
+    #[error("more than {max_cells} grid cells near the surface at step {step}: use a coarser step")]
+    TooManyCells {
+        /// The limit.
+        max_cells: usize,
+        /// The step.
+        step: f64,
+    },
+    /// No seed lies near a sign change of `f` where `f` is defined.
+    #[error("no surface (sign change of f) within reach of any of the {seeds} seeds")]
+    NoSurfaceNearSeeds {
+        /// Finite seeds given.
+        seeds: usize,
+    },
+    /// The seeds could not be indexed for trimming.
+    #[error(transparent)]
+    TooManySeeds(#[from] PointIndexError),
+}
+
+/// What [`polygonise`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PolygoniseStats {
+    /// The grid step used.
+    pub step: f64,
+    /// Seeds pulled onto `f = 0` because they were not next to a cell the surface crosses
+    /// (one per brick of 4×4×4 cells).
+    pub seeds_projected: usize,
+    /// Projected seeds that started a search of their own (their surface was not met yet).
+    pub seeds_searched: usize,
+    /// Seeds dropped: not finite, `f` undefined there, or off the surface by more than the
+    /// seed reach.
+    pub seeds_dropped: usize,
+    /// Grid cells visited.
+    pub cells_visited: usize,
+    /// Cells with a surface vertex.
+    pub active_cells: usize,
+    /// Active cells holding more than one sheet (one vertex each).
+    pub multi_sheet_cells: usize,
+    /// Evaluations of `f` at grid vertices.
+    pub grid_evaluations: usize,
+    /// Crossing edges left without a quad because a cell around them is not meshed (`f`
+    /// undefined at one of its corners): a boundary of the mesh.
+    pub open_quads: usize,
+    /// Triangles removed by trimming.
+    pub trimmed_triangles: usize,
+    /// Vertices split because their triangles formed several fans.
+    pub split_vertices: usize,
+    /// Time spent evaluating `f` at grid vertices (part of the search).
+    pub evaluation_time: Duration,
+    /// Time of the search over cells, from the seeds.
+    pub search_time: Duration,
+    /// Time of placing vertices (with their Newton step) and building triangles.
+    pub extraction_time: Duration,
+    /// Total time.
+    pub total_time: Duration,
+}
+
+/// Polygonises the zero set of `eval`'s function near `seeds` (see the module notes).
+///
+/// Returns a mesh in the cover's units, wound counter-clockwise seen from outside, closed
+/// wherever the surface is closed and `f` defined around it.
+///
+/// Seeds should be samples the caller trusts (high confidence, not outliers): every surface
+/// component that passes through a seed's cell, or that a seed's Newton steps reach within
+/// [`PolygoniseParams::seed_reach`], is meshed, including a small piece of `f = 0` around
+/// an outlier that was given as a seed. [`crate::remove_small_components`] removes such
+/// pieces afterwards if needed.
+pub fn polygonise(
+    eval: &PuEvaluator<'_>,
+    seeds: &[DVec3],
+    params: &PolygoniseParams,
+) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
+    let start = Instant::now();
+    check_params(params)?;
+    let finite_seeds: Vec<DVec3> = seeds.iter().copied().filter(|p| p.is_finite()).collect();
+    if finite_seeds.is_empty() {
+        return Err(PolygoniseError::NoSeeds { given: seeds.len() });
+    }
+    let cover = eval.cover();
+    if cover.is_empty() {
+        return Err(PolygoniseError::EmptyCover);
+    }
+    let step = grid_step(params.step, &finite_seeds, cover.radii())?;
+    let grid = Grid::around(eval, step)?;
+
+    let mut stats = PolygoniseStats {
+        step,
+        seeds_dropped: seeds.len() - finite_seeds.len(),
+        ..PolygoniseStats::default()
+    };
+    let mut search = Search::new(eval, &grid, params.max_cells);
+    let reach = params.seed_reach * step;
+    // Clean samples lie in or next to a cell the surface crosses: searching from all their
+    // cells at once evaluates `f` in a few large batches, instead of one thin wavefront
+    // crawling over the whole surface. Seeds left away from the meshed cells (noise) are
+    // pulled onto the surface below.
+    let mut seed_cells: Vec<u64> = finite_seeds
+        .iter()
+        .map(|&p| pack_clamped(grid.cell_of(p)))
+        .collect();
+    seed_cells.sort_unstable();
+    seed_cells.dedup();
+    search.run(seed_cells.into_iter().filter_map(unpack_clamped).collect())?;
+    // Noisy seeds that met no surface: one per brick of 4×4×4 cells is pulled onto `f = 0`
+    // (more would find the same surface again), all in one batch.
+    let mut bricks_seen = KeyMap::<()>::default();
+    let unmet: Vec<DVec3> = finite_seeds
+        .iter()
+        .copied()
+        .filter(|&p| {
+            let cell = grid.cell_of(p);
+            !search.near_active(cell) && bricks_seen.insert(brick_of(cell).0, ()).is_none()
+        })
+        .collect();
+    stats.seeds_projected = unmet.len();
+    for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
+        match p {
+            Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
+                let cell = grid.cell_of(q);
+                // The search from an earlier seed may have reached it already, or started
+                // from the same place and found nothing.
+                if !search.near_active(cell) && !search.visited(cell) {
+                    stats.seeds_searched += 1;
+                    search.run(grid.block_around(cell).collect())?;
+                }
+            }
+            _ => stats.seeds_dropped += 1,
+        }
+    }
+    if search.cells.is_empty() {
+        return Err(PolygoniseError::NoSurfaceNearSeeds {
+            seeds: finite_seeds.len(),
+        });
+    }
+    stats.cells_visited = search.visited_cells;
+    stats.grid_evaluations = search.evaluations;
+    stats.evaluation_time = search.evaluation_time;
+    stats.search_time = start.elapsed();
+
+    let extraction_start = Instant::now();
+    let mut mesh = extract(&search, &grid, params, &mut stats);
+    stats.extraction_time = extraction_start.elapsed();
+    if let Some(limit) = params.trim {
+        stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
+    }
+    stats.split_vertices = split_fans(&mut mesh);
+    stats.total_time = start.elapsed();
+    Ok((mesh, stats))
+}
+
+/// Cells along an axis stay below this so that three indices pack into a `u64`.
+const GRID_LIMIT: i64 = 1 << 21;
+
+/// Newton steps that pull a seed onto `f = 0`.
+const SEED_NEWTON_STEPS: usize = 2;
+
+fn check_params(params: &PolygoniseParams) -> Result<(), PolygoniseError> {
+    let invalid = |name, value, requirement| {
+        Err(PolygoniseError::InvalidParameter {
+            name,
+            value,
+            requirement,
+        })
+    };
+    match params.step {
+        GridStep::Depth(d) if d > 20 => return invalid("step", f64::from(d), "depth ≤ 20"),
+        GridStep::Absolute(s) | GridStep::SmallestRadius(s) if !(s.is_finite() && s > 0.0) => {
+            return invalid("step", s, "finite and > 0");
+        }
+        _ => {}
+    }
+    if let Some(t) = params.trim
+        && (t.is_nan() || t <= 0.0)
+    {
+        return invalid("trim", t, "> 0 (or None)");
+    }
+    if !(params.seed_reach.is_finite() && params.seed_reach >= 0.0) {
+        return invalid("seed_reach", params.seed_reach, "finite and ≥ 0");
+    }
+    Ok(())
+}
+
+fn grid_step(step: GridStep, seeds: &[DVec3], radii: &[f64]) -> Result<f64, PolygoniseError> {
+    let h = match step {
+        GridStep::Depth(d) => Aabb::from_points(seeds).longest_edge() / f64::from(1u32 << d),
+        GridStep::Absolute(s) => s,
+        GridStep::SmallestRadius(k) => k * radii.iter().copied().fold(f64::INFINITY, f64::min),
+    };
+    if h.is_finite() && h > 0.0 {
+        Ok(h)
+    } else {
+        // A single seed (or coincident seeds) has a bounding box without extent.
+        Err(PolygoniseError::InvalidParameter {
+            name: "step",
+            value: h,
+            requirement: "a positive step: give an absolute step when the seeds span no box",
+        })
+    }
+}
+
+/// Pulls each seed onto `f = 0` with Newton steps; `(projected point, |f| / ‖∇f‖ there)`, or
+/// `None` where `f` is undefined or flat.
+fn project_seeds(eval: &PuEvaluator<'_>, seeds: &[DVec3]) -> Vec<Option<(DVec3, f64)>> {
+    let mut points: Vec<Option<(DVec3, f64)>> =
+        seeds.iter().map(|&p| Some((p, f64::INFINITY))).collect();
+    // The last round only measures the distance at the final point.
+    for round in 0..=SEED_NEWTON_STEPS {
+        let live: Vec<DVec3> = points.iter().flatten().map(|&(p, _)| p).collect();
+        let mut results = eval.values_gradients(&live).into_iter();
+        for slot in points.iter_mut().filter(|s| s.is_some()) {
+            let Some((x, _)) = *slot else { continue };
+            *slot = results.next().flatten().and_then(|vg| {
+                let g2 = vg.gradient.length_squared();
+                if !(g2 > 0.0 && g2.is_finite()) {
+                    return None;
+                }
+                let distance = vg.value.abs() / g2.sqrt();
+                let next = if round < SEED_NEWTON_STEPS {
+                    x - vg.gradient * (vg.value / g2)
+                } else {
+                    x
+                };
+                next.is_finite().then_some((next, distance))
+            });
+        }
+    }
+    points
+}
+
+/// The uniform grid: vertex `(i, j, k)` is at `origin + step (i, j, k)`; cell `(i, j, k)` has
+/// that vertex as its lowest corner.
+#[derive(Debug)]
+struct Grid {
+    origin: DVec3,
+    step: f64,
+    /// Grid vertices along each axis; indices outside `0..dims` are outside every support.
+    dims: [i64; 3],
+}
+
+type Index3 = [i64; 3];
+
+impl Grid {
+    /// The grid of step `step` over the box where `eval`'s function can be defined (the
+    /// expanded balls), with one spare cell on every side.
+    fn around(eval: &PuEvaluator<'_>, step: f64) -> Result<Grid, PolygoniseError> {
+        let cover = eval.cover();
+        let mut defined = Aabb::EMPTY;
+        for (&c, &r) in cover.centers().iter().zip(cover.radii()) {
+            let r = r * eval.sigma();
+            defined.add(c - DVec3::splat(r));
+            defined.add(c + DVec3::splat(r));
+        }
+        let extent = defined.longest_edge();
+        let cells_per_axis = (extent / step).ceil() + 3.0;
+        if cells_per_axis.is_nan() || cells_per_axis >= GRID_LIMIT as f64 {
+            return Err(PolygoniseError::GridTooFine { step, extent });
+        }
+        Ok(Grid {
+            origin: defined.min - DVec3::splat(step),
+            step,
+            dims: (defined.extent() / step)
+                .ceil()
+                .as_ivec3()
+                .to_array()
+                .map(|d| d as i64 + 3),
+        })
+    }
+
+    fn position(&self, v: Index3) -> DVec3 {
+        self.origin + DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) * self.step
+    }
+
+    fn cell_of(&self, p: DVec3) -> Index3 {
+        let q = ((p - self.origin) / self.step).floor();
+        [q.x, q.y, q.z].map(|c| c.clamp(-1.0, GRID_LIMIT as f64) as i64)
+    }
+
+    fn in_range(&self, v: Index3) -> bool {
+        (0..3).all(|a| v[a] >= 0 && v[a] < self.dims[a])
+    }
+
+    /// The cell and its 26 neighbours.
+    fn block_around(&self, c: Index3) -> impl Iterator<Item = Index3> + '_ {
+        (0..27).map(move |n| [c[0] + n % 3 - 1, c[1] + (n / 3) % 3 - 1, c[2] + n / 9 - 1])
+    }
+}
+
+/// A cell index packed when in range, else a key no cell has.
+fn pack_clamped(v: Index3) -> u64 {
+    if v.iter().all(|&c| (0..GRID_LIMIT).contains(&c)) {
+        pack(v)
+    } else {
+        u64::MAX
+    }
+}
+
+fn unpack_clamped(key: u64) -> Option<Index3> {
+    (key != u64::MAX).then(|| unpack(key))
+}
+
+fn pack(v: Index3) -> u64 {
+    (v[0] as u64) | ((v[1] as u64) << 21) | ((v[2] as u64) << 42)
+}
+
+fn unpack(key: u64) -> Index3 {
+    let mask = (1u64 << 21) - 1;
+    [key & mask, (key >> 21) & mask, key >> 42].map(|c| c as i64)
+}
+
+/// A multiplicative hash of packed grid keys: std's SipHash costs more than the work per
+/// key here.
+#[derive(Default)]
+struct KeyHasher(u64);
+
+impl Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+    }
+    fn write_u64(&mut self, key: u64) {
+        let x = (key ^ (key >> 29)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        self.0 = x ^ (x >> 32);
+    }
+}
+
+type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
+
+/// Corner `c` of a cube (bit 0: +x, bit 1: +y, bit 2: +z).
+fn corner_offset(c: usize) -> Index3 {
+    [(c & 1) as i64, ((c >> 1) & 1) as i64, ((c >> 2) & 1) as i64]
+}
+
+/// Cube edge `4d + bu + 2bw` runs along axis `d` from the corner with bit `bu` on axis
+/// `(d + 1) % 3` and bit `bw` on axis `(d + 2) % 3` (zero on `d`).
+const fn edge_ends(e: usize) -> (usize, usize) {
+    let d = e / 4;
+    let (u, w) = ((d + 1) % 3, (d + 2) % 3);
+    let a = ((e & 1) << u) | (((e >> 1) & 1) << w);
+    (a, a | (1 << d))
+}
+
+const fn edge_between(a: usize, b: usize) -> usize {
+    let d = (a ^ b).trailing_zeros() as usize;
+    let lo = if a < b { a } else { b };
+    let (u, w) = ((d + 1) % 3, (d + 2) % 3);
+    4 * d + ((lo >> u) & 1) + 2 * ((lo >> w) & 1)
+}
+
+/// The corners of face `2a + s` (normal axis `a`, side `s`) in cyclic order, with the bits of
+/// axes `(a + 1) % 3`, `(a + 2) % 3` going (0,0), (1,0), (1,1), (0,1). Both cells sharing a
+/// face list its grid vertices in the same order.
+const FACE_CORNERS: [[usize; 4]; 6] = {
+    let mut t = [[0; 4]; 6];
+    let mut f = 0;
+    while f < 6 {
+        let (a, s) = (f / 2, f % 2);
+        let (u, w) = ((a + 1) % 3, (a + 2) % 3);
+        let base = s << a;
+        t[f] = [
+            base,
+            base | (1 << u),
+            base | (1 << u) | (1 << w),
+            base | (1 << w),
+        ];
+        f += 1;
+    }
+    t
+};
+
+/// Edge `k` of face `f` joins its corners `k` and `k + 1`.
+const FACE_EDGES: [[usize; 4]; 6] = {
+    let mut t = [[0; 4]; 6];
+    let mut f = 0;
+    while f < 6 {
+        let mut k = 0;
+        while k < 4 {
+            t[f][k] = edge_between(FACE_CORNERS[f][k], FACE_CORNERS[f][(k + 1) % 4]);
+            k += 1;
+        }
+        f += 1;
+    }
+    t
+};
+
+/// No sheet crosses this cube edge.
+const NO_SHEET: u8 = u8::MAX;
+
+fn inside(v: f64) -> bool {
+    v > 0.0
+}
+
+/// Groups the crossing edges of a cell with corner values `f` into the closed polygons of
+/// marching cubes (see the module notes): the sheet of each cube edge (or [`NO_SHEET`]) and
+/// the number of sheets.
+fn cell_sheets(f: &[f64; 8]) -> ([u8; 12], u8) {
+    const NONE: u8 = u8::MAX;
+    let mut partners = [[NONE; 2]; 12];
+    let mut link = |a: usize, b: usize| {
+        for (x, y) in [(a, b), (b, a)] {
+            let slot = if partners[x][0] == NONE { 0 } else { 1 };
+            partners[x][slot] = y as u8;
+        }
+    };
+    for face in 0..6 {
+        let q = FACE_CORNERS[face].map(|c| f[c]);
+        let crosses: [bool; 4] = std::array::from_fn(|k| inside(q[k]) != inside(q[(k + 1) % 4]));
+        let edges = FACE_EDGES[face];
+        match crosses.iter().filter(|&&c| c).count() {
+            2 => {
+                let mut it = (0..4).filter(|&k| crosses[k]);
+                let (a, b) = (it.next().unwrap_or(0), it.next().unwrap_or(0));
+                link(edges[a], edges[b]);
+            }
+            4 => {
+                // The bilinear interpolant's value at its saddle: corners 0 and 2 are joined
+                // through the face when it has their side. The denominator cannot vanish:
+                // the corner pairs lie strictly on opposite sides of 0 in sum.
+                let saddle = (q[0] * q[2] - q[1] * q[3]) / (q[0] + q[2] - q[1] - q[3]);
+                if inside(saddle) == inside(q[0]) {
+                    // Cut off corners 1 and 3.
+                    link(edges[0], edges[1]);
+                    link(edges[2], edges[3]);
+                } else {
+                    // Cut off corners 0 and 2.
+                    link(edges[3], edges[0]);
+                    link(edges[1], edges[2]);
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut sheet = [NO_SHEET; 12];
+    let mut sheets = 0u8;
+    for e in 0..12 {
+        if partners[e][0] == NONE || sheet[e] != NO_SHEET {
+            continue;
+        }
+        let (mut prev, mut cur) = (usize::MAX, e);
+        while sheet[cur] == NO_SHEET {
+            sheet[cur] = sheets;
+            let [p, q] = partners[cur].map(usize::from);
+            let next = if p != prev { p } else { q };
+            prev = cur;
+            cur = next;
+            if cur >= 12 {
+                break;
+            }
+        }
+        sheets += 1;
+    }
+    (sheet, sheets)
+}
+
+/// An active cell: which corners are inside and the sheet of each crossing cube edge. (The
+/// corner values stay in the bricks: a copy here would double the search's memory.)
+#[derive(Clone, Copy, Debug)]
+struct ActiveCell {
+    /// Bit `k` is set when corner `k` is inside.
+    inside: u8,
+    sheet: [u8; 12],
+    sheets: u8,
+}
+
+/// Side of a brick in grid vertices (and cells).
+const BRICK_SHIFT: u32 = 2;
+const BRICK_MASK: i64 = (1 << BRICK_SHIFT) - 1;
+const BRICK_LEN: usize = 1 << (3 * BRICK_SHIFT);
+
+/// The state of a 4×4×4 block of grid vertices, and of the cells whose lowest corner they
+/// are. Storing the grid sparsely by bricks keeps one hash lookup per brick rather than per
+/// vertex, and neighbouring vertices mostly share a brick.
+#[derive(Clone, Debug)]
+struct Brick {
+    /// `f` at each vertex (NaN where undefined), once its bit in `evaluated` is set.
+    values: [f64; BRICK_LEN],
+    evaluated: u64,
+    /// Cells queued or examined by the search.
+    visited: u64,
+    /// Slot in [`Search::cells`] of each active cell, or `u32::MAX`.
+    active: [u32; BRICK_LEN],
+}
+
+impl Brick {
+    const EMPTY: Brick = Brick {
+        values: [f64::NAN; BRICK_LEN],
+        evaluated: 0,
+        visited: 0,
+        active: [u32::MAX; BRICK_LEN],
+    };
+}
+
+/// The brick key of a grid index and its position in the brick.
+fn brick_of(v: Index3) -> (u64, usize) {
+    let key = pack(v.map(|c| c >> BRICK_SHIFT));
+    let local = (v[0] & BRICK_MASK)
+        | ((v[1] & BRICK_MASK) << BRICK_SHIFT)
+        | ((v[2] & BRICK_MASK) << (2 * BRICK_SHIFT));
+    (key, local as usize)
+}
+
+/// Read access to bricks that remembers the last brick found, since queries come in
+/// neighbourhoods.
+struct BrickReader<'s> {
+    index: &'s KeyMap<u32>,
+    bricks: &'s [Brick],
+    last: Option<(u64, Option<&'s Brick>)>,
+}
+
+impl<'s> BrickReader<'s> {
+    fn get(&mut self, v: Index3) -> Option<(&'s Brick, usize)> {
+        let (key, local) = brick_of(v);
+        let brick = match self.last {
+            Some((k, b)) if k == key => b,
+            _ => {
+                let b = self.index.get(&key).map(|&i| &self.bricks[i as usize]);
+                self.last = Some((key, b));
+                b
+            }
+        };
+        brick.map(|b| (b, local))
+    }
+
+    fn value(&mut self, v: Index3) -> Option<f64> {
+        self.get(v)
+            .and_then(|(b, l)| (b.evaluated >> l & 1 == 1).then_some(b.values[l]))
+    }
+
+    fn active_slot(&mut self, c: Index3) -> Option<u32> {
+        self.get(c)
+            .map(|(b, l)| b.active[l])
+            .filter(|&s| s != u32::MAX)
+    }
+}
+
+/// The breadth-first search over active cells.
+struct Search<'e, 'c> {
+    eval: &'e PuEvaluator<'c>,
+    grid: &'e Grid,
+    max_cells: usize,
+    /// Slot in `bricks` of each brick key.
+    brick_index: KeyMap<u32>,
+    bricks: Vec<Brick>,
+    /// Active cells with their keys, in the order found.
+    cells: Vec<(u64, ActiveCell)>,
+    visited_cells: usize,
+    evaluations: usize,
+    evaluation_time: Duration,
+}
+
+impl<'e, 'c> Search<'e, 'c> {
+    fn new(eval: &'e PuEvaluator<'c>, grid: &'e Grid, max_cells: usize) -> Self {
+        Search {
+            eval,
+            grid,
+            max_cells,
+            brick_index: KeyMap::default(),
+            bricks: Vec::new(),
+            cells: Vec::new(),
+            visited_cells: 0,
+            evaluations: 0,
+            evaluation_time: Duration::ZERO,
+        }
+    }
+
+    fn reader(&self) -> BrickReader<'_> {
+        BrickReader {
+            index: &self.brick_index,
+            bricks: &self.bricks,
+            last: None,
+        }
+    }
+
+    /// The brick holding `v` (created if needed) and `v`'s position in it; `cache` holds the
+    /// last brick key and slot.
+    fn brick_mut(&mut self, v: Index3, cache: &mut (u64, u32)) -> (&mut Brick, usize) {
+        let (key, local) = brick_of(v);
+        if cache.0 != key {
+            let next = self.bricks.len() as u32;
+            let slot = *self.brick_index.entry(key).or_insert(next);
+            if slot == next {
+                self.bricks.push(Brick::EMPTY);
+            }
+            *cache = (key, slot);
+        }
+        (&mut self.bricks[cache.1 as usize], local)
+    }
+
+    /// Marks cell `c` visited; true when it was not before.
+    fn visit(&mut self, c: Index3, cache: &mut (u64, u32)) -> bool {
+        let (brick, l) = self.brick_mut(c, cache);
+        let fresh = brick.visited >> l & 1 == 0;
+        brick.visited |= 1 << l;
+        self.visited_cells += usize::from(fresh);
+        fresh
+    }
+
+    /// Whether the search has queued or examined cell `c`.
+    fn visited(&self, c: Index3) -> bool {
+        self.grid.in_range(c)
+            && self
+                .reader()
+                .get(c)
+                .is_some_and(|(b, l)| b.visited >> l & 1 == 1)
+    }
+
+    /// Whether the cell or one of its 26 neighbours is active.
+    fn near_active(&self, c: Index3) -> bool {
+        let mut reader = self.reader();
+        self.grid
+            .block_around(c)
+            .any(|n| self.grid.in_range(n) && reader.active_slot(n).is_some())
+    }
+
+    /// A cell needs its far corner in range too.
+    fn cell_in_range(&self, c: Index3) -> bool {
+        self.grid.in_range(c) && self.grid.in_range(c.map(|x| x + 1))
+    }
+
+    /// Visits the cells `starts` not yet visited and everything reachable from them.
+    fn run(&mut self, starts: Vec<Index3>) -> Result<(), PolygoniseError> {
+        let mut cache = (u64::MAX, 0);
+        let mut frontier: Vec<Index3> = Vec::new();
+        for c in starts {
+            if self.cell_in_range(c) && self.visit(c, &mut cache) {
+                frontier.push(c);
+            }
+        }
+        while !frontier.is_empty() {
+            if self.visited_cells > self.max_cells {
+                return Err(PolygoniseError::TooManyCells {
+                    max_cells: self.max_cells,
+                    step: self.grid.step,
+                });
+            }
+            self.evaluate_corners(&frontier);
+            let classified: Vec<Option<ActiveCell>> = frontier
+                .par_chunks(256)
+                .flat_map_iter(|chunk| {
+                    let mut reader = self.reader();
+                    chunk
+                        .iter()
+                        .map(|&c| classify(&mut reader, c))
+                        .collect::<Vec<_>>()
+                })
+                .collect();
+            let mut next = Vec::new();
+            for (&c, cell) in frontier.iter().zip(classified) {
+                let Some(cell) = cell else { continue };
+                for e in 0..12 {
+                    if cell.sheet[e] == NO_SHEET {
+                        continue;
+                    }
+                    for n in cells_around_edge(c, e) {
+                        if n != c && self.cell_in_range(n) && self.visit(n, &mut cache) {
+                            next.push(n);
+                        }
+                    }
+                }
+                let slot = self.cells.len() as u32;
+                let (brick, l) = self.brick_mut(c, &mut cache);
+                brick.active[l] = slot;
+                self.cells.push((pack(c), cell));
+            }
+            frontier = next;
+        }
+        Ok(())
+    }
+
+    fn evaluate_corners(&mut self, cells: &[Index3]) {
+        let mut cache = (u64::MAX, 0);
+        let mut targets = Vec::new();
+        let mut points = Vec::new();
+        for &c in cells {
+            for k in 0..8 {
+                let o = corner_offset(k);
+                let v = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+                let (brick, l) = self.brick_mut(v, &mut cache);
+                if brick.evaluated >> l & 1 == 0 {
+                    brick.evaluated |= 1 << l;
+                    targets.push((cache.1, l));
+                    points.push(self.grid.position(v));
+                }
+            }
+        }
+        self.evaluations += points.len();
+        let start = Instant::now();
+        let values = self.eval.values(&points);
+        self.evaluation_time += start.elapsed();
+        for ((brick, l), v) in targets.into_iter().zip(values) {
+            self.bricks[brick as usize].values[l] = v.unwrap_or(f64::NAN);
+        }
+    }
+}
+
+/// The active-cell data of cell `c`, or `None` when it is not active or `f` is undefined at
+/// a corner.
+fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
+    let mut values = [0.0; 8];
+    let mut inside_count = 0;
+    for (k, value) in values.iter_mut().enumerate() {
+        let o = corner_offset(k);
+        let v = reader.value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])?;
+        if v.is_nan() {
+            return None;
+        }
+        inside_count += usize::from(inside(v));
+        *value = v;
+    }
+    if inside_count == 0 || inside_count == 8 {
+        return None;
+    }
+    let (sheet, sheets) = cell_sheets(&values);
+    Some(ActiveCell {
+        inside: (0..8).fold(0, |m, k| m | (u8::from(inside(values[k])) << k)),
+        sheet,
+        sheets,
+    })
+}
+
+/// The four cells around cube edge `e` of cell `c`, counter-clockwise seen from the edge's
+/// positive direction, each with the index the edge has in it.
+fn cells_around_edge(c: Index3, e: usize) -> [Index3; 4] {
+    cells_and_edges_around(c, e).map(|(n, _)| n)
+}
+
+fn cells_and_edges_around(c: Index3, e: usize) -> [(Index3, usize); 4] {
+    let d = e / 4;
+    let (u, w) = ((d + 1) % 3, (d + 2) % 3);
+    // The grid vertex where the edge starts.
+    let mut g = c;
+    g[u] += (e & 1) as i64;
+    g[w] += ((e >> 1) & 1) as i64;
+    // Relative to the edge, cell g lies at (+u, +w); going (+,+), (−,+), (−,−), (+,−) is
+    // counter-clockwise seen from +d since (u, w, d) is right-handed.
+    let shifted = |du: i64, dw: i64| {
+        let mut n = g;
+        n[u] -= du;
+        n[w] -= dw;
+        (n, 4 * d + du as usize + 2 * dw as usize)
+    };
+    [shifted(0, 0), shifted(1, 0), shifted(1, 1), shifted(0, 1)]
+}
+
+/// Builds the mesh from the active cells, in ascending cell order.
+fn extract(
+    search: &Search,
+    grid: &Grid,
+    params: &PolygoniseParams,
+    stats: &mut PolygoniseStats,
+) -> TriMesh {
+    // Ascending cell order, whatever order the search found them in.
+    let mut order: Vec<u32> = (0..search.cells.len() as u32).collect();
+    order.par_sort_unstable_by_key(|&i| search.cells[i as usize].0);
+    let mut rank = vec![0u32; order.len()];
+    for (r, &i) in order.iter().enumerate() {
+        rank[i as usize] = r as u32;
+    }
+    let keys: Vec<u64> = order.iter().map(|&i| search.cells[i as usize].0).collect();
+    let cells: Vec<&ActiveCell> = order.iter().map(|&i| &search.cells[i as usize].1).collect();
+    let mut first_vertex = Vec::with_capacity(keys.len() + 1);
+    let mut total = 0u32;
+    for cell in &cells {
+        first_vertex.push(total);
+        total += u32::from(cell.sheets);
+    }
+    first_vertex.push(total);
+    stats.active_cells = cells.len();
+    stats.multi_sheet_cells = cells.iter().filter(|c| c.sheets > 1).count();
+
+    // Vertices: the mean of each sheet's edge crossings.
+    let mut vertices: Vec<DVec3> = keys
+        .par_iter()
+        .zip(&cells)
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let base = grid.position(c);
+                let value = |reader: &mut BrickReader<'_>, k: usize| {
+                    let o = corner_offset(k);
+                    reader
+                        .value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
+                        .unwrap_or(f64::NAN)
+                };
+                let mut sums = vec![(DVec3::ZERO, 0u32); usize::from(cell.sheets)];
+                for e in 0..12 {
+                    let s = cell.sheet[e];
+                    if s == NO_SHEET {
+                        continue;
+                    }
+                    let (a, b) = edge_ends(e);
+                    let (fa, fb) = (value(reader, a), value(reader, b));
+                    let t = fa / (fa - fb);
+                    let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
+                    let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
+                    let slot = &mut sums[usize::from(s)];
+                    slot.0 += pa + (pb - pa) * t;
+                    slot.1 += 1;
+                }
+                sums.into_iter()
+                    .map(|(sum, n)| base + sum / f64::from(n) * grid.step)
+                    .collect::<Vec<DVec3>>()
+            },
+        )
+        .flatten_iter()
+        .collect();
+
+    let mut normals = None;
+    if params.project || params.normals {
+        let owner: Vec<Index3> = keys
+            .iter()
+            .zip(&cells)
+            .flat_map(|(&k, cell)| std::iter::repeat_n(unpack(k), usize::from(cell.sheets)))
+            .collect();
+        let fg = search.eval.values_gradients(&vertices);
+        // The gradient before the Newton step serves as the normal: the step is shorter than
+        // a cell, and another evaluation would cost as much as the whole projection.
+        normals = Some(
+            fg.par_iter()
+                .map(|vg| vg.map_or(DVec3::ZERO, |vg| (-vg.gradient).normalize_or_zero()))
+                .collect::<Vec<DVec3>>(),
+        );
+        if params.project {
+            vertices
+                .par_iter_mut()
+                .zip(fg)
+                .zip(owner)
+                .for_each(|((x, vg), c)| {
+                    let Some(vg) = vg else { return };
+                    let g2 = vg.gradient.length_squared();
+                    if !(g2 > 0.0 && g2.is_finite()) {
+                        return;
+                    }
+                    let lo = grid.position(c);
+                    let hi = lo + DVec3::splat(grid.step);
+                    let moved = (*x - vg.gradient * (vg.value / g2)).clamp(lo, hi);
+                    if moved.is_finite() {
+                        *x = moved;
+                    }
+                });
+        }
+    }
+
+    // Quads: each crossing grid edge is emitted by the cell where it is cube edge 0, 4 or 8.
+    let per_cell: Vec<(Vec<[u32; 3]>, usize)> = keys
+        .par_iter()
+        .zip(&cells)
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let mut tris = Vec::new();
+                let mut open = 0;
+                for d in 0..3 {
+                    let e = 4 * d;
+                    if cell.sheet[e] == NO_SHEET {
+                        continue;
+                    }
+                    let around = cells_and_edges_around(c, e);
+                    let mut quad = [0u32; 4];
+                    let mut complete = true;
+                    for (slot, (n, ne)) in quad.iter_mut().zip(around) {
+                        let found = grid
+                            .in_range(n)
+                            .then(|| reader.active_slot(n))
+                            .flatten()
+                            .map(|slot| {
+                                let i = rank[slot as usize];
+                                (i, cells[i as usize].sheet[ne])
+                            });
+                        match found {
+                            Some((i, s)) if s != NO_SHEET => {
+                                *slot = first_vertex[i as usize] + u32::from(s)
+                            }
+                            _ => complete = false,
+                        }
+                    }
+                    if !complete {
+                        open += 1;
+                        continue;
+                    }
+                    let (a, _) = edge_ends(e);
+                    if cell.inside >> a & 1 == 0 {
+                        quad.reverse();
+                    }
+                    let p = quad.map(|v| vertices[v as usize]);
+                    if p[0].distance_squared(p[2]) <= p[1].distance_squared(p[3]) {
+                        tris.push([quad[0], quad[1], quad[2]]);
+                        tris.push([quad[0], quad[2], quad[3]]);
+                    } else {
+                        tris.push([quad[0], quad[1], quad[3]]);
+                        tris.push([quad[1], quad[2], quad[3]]);
+                    }
+                }
+                (tris, open)
+            },
+        )
+        .collect();
+    let mut triangles = Vec::with_capacity(per_cell.iter().map(|(t, _)| t.len()).sum());
+    for (tris, open) in per_cell {
+        triangles.extend(tris);
+        stats.open_quads += open;
+    }
+    let mut mesh = TriMesh::new(vertices, triangles);
+    mesh.normals = if params.normals { normals } else { None };
+    remove_unused_vertices(&mut mesh);
+    mesh
+}
+
+/// Drops triangles whose centroid is farther than `limit` from every seed; returns how many.
+fn trim(mesh: &mut TriMesh, seeds: &[DVec3], limit: f64) -> Result<usize, PolygoniseError> {
+    let index = PointIndex::new(seeds)?;
+    let keep: Vec<bool> = mesh
+        .triangles
+        .par_iter()
+        .map_init(Vec::new, |found, t| {
+            let centroid = t.iter().map(|&v| mesh.vertices[v as usize]).sum::<DVec3>() / 3.0;
+            index.nearest_k_with_distances(centroid, 1, found);
+            found.first().is_some_and(|&(d2, _)| d2 <= limit * limit)
+        })
+        .collect();
+    let before = mesh.triangles.len();
+    let mut k = keep.iter();
+    mesh.triangles.retain(|_| *k.next().unwrap_or(&false));
+    remove_unused_vertices(mesh);
+    Ok(before - mesh.triangles.len())
+}
+
+/// Splits every vertex whose triangles form several fans (joined through edges shared by
+/// exactly two of them) into one vertex per fan; returns how many new vertices were made.
+fn split_fans(mesh: &mut TriMesh) -> usize {
+    let n = mesh.vertices.len();
+    let mut offsets = vec![0u32; n + 1];
+    for t in &mesh.triangles {
+        for &v in t {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for v in 0..n {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut fill = offsets.clone();
+    let mut incident = vec![0u32; offsets[n] as usize];
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        for &v in t {
+            incident[fill[v as usize] as usize] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    // Per vertex: the fan of each incident triangle (in `incident` order), when there are
+    // several fans.
+    let fans: Vec<Option<Vec<u32>>> = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|v| {
+            let tris = &incident[offsets[v] as usize..offsets[v + 1] as usize];
+            fans_of(v as u32, tris, &mesh.triangles)
+        })
+        .collect();
+    let mut added = 0;
+    for (v, fan) in fans.into_iter().enumerate() {
+        let Some(fan) = fan else { continue };
+        let count = fan.iter().copied().max().unwrap_or(0) as usize + 1;
+        let copies: Vec<u32> = std::iter::once(v as u32)
+            .chain((1..count).map(|k| (n + added + k - 1) as u32))
+            .collect();
+        for _ in 1..count {
+            mesh.vertices.push(mesh.vertices[v]);
+            if let Some(normals) = &mut mesh.normals {
+                normals.push(normals[v]);
+            }
+        }
+        added += count - 1;
+        let tris = &incident[offsets[v] as usize..offsets[v + 1] as usize];
+        for (&t, &f) in tris.iter().zip(&fan) {
+            for corner in &mut mesh.triangles[t as usize] {
+                if *corner == v as u32 {
+                    *corner = copies[f as usize];
+                }
+            }
+        }
+    }
+    added
+}
+
+/// The fan of each triangle in `tris` (all holding `v`), numbered from 0 in order of first
+/// appearance, or `None` when they form a single fan.
+fn fans_of(v: u32, tris: &[u32], triangles: &[[u32; 3]]) -> Option<Vec<u32>> {
+    if tris.len() <= 1 {
+        return None;
+    }
+    let mut parent: Vec<usize> = (0..tris.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    // Each other corner w of an incident triangle names the edge (v, w).
+    let mut by_other: Vec<(u32, usize)> = Vec::with_capacity(2 * tris.len());
+    for (i, &t) in tris.iter().enumerate() {
+        for &w in &triangles[t as usize] {
+            if w != v {
+                by_other.push((w, i));
+            }
+        }
+    }
+    by_other.sort_unstable();
+    for group in by_other.chunk_by(|a, b| a.0 == b.0) {
+        if let [(_, a), (_, b)] = group {
+            let (ra, rb) = (root(&mut parent, *a), root(&mut parent, *b));
+            parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    let mut label = vec![u32::MAX; tris.len()];
+    let mut next = 0;
+    let mut fan = Vec::with_capacity(tris.len());
+    for i in 0..tris.len() {
+        let r = root(&mut parent, i);
+        if label[r] == u32::MAX {
+            label[r] = next;
+            next += 1;
+        }
+        fan.push(label[r]);
+    }
+    (next > 1).then_some(fan)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::{
+        Cover, Kernel, LinearFunction, LocalFunctions, SurfaceCoverParams, build_surface_cover,
+    };
+    use sphcover_fixtures::{sphere, sphere_signed_distance, torus, torus_signed_distance};
+
+    fn cover_of(cloud: &sphcover_core::PointCloud) -> Cover {
+        let normals = cloud.normals.as_ref().expect("fixtures carry normals");
+        // A coarser tolerance than the default keeps the cover (and the test) small.
+        let params = SurfaceCoverParams {
+            eps: 5e-3,
+            ..SurfaceCoverParams::default()
+        };
+        build_surface_cover(&cloud.positions, normals, &params)
+            .expect("cover of a fixture")
+            .0
+    }
+
+    /// `Σ (a × b)·c / 6`: positive for a closed mesh wound counter-clockwise from outside.
+    fn signed_volume(mesh: &TriMesh) -> f64 {
+        mesh.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| mesh.vertices[v as usize]);
+                a.cross(b).dot(c) / 6.0
+            })
+            .sum()
+    }
+
+    fn params(depth: u32) -> PolygoniseParams {
+        PolygoniseParams {
+            step: GridStep::Depth(depth),
+            ..PolygoniseParams::default()
+        }
+    }
+
+    #[test]
+    fn sphere_is_a_closed_oriented_sphere_near_the_truth() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 4000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let (mesh, stats) = polygonise(&eval, &cloud.positions, &params(6)).unwrap();
+        let topo = MeshTopology::of(&mesh);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (1, 2));
+        let volume = signed_volume(&mesh);
+        let truth = 4.0 / 3.0 * std::f64::consts::PI * 0.4f64.powi(3);
+        assert!(
+            (volume / truth - 1.0).abs() < 0.02,
+            "volume {volume} vs {truth}"
+        );
+        let worst = mesh
+            .vertices
+            .iter()
+            .map(|&v| sphere_signed_distance(DVec3::ZERO, 0.4, v).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 0.25 * stats.step,
+            "worst {worst}, step {}",
+            stats.step
+        );
+        let normals = mesh.normals.as_ref().unwrap();
+        assert!(
+            mesh.vertices
+                .iter()
+                .zip(normals)
+                .all(|(v, n)| v.normalize().dot(*n) > 0.9)
+        );
+        assert_eq!(stats.open_quads, 0);
+        // Clean samples sit next to the surface: none needs pulling onto it.
+        assert_eq!(stats.seeds_searched, 0);
+    }
+
+    #[test]
+    fn torus_is_closed_with_euler_characteristic_zero() {
+        let cloud = torus(0.3, 0.12, 6000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        for project in [false, true] {
+            let p = PolygoniseParams {
+                project,
+                ..params(6)
+            };
+            let (mesh, stats) = polygonise(&eval, &cloud.positions, &p).unwrap();
+            let topo = MeshTopology::of(&mesh);
+            assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+            assert_eq!((topo.components, topo.euler_characteristic()), (1, 0));
+            assert!(signed_volume(&mesh) > 0.0);
+            let worst = mesh
+                .vertices
+                .iter()
+                .map(|&v| torus_signed_distance(0.3, 0.12, v).abs())
+                .fold(0.0, f64::max);
+            let bound = if project { 0.25 } else { 0.5 } * stats.step;
+            assert!(
+                worst < bound,
+                "project {project}: worst {worst}, step {}",
+                stats.step
+            );
+        }
+    }
+
+    #[test]
+    fn plane_patch_gives_an_open_manifold_sheet() {
+        let n = 40;
+        let points: Vec<DVec3> = (0..n * n)
+            .map(|i| {
+                DVec3::new(
+                    (i % n) as f64 / n as f64 - 0.5,
+                    (i / n) as f64 / n as f64 - 0.5,
+                    0.0,
+                )
+            })
+            .collect();
+        let normals = vec![DVec3::Z; points.len()];
+        let (cover, _) =
+            build_surface_cover(&points, &normals, &SurfaceCoverParams::default()).unwrap();
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let (mesh, stats) = polygonise(&eval, &points, &params(5)).unwrap();
+        let topo = MeshTopology::of(&mesh);
+        assert!(
+            topo.is_manifold() && topo.inconsistent_edges == 0,
+            "{topo:?}"
+        );
+        assert!(topo.boundary_edges > 0 && stats.open_quads > 0);
+        assert_eq!(topo.components, 1);
+        // Outside is +z: normals point up.
+        assert!(mesh.normals.unwrap().iter().all(|n| n.z > 0.9));
+        assert!(mesh.vertices.iter().all(|v| v.z.abs() < 1e-6));
+        // Trimming keeps what lies near the samples.
+        let trimmed = PolygoniseParams {
+            trim: Some(0.05),
+            ..params(5)
+        };
+        let (cut, stats) = polygonise(&eval, &points, &trimmed).unwrap();
+        assert!(stats.trimmed_triangles > 0);
+        assert!(
+            cut.vertices
+                .iter()
+                .all(|v| v.x.abs() < 0.56 && v.y.abs() < 0.56)
+        );
+        assert!(MeshTopology::of(&cut).is_manifold());
+    }
+
+    #[test]
+    fn trimming_a_sphere_seeded_on_one_half_opens_it() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 4000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let upper: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .copied()
+            .filter(|p| p.z > 0.0)
+            .collect();
+        let p = PolygoniseParams {
+            trim: Some(0.03),
+            ..params(6)
+        };
+        let (mesh, stats) = polygonise(&eval, &upper, &p).unwrap();
+        assert!(stats.trimmed_triangles > 0);
+        assert!(mesh.vertices.iter().all(|v| v.z > -0.06));
+        let topo = MeshTopology::of(&mesh);
+        assert!(topo.is_manifold() && topo.boundary_edges > 0, "{topo:?}");
+        assert_eq!(topo.components, 1);
+    }
+
+    #[test]
+    fn seeds_off_the_surface_are_pulled_onto_it_or_dropped() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 2000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = params(6);
+        // Three steps outside: too far to touch a meshed cell, close enough to pull in.
+        let step = Aabb::from_points(&cloud.positions).longest_edge() / 64.0;
+        let near: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|&q| q * (1.0 + 3.0 * step / 0.4))
+            .collect();
+        let (mesh, stats) = polygonise(&eval, &near, &p).unwrap();
+        assert!(stats.seeds_searched >= 1);
+        let topo = MeshTopology::of(&mesh);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!((topo.components, topo.euler_characteristic()), (1, 2));
+        // Eight steps away is beyond the default reach of four.
+        let far: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|&q| q * (1.0 + 8.0 * step / 0.4))
+            .collect();
+        assert!(matches!(
+            polygonise(&eval, &far, &p),
+            Err(PolygoniseError::NoSurfaceNearSeeds { .. })
+        ));
+    }
+
+    #[test]
+    fn only_the_surface_reached_from_the_seeds_is_meshed() {
+        let mut left = sphere(DVec3::new(-0.25, 0.0, 0.0), 0.15, 1500);
+        let right = sphere(DVec3::new(0.25, 0.0, 0.0), 0.15, 1500);
+        let left_seeds = left.positions.clone();
+        left.positions.extend(&right.positions);
+        if let (Some(a), Some(b)) = (left.normals.as_mut(), right.normals.as_ref()) {
+            a.extend(b);
+        }
+        let cover = cover_of(&left);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = PolygoniseParams {
+            step: GridStep::Absolute(0.01),
+            ..PolygoniseParams::default()
+        };
+        let (one, _) = polygonise(&eval, &left_seeds, &p).unwrap();
+        assert_eq!(MeshTopology::of(&one).components, 1);
+        assert!(one.vertices.iter().all(|v| v.x < 0.0));
+        let (both, _) = polygonise(&eval, &left.positions, &p).unwrap();
+        let topo = MeshTopology::of(&both);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+    }
+
+    #[test]
+    fn a_plate_thinner_than_a_cell_keeps_its_two_sides_apart() {
+        // Both faces of a plate of thickness 0.008 pass through the same cells at step 0.02:
+        // one vertex per cell would glue them; one per sheet keeps a manifold.
+        // Tilted, so that grid vertices fall inside the plate all over it.
+        let tilt = glam::DMat3::from_rotation_x(0.5) * glam::DMat3::from_rotation_y(0.3);
+        let n = 40;
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for i in 0..n * n {
+            let (x, y) = (
+                (i % n) as f64 / n as f64 - 0.5,
+                (i / n) as f64 / n as f64 - 0.5,
+            );
+            for side in [-1.0, 1.0] {
+                points.push(tilt * DVec3::new(0.6 * x, 0.6 * y, 0.004 * side));
+                normals.push(tilt * DVec3::Z * side);
+            }
+        }
+        let params = SurfaceCoverParams {
+            eps: 2e-3,
+            ..SurfaceCoverParams::default()
+        };
+        let (cover, _) = build_surface_cover(&points, &normals, &params).unwrap();
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = PolygoniseParams {
+            step: GridStep::Absolute(0.02),
+            project: false,
+            ..PolygoniseParams::default()
+        };
+        let (mesh, stats) = polygonise(&eval, &points, &p).unwrap();
+        assert!(stats.multi_sheet_cells > 100, "{stats:?}");
+        let topo = MeshTopology::of(&mesh);
+        assert!(
+            topo.is_manifold() && topo.inconsistent_edges == 0,
+            "{topo:?}"
+        );
+        // The two faces are separate sheets: normals up on top, down below.
+        // Both faces are there, wound outwards: as much area faces up as down.
+        let up = tilt * DVec3::Z;
+        let (mut top, mut bottom) = (0.0, 0.0);
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|v| mesh.vertices[v as usize]);
+            let along = (b - a).cross(c - a).dot(up);
+            if along > 0.0 {
+                top += along;
+            } else {
+                bottom -= along;
+            }
+        }
+        assert!(
+            top > 0.0 && (top / bottom - 1.0).abs() < 0.2,
+            "{top} {bottom}"
+        );
+    }
+
+    /// The search from seeds on every component finds exactly the active cells (with the
+    /// same sheets) that classifying every cell of the grid finds.
+    #[test]
+    fn search_finds_what_a_scan_of_the_whole_grid_finds() {
+        let mut cloud = sphere(DVec3::new(-0.2, 0.0, 0.0), 0.15, 1200);
+        let other = torus(0.15, 0.06, 2000);
+        let shifted: Vec<DVec3> = other
+            .positions
+            .iter()
+            .map(|&p| p + DVec3::X * 0.2)
+            .collect();
+        cloud.positions.extend(&shifted);
+        if let (Some(a), Some(b)) = (cloud.normals.as_mut(), other.normals.as_ref()) {
+            a.extend(b);
+        }
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let grid = Grid::around(&eval, 0.025).unwrap();
+        let mut search = Search::new(&eval, &grid, usize::MAX);
+        // One seed per component is enough.
+        let seeds = [cloud.positions[0], shifted[0]];
+        search
+            .run(
+                seeds
+                    .iter()
+                    .flat_map(|&p| grid.block_around(grid.cell_of(p)))
+                    .collect(),
+            )
+            .unwrap();
+        let mut found: Vec<(u64, [u8; 12])> =
+            search.cells.iter().map(|(k, c)| (*k, c.sheet)).collect();
+        found.sort_unstable();
+
+        let [nx, ny, nz] = grid.dims;
+        let index = |v: Index3| ((v[2] * ny + v[1]) * nx + v[0]) as usize;
+        let vertices: Vec<DVec3> = (0..nx * ny * nz)
+            .map(|i| grid.position([i % nx, (i / nx) % ny, i / (nx * ny)]))
+            .collect();
+        let values = eval.values(&vertices);
+        let mut scanned = Vec::new();
+        for i in 0..(nx - 1) * (ny - 1) * (nz - 1) {
+            let c = [
+                i % (nx - 1),
+                (i / (nx - 1)) % (ny - 1),
+                i / ((nx - 1) * (ny - 1)),
+            ];
+            let corners: Option<Vec<f64>> = (0..8)
+                .map(|k| {
+                    let o = corner_offset(k);
+                    values[index([c[0] + o[0], c[1] + o[1], c[2] + o[2]])]
+                })
+                .collect();
+            let Some(corners) = corners else { continue };
+            let f: [f64; 8] = std::array::from_fn(|k| corners[k]);
+            let inside_count = f.iter().filter(|&&v| inside(v)).count();
+            if inside_count != 0 && inside_count != 8 {
+                scanned.push((pack(c), cell_sheets(&f).0));
+            }
+        }
+        scanned.sort_unstable();
+        assert!(found.len() > 1000);
+        assert_eq!(found, scanned);
+    }
+
+    #[test]
+    fn bad_seeds_and_parameters_are_clear_errors() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 2000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let p = params(5);
+        assert_eq!(
+            polygonise(&eval, &[], &p).unwrap_err(),
+            PolygoniseError::NoSeeds { given: 0 }
+        );
+        assert_eq!(
+            polygonise(&eval, &[DVec3::NAN], &p).unwrap_err(),
+            PolygoniseError::NoSeeds { given: 1 }
+        );
+        let far = [DVec3::splat(5.0), DVec3::splat(6.0)];
+        assert_eq!(
+            polygonise(&eval, &far, &p).unwrap_err(),
+            PolygoniseError::NoSurfaceNearSeeds { seeds: 2 }
+        );
+        // One seed spans no box, so a depth gives no step.
+        assert!(matches!(
+            polygonise(&eval, &cloud.positions[..1], &p),
+            Err(PolygoniseError::InvalidParameter { name: "step", .. })
+        ));
+        let absolute = PolygoniseParams {
+            step: GridStep::Absolute(0.02),
+            ..p.clone()
+        };
+        assert!(polygonise(&eval, &cloud.positions[..1], &absolute).is_ok());
+        for bad in [
+            PolygoniseParams {
+                step: GridStep::Absolute(-1.0),
+                ..p.clone()
+            },
+            PolygoniseParams {
+                step: GridStep::SmallestRadius(f64::NAN),
+                ..p.clone()
+            },
+            PolygoniseParams {
+                trim: Some(0.0),
+                ..p.clone()
+            },
+            PolygoniseParams {
+                seed_reach: f64::INFINITY,
+                ..p.clone()
+            },
+        ] {
+            assert!(matches!(
+                polygonise(&eval, &cloud.positions, &bad),
+                Err(PolygoniseError::InvalidParameter { .. })
+            ));
+        }
+        let too_fine = PolygoniseParams {
+            step: GridStep::Absolute(1e-9),
+            ..p.clone()
+        };
+        assert!(matches!(
+            polygonise(&eval, &cloud.positions, &too_fine),
+            Err(PolygoniseError::GridTooFine { .. })
+        ));
+        let capped = PolygoniseParams {
+            max_cells: 100,
+            ..p
+        };
+        assert!(matches!(
+            polygonise(&eval, &cloud.positions, &capped),
+            Err(PolygoniseError::TooManyCells { .. })
+        ));
+    }
+
+    #[test]
+    fn bit_identical_whatever_the_thread_count() {
+        let cloud = torus(0.3, 0.12, 4000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| polygonise(&eval, &cloud.positions, &params(6)).unwrap().0)
+        };
+        assert_eq!(run(1), run(3));
+    }
+
+    /// A cover of `[-1, 1]³` by a 5×5×5 lattice of supports carrying the given linear
+    /// functions: its zero set is an arbitrary smooth surface, with sheets close together.
+    fn random_cover(funcs: &[(DVec3, f64)]) -> Cover {
+        let centers: Vec<DVec3> = (0..125)
+            .map(|i| DVec3::new((i % 5) as f64, ((i / 5) % 5) as f64, (i / 25) as f64) * 0.5 - 1.0)
+            .collect();
+        let lin = centers
+            .iter()
+            .zip(funcs)
+            .map(|(&c, &(a, b))| LinearFunction::from_global(a, b, c))
+            .collect::<Vec<_>>();
+        Cover::new(
+            centers,
+            vec![0.8; 125],
+            LocalFunctions::from_linear(lin),
+            Kernel::QuadraticBSpline,
+        )
+        .unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        /// Any zero set, however tangled, is meshed as an oriented 2-manifold: multi-sheet
+        /// cells get one vertex per sheet, and fans are split where the mesh stops.
+        #[test]
+        fn arbitrary_zero_sets_give_oriented_manifolds(
+            funcs in prop::collection::vec(
+                (prop::array::uniform3(-1.0f64..1.0), -0.3f64..0.3), 125),
+            step in 0.07f64..0.2,
+            project in any::<bool>(),
+        ) {
+            let funcs: Vec<(DVec3, f64)> =
+                funcs.into_iter().map(|(a, b)| (DVec3::from_array(a), b)).collect();
+            let cover = random_cover(&funcs);
+            let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+            let seeds = cover.centers().to_vec();
+            let p = PolygoniseParams {
+                step: GridStep::Absolute(step),
+                project,
+                seed_reach: 100.0,
+                ..PolygoniseParams::default()
+            };
+            match polygonise(&eval, &seeds, &p) {
+                Ok((mesh, _)) => {
+                    let topo = MeshTopology::of(&mesh);
+                    prop_assert!(topo.is_manifold(), "{:?}", topo);
+                    prop_assert_eq!(topo.inconsistent_edges, 0);
+                    prop_assert_eq!(topo.invalid_triangles, 0);
+                }
+                Err(PolygoniseError::NoSurfaceNearSeeds { .. }) => {}
+                Err(e) => prop_assert!(false, "{}", e),
+            }
+        }
+
+        /// The sheets of a cell: every crossing edge on one, the others on none, each sheet a
+        /// polygon of at least three edges, and the same sheets for `−f` (the decider treats
+        /// both sides alike).
+        #[test]
+        fn cell_sheets_are_polygons(values in prop::array::uniform8(-1.0f64..1.0)) {
+            let values = values.map(|v| if v == 0.0 { 0.5 } else { v });
+            let (sheet, count) = cell_sheets(&values);
+            let mut sizes = vec![0; usize::from(count)];
+            for e in 0..12 {
+                let (a, b) = edge_ends(e);
+                let crossing = inside(values[a]) != inside(values[b]);
+                prop_assert_eq!(crossing, sheet[e] != NO_SHEET);
+                if crossing {
+                    sizes[usize::from(sheet[e])] += 1;
+                }
+            }
+            prop_assert!(sizes.iter().all(|&s| s >= 3), "{:?}", sizes);
+            prop_assert_eq!(cell_sheets(&values.map(|v| -v)), (sheet, count));
+        }
+    }
+
+    /// Two closed tetrahedra glued at a vertex (a bow tie) or along an edge (four triangles
+    /// on it) come apart into two closed oriented manifolds.
+    #[test]
+    fn split_fans_separates_pinched_sheets() {
+        let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let tet = |v: [u32; 4]| faces.map(|f: [u32; 3]| f.map(|k| v[k as usize]));
+        let mut vertices = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        vertices.extend([-DVec3::X, -DVec3::Y, -DVec3::Z]);
+        // Sharing vertex 0.
+        let mut pinched = TriMesh::new(
+            vertices.clone(),
+            [tet([0, 1, 2, 3]), tet([0, 4, 5, 6])].concat(),
+        );
+        pinched.normals = Some(vertices.clone());
+        assert_eq!(MeshTopology::of(&pinched).non_manifold_vertices, 1);
+        assert_eq!(split_fans(&mut pinched), 1);
+        let topo = MeshTopology::of(&pinched);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+        assert_eq!(pinched.normals.as_ref().map(Vec::len), Some(8));
+        assert_eq!(pinched.vertices[7], DVec3::ZERO);
+        // Sharing the edge 0–1: the second tetrahedron is the first turned half a turn about
+        // the x axis, so it is wound outwards too.
+        let mut glued = TriMesh::new(vertices, [tet([0, 1, 2, 3]), tet([0, 1, 5, 6])].concat());
+        assert_eq!(MeshTopology::of(&glued).non_manifold_edges, 1);
+        assert_eq!(split_fans(&mut glued), 2);
+        let topo = MeshTopology::of(&glued);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
+    }
+
+    #[test]
+    fn edge_tables_are_consistent() {
+        for e in 0..12 {
+            let (a, b) = edge_ends(e);
+            assert_eq!(edge_between(a, b), e);
+            assert_eq!(edge_between(b, a), e);
+        }
+        for f in 0..6 {
+            // Each face edge joins consecutive face corners.
+            for k in 0..4 {
+                let (a, b) = edge_ends(FACE_EDGES[f][k]);
+                let ends = [FACE_CORNERS[f][k], FACE_CORNERS[f][(k + 1) % 4]];
+                assert!(ends.contains(&a) && ends.contains(&b));
+            }
+        }
+        // Every cube edge lies on exactly two faces.
+        for e in 0..12 {
+            assert_eq!(FACE_EDGES.iter().filter(|f| f.contains(&e)).count(), 2);
+        }
+    }
+}
