@@ -188,7 +188,7 @@ pub enum SkeletonMethod {
 #[derive(Debug, Args)]
 pub struct SkeletonArgs {
     /// A CT volume (`.nii`, `.nii.gz`, `.inr`, `.inr.gz`) of a thin part, brighter than the
-    /// background, with cubic voxels.
+    /// background, with near-cubic voxels (at most 2:1) on axis-aligned axes.
     #[arg(value_name = "CT")]
     pub input: PathBuf,
     /// Output: the sheet as a triangle mesh (PLY, OBJ, OFF, STL) in world coordinates; with

@@ -1,4 +1,4 @@
-//! Cleaning of the raw patch mesh (SPEC beyond of thesis §6.4): weld coincident vertices,
+//! Cleaning of the raw patch mesh (future work in thesis §6.4): weld coincident vertices,
 //! drop degenerate triangles, drop fragments, fill tiny holes.
 //!
 //! * Welding: a tetrahedron crossed by a single ridge point puts its vertex `q_t` on that
@@ -440,18 +440,16 @@ mod tests {
 
     #[test]
     fn pinched_vertex_keeps_its_largest_fan() {
-        // Two grids sharing one corner vertex: a bow-tie.
+        // A 3 × 3 grid and one square below-left of it sharing only the corner (0, 0).
         let mut m = grid(3, 0.0, 0.0);
-        let small = grid(1, -1.0, 0.0);
         let off = m.vertices.len() as u32;
-        m.vertices.extend_from_slice(&small.vertices);
-        // Vertex 1 of `small` is (0, 0, 0): identify it with vertex 0 of the big grid.
-        m.triangles.extend(
-            small
-                .triangles
-                .iter()
-                .map(|t| t.map(|v| if v == 1 { 0 } else { v + off })),
-        );
+        m.vertices.extend_from_slice(&[
+            DVec3::new(-1.0, -1.0, 0.0),
+            DVec3::new(0.0, -1.0, 0.0),
+            DVec3::new(-1.0, 0.0, 0.0),
+        ]);
+        m.triangles.push([off, off + 1, 0]);
+        m.triangles.push([off, 0, off + 2]);
         assert_eq!(MeshTopology::of(&m).non_manifold_vertices, 1);
         let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
         assert_eq!(stats.pinch_triangles, 2);

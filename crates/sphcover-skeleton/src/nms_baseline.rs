@@ -82,7 +82,7 @@ pub fn nms_skeleton(
                 return None;
             }
             let c = at(i, j, k);
-            if !(c > intensity.threshold) {
+            if c.is_nan() || c <= intensity.threshold {
                 return None;
             }
             let d = |di: i64, dj: i64, dk: i64| {
@@ -112,7 +112,7 @@ pub fn nms_skeleton(
             let hw = inv_t * h * inv;
             let eig = smallest_eigen(&hw)?;
             let l1 = eig.values[0];
-            if !(l1 < 0.0) {
+            if l1.is_nan() || l1 >= 0.0 {
                 return None;
             }
             let t = -gw.dot(eig.vector) / l1;

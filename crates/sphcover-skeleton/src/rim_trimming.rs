@@ -1,4 +1,4 @@
-//! Trimming the sheet back from the rounded rims of the part (SPEC beyond of thesis §6.4).
+//! Trimming the sheet back from the rounded rims of the part (future work in thesis §6.4).
 //!
 //! A plate of thickness `t` ends in a rounded rim that sticks out `t/2` beyond the true
 //! sheet's boundary, and the intensity ridge runs on to the rim's tip: left alone, the
@@ -99,32 +99,38 @@ pub fn half_thickness(
     e: DVec3,
     params: &RimTrimParams,
 ) -> Option<f64> {
+    let a = surface_distance(evaluator, p, e, params)?;
+    let b = surface_distance(evaluator, p, -e, params)?;
+    Some(0.5 * (a + b))
+}
+
+/// The distance from `p` along the unit direction `d` to the first point where `f` falls
+/// below the surface level (linear interpolation between march steps), or `None` when `f`
+/// is undefined at `p` or does not fall below the level within the largest half-thickness.
+pub fn surface_distance(
+    evaluator: &PuEvaluator<'_>,
+    p: DVec3,
+    d: DVec3,
+    params: &RimTrimParams,
+) -> Option<f64> {
     let level = params.surface_level;
-    let mut total = 0.0;
-    for side in [1.0, -1.0] {
-        let mut prev = (0.0, evaluator.value(p)?);
-        let mut found = None;
-        let mut s = params.step;
-        while s <= params.max_half_thickness + params.step {
-            let v = evaluator
-                .value(p + side * s * e)
-                .unwrap_or(f64::NEG_INFINITY);
-            if v < level {
-                let denom = prev.1 - v;
-                let frac = if denom.is_finite() && denom > 0.0 {
-                    (prev.1 - level) / denom
-                } else {
-                    0.5
-                };
-                found = Some(prev.0 + frac.clamp(0.0, 1.0) * (s - prev.0));
-                break;
-            }
-            prev = (s, v);
-            s += params.step;
+    let mut prev = (0.0, evaluator.value(p)?);
+    let mut s = params.step;
+    while s <= params.max_half_thickness + params.step {
+        let v = evaluator.value(p + s * d).unwrap_or(f64::NEG_INFINITY);
+        if v < level {
+            let denom = prev.1 - v;
+            let frac = if denom.is_finite() && denom > 0.0 {
+                (prev.1 - level) / denom
+            } else {
+                0.5
+            };
+            return Some(prev.0 + frac.clamp(0.0, 1.0) * (s - prev.0));
         }
-        total += found?;
+        prev = (s, v);
+        s += params.step;
     }
-    Some(0.5 * total)
+    None
 }
 
 /// Geodesic (shortest path over edges) distance from every vertex to the mesh boundary (the

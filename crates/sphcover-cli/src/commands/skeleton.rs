@@ -11,8 +11,12 @@ use crate::args::{SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
 use crate::report::Reporter;
 
-/// Relative difference of voxel edge lengths accepted as cubic voxels.
+/// Relative difference of voxel edge lengths accepted as cubic voxels without a warning.
 const CUBIC_TOLERANCE: f64 = 1e-3;
+/// Largest ratio of voxel edge lengths processed: the cover works in world coordinates, so
+/// mildly anisotropic voxels (a CT's slice spacing a little off its pixel size) are fine,
+/// but beyond this a voxel is a needle and the local quadratic fits lose the thin direction.
+const MAX_ANISOTROPY: f64 = 2.0;
 /// Largest off-axis component (relative to the column length) of an axis-aligned affine.
 const AXIS_TOLERANCE: f64 = 1e-6;
 
@@ -43,7 +47,7 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let stage = reporter.stage("read volume");
     let (volume, info) = io::read_volume(&args.input)?;
     stage.finish();
-    check_volume(args, &volume, &info)?;
+    check_volume(args, &volume, &info, reporter)?;
     let [nx, ny, nz] = volume.dims();
     let size = volume.voxel_size();
     reporter.detail(&format!(
@@ -111,7 +115,7 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 "threshold {:.6} ({}); {} voxels above it after smoothing; {} ridge points -> {}",
                 stats.intensity.threshold,
                 if stats.intensity.automatic_threshold {
-                    "Otsu"
+                    "automatic"
                 } else {
                     "given"
                 },
@@ -124,9 +128,15 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Refuses what the pipeline cannot treat correctly: several frames, non-cubic voxels, and
-/// voxel axes that are not the world axes (up to order and sign).
-fn check_volume(args: &SkeletonArgs, volume: &Volume, info: &VolumeInfo) -> anyhow::Result<()> {
+/// Refuses what the pipeline cannot treat correctly: several frames, strongly anisotropic
+/// voxels, and voxel axes that are not the world axes (up to order and sign); warns about
+/// mildly anisotropic voxels.
+fn check_volume(
+    args: &SkeletonArgs,
+    volume: &Volume,
+    info: &VolumeInfo,
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
     let name = args.input.display();
     if info.frames() > 1 {
         return Err(BadInput(format!(
@@ -137,12 +147,18 @@ fn check_volume(args: &SkeletonArgs, volume: &Volume, info: &VolumeInfo) -> anyh
     }
     let size = volume.voxel_size();
     let (lo, hi) = (size.min_element(), size.max_element());
-    if hi - lo > CUBIC_TOLERANCE * hi {
+    if hi > MAX_ANISOTROPY * lo {
         return Err(BadInput(format!(
-            "{name}: voxels of {:.6} x {:.6} x {:.6} are not cubic; resample to cubic voxels first",
+            "{name}: voxels of {:.6} x {:.6} x {:.6} are too anisotropic (more than {MAX_ANISOTROPY}:1); resample to near-cubic voxels first",
             size.x, size.y, size.z
         ))
         .into());
+    }
+    if hi - lo > CUBIC_TOLERANCE * hi {
+        reporter.warn(&format!(
+            "{name}: voxels of {:.6} x {:.6} x {:.6} are not cubic; the sheet is computed in world coordinates, lengths given in voxels use their geometric mean",
+            size.x, size.y, size.z
+        ));
     }
     let m = volume.affine().matrix3;
     for col in [m.x_axis, m.y_axis, m.z_axis] {
@@ -169,7 +185,7 @@ fn summary(s: &SkeletonStats, output: &str) -> String {
         "threshold {:.6} ({}), noise {:.4}, eps {:.4}; {} object voxels, {} supports (radii {:.4}..{:.4}), {} tetrahedra, {} ridge points, {} triangles ({} dropped in {} fragments, {} holes filled), {} component{}, Euler characteristic {}; {:.2} s -> {output}",
         s.intensity.threshold,
         if s.intensity.automatic_threshold {
-            "Otsu"
+            "automatic"
         } else {
             "given"
         },

@@ -1,0 +1,244 @@
+//! End-to-end tests of `sphcover skeleton`: the bundled CT phantom, the NMS baseline, and
+//! every kind of bad input the command must refuse with exit code 2 and no output file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(rel)
+}
+
+fn sphcover(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sphcover"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// A minimal NIfTI-1 file of `float32` values: `dims` (3 or 4 entries), voxel sizes, and an
+/// optional sform (three rows of the voxel→world map).
+fn write_nifti(
+    path: &Path,
+    dims: &[usize],
+    voxel: [f32; 3],
+    sform: Option<[[f32; 4]; 3]>,
+    values: &[f32],
+) {
+    let mut b = vec![0u8; 352];
+    b[0..4].copy_from_slice(&348i32.to_le_bytes());
+    let mut dim = [1i16; 8];
+    dim[0] = dims.len() as i16;
+    for (k, &d) in dims.iter().enumerate() {
+        dim[k + 1] = d as i16;
+    }
+    for (k, d) in dim.iter().enumerate() {
+        b[40 + 2 * k..42 + 2 * k].copy_from_slice(&d.to_le_bytes());
+    }
+    b[70..72].copy_from_slice(&16i16.to_le_bytes());
+    b[72..74].copy_from_slice(&32i16.to_le_bytes());
+    let pixdim = [1.0f32, voxel[0], voxel[1], voxel[2], 1.0, 1.0, 1.0, 1.0];
+    for (k, p) in pixdim.iter().enumerate() {
+        b[76 + 4 * k..80 + 4 * k].copy_from_slice(&p.to_le_bytes());
+    }
+    b[108..112].copy_from_slice(&352f32.to_le_bytes());
+    if let Some(rows) = sform {
+        b[254..256].copy_from_slice(&1i16.to_le_bytes());
+        for (i, row) in rows.iter().enumerate() {
+            for (c, v) in row.iter().enumerate() {
+                b[280 + 16 * i + 4 * c..284 + 16 * i + 4 * c].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    b[344..348].copy_from_slice(b"n+1\0");
+    for v in values {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+/// A 24³ slab of thickness 4 (HU: air −1000, material 2000) with a one-voxel linear rim.
+fn slab_values(frames: usize) -> Vec<f32> {
+    let n = 24;
+    let mut v = Vec::new();
+    for _ in 0..frames {
+        for k in 0..n {
+            for _ in 0..n * n {
+                let inside = (2.5 - (k as f32 - 11.3).abs()).clamp(0.0, 1.0);
+                v.push(-1000.0 + 3000.0 * inside);
+            }
+        }
+    }
+    v
+}
+
+#[test]
+fn skeleton_of_the_t_junction_phantom_is_one_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_path = dir.path().join("sheet.ply");
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let out = sphcover(&[
+        "skeleton",
+        input.to_str().unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+        "-v",
+        "--ascii",
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    for needle in [
+        "object voxels",
+        "supports",
+        "tetrahedra",
+        "ridge points",
+        "triangles",
+        "1 component,",
+        "volume cover",
+        "ridge points",
+    ] {
+        assert!(err.contains(needle), "missing {needle:?} in {err}");
+    }
+    let ply = std::fs::read_to_string(&out_path).unwrap();
+    let faces: usize = ply
+        .lines()
+        .find_map(|l| l.strip_prefix("element face "))
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap();
+    assert!(faces > 1000, "{faces} faces");
+}
+
+#[test]
+fn nms_baseline_writes_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_path = dir.path().join("nms.ply");
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let out = sphcover(&[
+        "skeleton",
+        input.to_str().unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+        "--method",
+        "nms",
+        "--sigma",
+        "1.5",
+        "--ascii",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let ply = std::fs::read_to_string(&out_path).unwrap();
+    assert!(!ply.contains("element face"));
+    assert!(text(&out.stderr).contains("ridge points"));
+}
+
+#[test]
+fn the_same_seed_gives_the_same_sheet_whatever_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let mut files = Vec::new();
+    for threads in ["1", "2"] {
+        let out_path = dir.path().join(format!("sheet{threads}.ply"));
+        let out = sphcover(&[
+            "skeleton",
+            input.to_str().unwrap(),
+            "-o",
+            out_path.to_str().unwrap(),
+            "--threads",
+            threads,
+            "--seed",
+            "3",
+        ]);
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+        files.push(std::fs::read(&out_path).unwrap());
+    }
+    assert_eq!(files[0], files[1]);
+}
+
+#[test]
+fn bad_inputs_exit_2_without_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ok = d.join("slab.nii");
+    write_nifti(&ok, &[24, 24, 24], [0.5; 3], None, &slab_values(1));
+    let four_d = d.join("4d.nii");
+    write_nifti(&four_d, &[24, 24, 24, 2], [0.5; 3], None, &slab_values(2));
+    let aniso = d.join("aniso.nii");
+    write_nifti(
+        &aniso,
+        &[24, 24, 24],
+        [0.5, 0.5, 1.5],
+        None,
+        &slab_values(1),
+    );
+    let oblique = d.join("oblique.nii");
+    let (c, s) = (
+        0.5 * 30f32.to_radians().cos(),
+        0.5 * 30f32.to_radians().sin(),
+    );
+    let rows = [[c, -s, 0.0, 0.0], [s, c, 0.0, 0.0], [0.0, 0.0, 0.5, 0.0]];
+    write_nifti(
+        &oblique,
+        &[24, 24, 24],
+        [0.5; 3],
+        Some(rows),
+        &slab_values(1),
+    );
+    let constant = d.join("constant.nii");
+    write_nifti(&constant, &[8, 8, 8], [1.0; 3], None, &[5.0; 512]);
+    let speck = d.join("speck.nii");
+    let mut one = vec![0.0f32; 512];
+    one[4 + 8 * (4 + 8 * 4)] = 100.0;
+    write_nifti(&speck, &[8, 8, 8], [1.0; 3], None, &one);
+    let points = fixture("sphere_2k.ply");
+
+    let cases: Vec<(&Path, Vec<&str>, &str)> = vec![
+        (&four_d, vec![], "4D volume with 2 frames"),
+        (&aniso, vec![], "too anisotropic"),
+        (&oblique, vec![], "oblique"),
+        (&ok, vec!["--threshold", "1e6"], "selects no voxel"),
+        (&ok, vec!["--threshold=-1e6"], "selects every voxel"),
+        (&ok, vec!["--sigma", "0"], "--sigma"),
+        (&constant, vec![], "constant"),
+        (&speck, vec![], "empty result"),
+        (&points, vec![], "expected a CT volume"),
+    ];
+    for (input, extra, message) in cases {
+        let out_path = d.join("out.ply");
+        let mut args = vec![
+            "skeleton",
+            input.to_str().unwrap(),
+            "-o",
+            out_path.to_str().unwrap(),
+        ];
+        args.extend(extra.iter());
+        let out = sphcover(&args);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{input:?} {extra:?}: {err}");
+        assert!(err.contains(message), "{input:?} {extra:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out_path.exists(), "{input:?} {extra:?} wrote a file");
+    }
+    // The well-formed slab itself works, with the NMS baseline too.
+    for method in ["ridge", "nms"] {
+        let out_path = d.join(format!("{method}.ply"));
+        let out = sphcover(&[
+            "skeleton",
+            ok.to_str().unwrap(),
+            "-o",
+            out_path.to_str().unwrap(),
+            "--method",
+            method,
+        ]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{method}: {}",
+            text(&out.stderr)
+        );
+        assert!(out_path.exists());
+    }
+}
