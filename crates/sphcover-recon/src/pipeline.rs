@@ -128,7 +128,7 @@ impl Default for ReconParams {
             min_component_fraction: 0.01,
             seed_confidence: 0.5,
             scan: ScanStatisticsParams::default(),
-            noise_tolerance: Some(3.0),
+            noise_tolerance: Some(4.0),
             drop_isolated: true,
         }
     }

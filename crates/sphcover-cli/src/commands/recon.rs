@@ -184,6 +184,10 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
 fn details(recon: &Reconstruction, reporter: &Reporter) {
     let s = &recon.stats;
     reporter.detail(&format!(
+        "  scan: spacing {:.2e}, noise {:.2e}, {} isolated samples; cover tolerance ε = {:.2e}",
+        s.scan.spacing, s.scan.noise, s.scan.isolated_count, s.eps
+    ));
+    reporter.detail(&format!(
         "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}",
         s.supports, s.cover.supports_over_eps, s.cover.max_error, s.graph_mean_degree
     ));
