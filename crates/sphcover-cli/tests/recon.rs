@@ -1,0 +1,165 @@
+//! End-to-end tests of `sphcover recon` on the bundled scans.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use sphcover_core::MeshTopology;
+use sphcover_core::io::{self, ReadOptions};
+
+fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(rel)
+}
+
+fn sphcover(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sphcover"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn summary(t: &MeshTopology) -> String {
+    format!(
+        "{} components, {} boundary / {} non-manifold / {} inconsistent edges, χ = {}",
+        t.components,
+        t.boundary_edges,
+        t.non_manifold_edges,
+        t.inconsistent_edges,
+        t.euler_characteristic()
+    )
+}
+
+#[test]
+fn kitten_scan_gives_one_closed_surface_and_every_optional_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("kitten_mesh.ply");
+    let points = dir.path().join("points.ply");
+    let cover = dir.path().join("cover.ply");
+    let report = dir.path().join("report.json");
+    let input = fixture("real/kitten.ply");
+    let run = sphcover(&[
+        "recon",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--points-out",
+        points.to_str().unwrap(),
+        "--cover-out",
+        cover.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+
+    let mesh = io::read_mesh(&out, &ReadOptions::default()).unwrap();
+    let topology = MeshTopology::of(&mesh);
+    // The kitten is a closed surface with one handle (its tail meets its body).
+    assert!(topology.is_closed_oriented_manifold(), "{}", summary(&topology));
+    assert_eq!(topology.components, 1);
+    assert_eq!(topology.euler_characteristic(), 0);
+
+    // The surface passes close to the scan: every sample within two grid steps (the default
+    // depth for 5,210 points is 6, a step of 1/64 of the box) of a mesh vertex.
+    let scan = io::read_point_cloud(&input, &ReadOptions::default()).unwrap();
+    let index = sphcover_core::PointIndex::new(&mesh.vertices).unwrap();
+    let mut nearest = Vec::new();
+    let worst = scan
+        .positions
+        .iter()
+        .map(|&p| {
+            index.nearest_k(p, 1, &mut nearest);
+            (mesh.vertices[nearest[0] as usize] - p).length()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 2.0 / 64.0 * scan.bounding_box().longest_edge(), "{worst}");
+
+    let labelled = io::read_point_cloud(&points, &ReadOptions::default()).unwrap();
+    assert_eq!(labelled.len(), scan.len());
+    assert!(labelled.confidence.is_some() && labelled.values.is_some());
+    let (read_cover, _meta) = io::read_cover(&cover).unwrap();
+    assert!(!read_cover.is_empty());
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["method"], "integrated");
+    assert_eq!(json["points"], 5210);
+    assert_eq!(json["components"], 1);
+    assert_eq!(json["watertight"], true);
+    assert_eq!(json["triangles"].as_u64().unwrap(), mesh.triangles.len() as u64);
+}
+
+#[test]
+fn every_method_reconstructs_the_bundled_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    // The plain partition of unity has no defence against noise: it gets the clean sample.
+    for (method, sample) in [
+        ("integrated", "sphere_noisy_2k.ply"),
+        ("diffusion", "sphere_noisy_2k.ply"),
+        ("graphcut", "sphere_noisy_2k.ply"),
+        ("pu", "sphere_2k.ply"),
+    ] {
+        let input = fixture(sample);
+        let out = dir.path().join(format!("{method}.ply"));
+        let run = sphcover(&[
+            "recon",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--method",
+            method,
+        ]);
+        assert_eq!(run.status.code(), Some(0), "{method}: {}", text(&run.stderr));
+        let mesh = io::read_mesh(&out, &ReadOptions::default()).unwrap();
+        let topology = MeshTopology::of(&mesh);
+        assert_eq!(topology.components, 1, "{method}: {}", summary(&topology));
+        assert!(topology.is_watertight(), "{method}: {}", summary(&topology));
+    }
+}
+
+#[test]
+fn unoriented_points_are_oriented_and_said_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let xyz = dir.path().join("torus.xyz");
+    let torus = io::read_point_cloud(&fixture("torus_3k.xyz"), &ReadOptions::default()).unwrap();
+    let bare = sphcover_core::PointCloud::from_positions(torus.positions.clone());
+    io::write_point_cloud(&xyz, &bare, &io::WriteOptions::default()).unwrap();
+    let out = dir.path().join("torus.ply");
+    let run = sphcover(&["recon", xyz.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(text(&run.stderr).contains("normals estimated"));
+    let topology = MeshTopology::of(&io::read_mesh(&out, &ReadOptions::default()).unwrap());
+    assert_eq!((topology.components, topology.euler_characteristic()), (1, 0));
+    assert!(topology.is_closed_oriented_manifold());
+}
+
+#[test]
+fn bad_parameters_and_inputs_exit_2_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.ply");
+    let kitten = fixture("real/kitten.ply");
+    let k = kitten.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    for args in [
+        vec!["recon", k, "-o", o, "--eps", "0"],
+        vec!["recon", k, "-o", o, "--trim", "-1"],
+        vec!["recon", k, "-o", o, "--depth", "30"],
+        vec!["recon", k, "-o", o, "--k", "nan"],
+        vec!["recon", "missing.ply", "-o", o],
+        vec!["recon", k, "-o", k],
+    ] {
+        let run = sphcover(&args);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {}", text(&run.stderr));
+        assert!(!out.exists(), "{args:?}");
+    }
+    let three = dir.path().join("three.xyz");
+    std::fs::write(&three, "0 0 0\n1 0 0\n0 1 0\n").unwrap();
+    let run = sphcover(&["recon", three.to_str().unwrap(), "-o", o]);
+    assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
+    assert!(text(&run.stderr).contains("three.xyz"), "{}", text(&run.stderr));
+    assert!(!out.exists());
+}
