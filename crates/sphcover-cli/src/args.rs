@@ -110,10 +110,10 @@ pub struct ReconArgs {
     /// graph, 5 for --method graphcut).
     #[arg(long, value_name = "K")]
     pub k: Option<f64>,
-    /// Remove surface farther than D from every confident sample, D relative to the longest
-    /// bounding-box edge (default when given without a value: 0.01).
-    #[arg(long, value_name = "D", num_args = 0..=1, default_missing_value = "0.01")]
-    pub trim: Option<f64>,
+    /// Remove surface far from every sample: farther than 3 sample spacings, or than D
+    /// (relative to the longest bounding-box edge) when given.
+    #[arg(long, value_name = "D", num_args = 0..=1, default_missing_value = "auto")]
+    pub trim: Option<String>,
     /// Polygonisation grid: step = longest edge / 2^DEPTH (default from the point count,
     /// 6..=10).
     #[arg(long, value_name = "DEPTH")]

@@ -59,7 +59,11 @@ fn kitten_scan_gives_one_closed_surface_and_every_optional_output() {
     let mesh = io::read_mesh(&out, &ReadOptions::default()).unwrap();
     let topology = MeshTopology::of(&mesh);
     // The kitten is a closed surface with one handle (its tail meets its body).
-    assert!(topology.is_closed_oriented_manifold(), "{}", summary(&topology));
+    assert!(
+        topology.is_closed_oriented_manifold(),
+        "{}",
+        summary(&topology)
+    );
     assert_eq!(topology.components, 1);
     assert_eq!(topology.euler_characteristic(), 0);
 
@@ -76,7 +80,10 @@ fn kitten_scan_gives_one_closed_surface_and_every_optional_output() {
             (mesh.vertices[nearest[0] as usize] - p).length()
         })
         .fold(0.0, f64::max);
-    assert!(worst < 2.0 / 64.0 * scan.bounding_box().longest_edge(), "{worst}");
+    assert!(
+        worst < 2.0 / 64.0 * scan.bounding_box().longest_edge(),
+        "{worst}"
+    );
 
     let labelled = io::read_point_cloud(&points, &ReadOptions::default()).unwrap();
     assert_eq!(labelled.len(), scan.len());
@@ -90,7 +97,10 @@ fn kitten_scan_gives_one_closed_surface_and_every_optional_output() {
     assert_eq!(json["points"], 5210);
     assert_eq!(json["components"], 1);
     assert_eq!(json["watertight"], true);
-    assert_eq!(json["triangles"].as_u64().unwrap(), mesh.triangles.len() as u64);
+    assert_eq!(
+        json["triangles"].as_u64().unwrap(),
+        mesh.triangles.len() as u64
+    );
 }
 
 #[test]
@@ -113,7 +123,12 @@ fn every_method_reconstructs_the_bundled_sphere() {
             "--method",
             method,
         ]);
-        assert_eq!(run.status.code(), Some(0), "{method}: {}", text(&run.stderr));
+        assert_eq!(
+            run.status.code(),
+            Some(0),
+            "{method}: {}",
+            text(&run.stderr)
+        );
         let mesh = io::read_mesh(&out, &ReadOptions::default()).unwrap();
         let topology = MeshTopology::of(&mesh);
         assert_eq!(topology.components, 1, "{method}: {}", summary(&topology));
@@ -133,7 +148,10 @@ fn unoriented_points_are_oriented_and_said_so() {
     assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
     assert!(text(&run.stderr).contains("normals estimated"));
     let topology = MeshTopology::of(&io::read_mesh(&out, &ReadOptions::default()).unwrap());
-    assert_eq!((topology.components, topology.euler_characteristic()), (1, 0));
+    assert_eq!(
+        (topology.components, topology.euler_characteristic()),
+        (1, 0)
+    );
     assert!(topology.is_closed_oriented_manifold());
 }
 
@@ -153,13 +171,22 @@ fn bad_parameters_and_inputs_exit_2_without_output() {
         vec!["recon", k, "-o", k],
     ] {
         let run = sphcover(&args);
-        assert_eq!(run.status.code(), Some(2), "{args:?}: {}", text(&run.stderr));
+        assert_eq!(
+            run.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&run.stderr)
+        );
         assert!(!out.exists(), "{args:?}");
     }
     let three = dir.path().join("three.xyz");
     std::fs::write(&three, "0 0 0\n1 0 0\n0 1 0\n").unwrap();
     let run = sphcover(&["recon", three.to_str().unwrap(), "-o", o]);
     assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
-    assert!(text(&run.stderr).contains("three.xyz"), "{}", text(&run.stderr));
+    assert!(
+        text(&run.stderr).contains("three.xyz"),
+        "{}",
+        text(&run.stderr)
+    );
     assert!(!out.exists());
 }

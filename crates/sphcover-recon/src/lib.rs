@@ -43,7 +43,7 @@ pub mod unused_vertices;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use pipeline::{
-    Method, ReconError, ReconParams, ReconStats, Reconstruction, default_depth, reconstruct,
+    Method, ReconError, ReconParams, ReconStats, Reconstruction, Trim, default_depth, reconstruct,
 };
 pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};

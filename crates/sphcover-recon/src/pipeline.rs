@@ -97,11 +97,14 @@ pub struct ReconParams {
     /// Octree depth of the polygonisation grid (step = longest edge / 2^depth); `None`
     /// chooses it from the number of points (module docs of [`default_depth`]).
     pub depth: Option<u32>,
-    /// Drop surface farther than this from every confident sample.
-    pub trim: Option<f64>,
+    /// Drop surface far from every sample (users of Poisson tools ask for this on open
+    /// scans).
+    pub trim: Trim,
     /// Drop components whose area is below this fraction of the largest one's.
     pub min_component_fraction: f64,
-    /// Samples at least this confident seed the polygonisation.
+    /// Samples at least this confident seed the polygonisation (and count for trimming).
+    /// 0: every sample not labelled an outlier, because the thesis confidence separates
+    /// surface samples from outliers poorly (module docs of [`crate::scan_statistics`]).
     pub seed_confidence: f64,
     /// Spacing, noise and isolated samples of the scan (beyond the thesis).
     pub scan: ScanStatisticsParams,
@@ -124,9 +127,9 @@ impl Default for ReconParams {
             diffusion: DiffusionParams::default(),
             normals: NormalParams::default(),
             depth: None,
-            trim: None,
+            trim: Trim::Off,
             min_component_fraction: 0.01,
-            seed_confidence: 0.5,
+            seed_confidence: 0.0,
             scan: ScanStatisticsParams::default(),
             noise_tolerance: Some(4.0),
             drop_isolated: true,
@@ -141,6 +144,30 @@ impl Default for ReconParams {
 pub fn default_depth(points: usize) -> u32 {
     let d = (0.7 * (points.max(1) as f64).sqrt()).log2().round();
     d.clamp(6.0, 9.0) as u32
+}
+
+/// Trimming of surface far from the samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Trim {
+    /// Keep everything (a closed surface).
+    #[default]
+    Off,
+    /// Drop triangles farther than this many sample spacings (the median distance of a
+    /// sample to its neighbours) from every sample.
+    SampleSpacings(f64),
+    /// Drop triangles farther than this (relative to the longest bounding-box edge) from
+    /// every sample.
+    Distance(f64),
+}
+
+impl Trim {
+    /// The number it holds (1 for [`Trim::Off`]).
+    fn value(self) -> f64 {
+        match self {
+            Trim::Off => 1.0,
+            Trim::SampleSpacings(v) | Trim::Distance(v) => v,
+        }
+    }
 }
 
 /// Why reconstruction failed.
@@ -400,14 +427,30 @@ pub fn reconstruct(
             drop(graph);
             stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
             clock.start("polygonise");
-            let mesh = polygonise_confident(&cover, &points, &conf, depth, params, &mut stats)?;
+            let mesh = polygonise_confident(
+                &cover,
+                &points,
+                &conf,
+                depth,
+                scan.spacing,
+                params,
+                &mut stats,
+            )?;
             (mesh, conf)
         } else {
             clock.start("confidence");
             let conf = sample_confidence(&cover, &points, scanner.as_deref(), &params.confidence)?;
             let conf = without_isolated(conf, &scan, params);
             clock.start("polygonise");
-            let mesh = polygonise_confident(&cover, &points, &conf, depth, params, &mut stats)?;
+            let mesh = polygonise_confident(
+                &cover,
+                &points,
+                &conf,
+                depth,
+                scan.spacing,
+                params,
+                &mut stats,
+            )?;
             (mesh, conf)
         }
     };
@@ -479,8 +522,8 @@ fn check_params(params: &ReconParams) -> Result<(), ReconError> {
         ),
         (
             "trim",
-            params.trim.unwrap_or(1.0),
-            params.trim.is_none_or(|t| t > 0.0 && t.is_finite()),
+            params.trim.value(),
+            params.trim.value() > 0.0 && params.trim.value().is_finite(),
             "> 0",
         ),
         (
@@ -538,6 +581,7 @@ fn polygonise_confident(
     points: &[DVec3],
     conf: &SampleConfidence,
     depth: u32,
+    spacing: f64,
     params: &ReconParams,
     stats: &mut ReconStats,
 ) -> Result<TriMesh, ReconError> {
@@ -559,7 +603,11 @@ fn polygonise_confident(
     let eval = PuEvaluator::new(cover, 1.0)?;
     let poly = PolygoniseParams {
         step: GridStep::Absolute(1.0 / f64::from(1u32 << depth)),
-        trim: params.trim,
+        trim: match params.trim {
+            Trim::Off => None,
+            Trim::SampleSpacings(m) => Some(m * spacing),
+            Trim::Distance(d) => Some(d),
+        },
         ..PolygoniseParams::default()
     };
     let (mesh, poly_stats) = polygonise(&eval, &seeds, &poly)?;

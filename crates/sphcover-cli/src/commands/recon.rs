@@ -7,7 +7,7 @@ use serde_json::json;
 use sphcover_core::io::{self, CoverFileMeta, Format, WriteOptions};
 use sphcover_core::{PointCloud, SurfaceCoverParams};
 use sphcover_recon::{
-    GraphCutParams, Method, ReconError, ReconParams, Reconstruction, reconstruct,
+    GraphCutParams, Method, ReconError, ReconParams, Reconstruction, Trim, reconstruct,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -145,11 +145,19 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
     {
         return Err(BadInput(format!("--k {k} must be a positive number")).into());
     }
-    if let Some(t) = args.trim
-        && !(t.is_finite() && t > 0.0)
-    {
-        return Err(BadInput(format!("--trim {t} must be a positive number")).into());
-    }
+    let trim = match args.trim.as_deref() {
+        None => Trim::Off,
+        Some("auto") => Trim::SampleSpacings(3.0),
+        Some(text) => match text.parse::<f64>() {
+            Ok(d) if d.is_finite() && d > 0.0 => Trim::Distance(d),
+            _ => {
+                return Err(BadInput(format!(
+                    "--trim {text} must be a positive number (or no value: 3 sample spacings)"
+                ))
+                .into());
+            }
+        },
+    };
     if let Some(d) = args.depth
         && !(1..=14).contains(&d)
     {
@@ -166,7 +174,7 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
             ..defaults.cover.clone()
         },
         depth: args.depth,
-        trim: args.trim,
+        trim,
         ..defaults
     };
     params.normals.k = args.normal_neighbors;
