@@ -118,6 +118,13 @@ pub struct ReconArgs {
     /// 6..=10).
     #[arg(long, value_name = "DEPTH")]
     pub depth: Option<u32>,
+    /// Diffusion: strength of the fit to the samples' normals (relative; 0 ignores the
+    /// normals, for very noisy ones).
+    #[arg(long, value_name = "MU")]
+    pub normal_fit: Option<f64>,
+    /// Diffusion: strength of the fit to the samples' positions (relative).
+    #[arg(long, value_name = "MU")]
+    pub position_fit: Option<f64>,
     /// Neighbours for normal estimation of unoriented input.
     #[arg(long, default_value_t = 12, value_name = "N")]
     pub normal_neighbors: usize,

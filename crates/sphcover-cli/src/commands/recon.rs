@@ -178,6 +178,25 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
         ..defaults
     };
     params.normals.k = args.normal_neighbors;
+    for (name, value, slot) in [
+        (
+            "--normal-fit",
+            args.normal_fit,
+            &mut params.diffusion.normal_fit,
+        ),
+        (
+            "--position-fit",
+            args.position_fit,
+            &mut params.diffusion.position_fit,
+        ),
+    ] {
+        if let Some(v) = value {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(BadInput(format!("{name} {v} must be a non-negative number")).into());
+            }
+            *slot = v;
+        }
+    }
     if let Some(k) = args.k {
         params.graph_cut = GraphCutParams {
             k,
