@@ -36,6 +36,7 @@ use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 use thiserror::Error;
 
 use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut_tet, values_at};
+use crate::mesh_smoothing::{SmoothingError, smooth_two_step};
 
 /// Why the graph-cut reconstruction failed.
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -59,6 +60,9 @@ pub enum GraphCutReconstructionError {
     /// The samples could not be indexed.
     #[error("sample index: {0}")]
     Samples(#[from] PointIndexError),
+    /// The surface could not be smoothed.
+    #[error("smoothing: {0}")]
+    Smoothing(#[from] SmoothingError),
 }
 
 /// Parameters of [`reconstruct_graphcut`]; `Default` gives the thesis values.
@@ -239,16 +243,19 @@ pub fn reconstruct_graphcut(
         }
     }
     stats.smoothed = selected.len();
-    let mut vertices = surface.vertices;
-    two_step_laplacian(
-        &mut vertices,
-        &surface.triangles,
-        &selected,
+    let mut mesh = TriMesh::new(surface.vertices, surface.triangles);
+    let mut movable = vec![false; mesh.vertices.len()];
+    for &v in &selected {
+        movable[v as usize] = true;
+    }
+    smooth_two_step(
+        &mut mesh,
+        Some(&movable),
         params.smoothing_rounds,
         params.smoothing_lambda,
-    );
+    )?;
     stats.surface_time = start.elapsed();
-    Ok((TriMesh::new(vertices, surface.triangles), stats))
+    Ok((mesh, stats))
 }
 
 fn check(p: &GraphCutReconstructionParams) -> Result<(), GraphCutReconstructionError> {
@@ -271,84 +278,9 @@ fn check(p: &GraphCutReconstructionParams) -> Result<(), GraphCutReconstructionE
     Ok(())
 }
 
-/// The two-step Laplacian smoothing of thesis eq. 5.3–5.5 (see the module documentation),
-/// moving only the vertices in `selected` (indices into `vertices`), `rounds` times, over the
-/// 1-rings of `triangles`. Out-of-range indices are ignored. Deterministic: each step reads
-/// only the previous positions.
-pub fn two_step_laplacian(
-    vertices: &mut [DVec3],
-    triangles: &[[u32; 3]],
-    selected: &[u32],
-    rounds: usize,
-    lambda: f64,
-) {
-    let n = vertices.len();
-    let selected: Vec<u32> = selected
-        .iter()
-        .copied()
-        .filter(|&v| (v as usize) < n)
-        .collect();
-    if selected.is_empty() || rounds == 0 {
-        return;
-    }
-    let (offsets, ring) = one_rings(n, triangles);
-    let umbrella = |pos: &[DVec3], v: usize| -> DVec3 {
-        let r = &ring[offsets[v] as usize..offsets[v + 1] as usize];
-        if r.is_empty() {
-            return DVec3::ZERO;
-        }
-        let sum = r.iter().fold(DVec3::ZERO, |s, &j| s + pos[j as usize]);
-        sum / r.len() as f64 - pos[v]
-    };
-    let mut moved = vec![DVec3::ZERO; selected.len()];
-    for _ in 0..rounds {
-        for sign in [1.0, -1.0] {
-            moved
-                .par_iter_mut()
-                .zip(&selected)
-                .with_min_len(1024)
-                .for_each(|(m, &v)| {
-                    let v = v as usize;
-                    *m = vertices[v] + sign * lambda * umbrella(vertices, v);
-                });
-            for (&v, &m) in selected.iter().zip(&moved) {
-                vertices[v as usize] = m;
-            }
-        }
-    }
-}
-
-/// The 1-ring of every vertex (distinct neighbours through the triangles, ascending) as CSR.
-fn one_rings(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
-    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(triangles.len() * 6);
-    for t in triangles {
-        if t.iter().any(|&v| v as usize >= n) {
-            continue;
-        }
-        for i in 0..3 {
-            let (a, b) = (t[i], t[(i + 1) % 3]);
-            if a != b {
-                pairs.push((a, b));
-                pairs.push((b, a));
-            }
-        }
-    }
-    pairs.par_sort_unstable();
-    pairs.dedup();
-    let mut offsets = vec![0u32; n + 1];
-    for &(a, _) in &pairs {
-        offsets[a as usize + 1] += 1;
-    }
-    for v in 0..n {
-        offsets[v + 1] += offsets[v];
-    }
-    (offsets, pairs.into_iter().map(|(_, b)| b).collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use proptest::prelude::*;
     use sphcover_core::mesh_topology::MeshTopology;
     use sphcover_core::{
         SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
@@ -460,67 +392,6 @@ mod tests {
             reconstruct_graphcut(&cover, &[], &bad),
             Err(GraphCutReconstructionError::InvalidParameter { .. })
         ));
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(64))]
-        /// The two steps of one round cancel exactly on an affine configuration: a flat
-        /// regular grid of triangles is left unchanged at interior vertices (U = 0 there).
-        #[test]
-        fn flat_grid_interior_is_fixed(m in 3usize..8, shift in -1.0f64..1.0, rounds in 1usize..5) {
-            let mut vertices = Vec::new();
-            for y in 0..m {
-                for x in 0..m {
-                    vertices.push(DVec3::new(x as f64, y as f64, shift));
-                }
-            }
-            let id = |x: usize, y: usize| (y * m + x) as u32;
-            let mut tris = Vec::new();
-            for y in 0..m - 1 {
-                for x in 0..m - 1 {
-                    tris.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
-                    tris.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
-                }
-            }
-            let interior: Vec<u32> = (1..m - 1)
-                .flat_map(|y| (1..m - 1).map(move |x| id(x, y)))
-                .collect();
-            let before = vertices.clone();
-            two_step_laplacian(&mut vertices, &tris, &interior, rounds, 0.5);
-            for (a, b) in vertices.iter().zip(&before) {
-                prop_assert!((*a - *b).length() < 1e-12);
-            }
-        }
-
-        /// A spike on a flat grid is flattened, and unselected vertices never move.
-        #[test]
-        fn spike_is_flattened(height in 0.1f64..5.0) {
-            let m = 7;
-            let mut vertices = Vec::new();
-            for y in 0..m {
-                for x in 0..m {
-                    vertices.push(DVec3::new(x as f64, y as f64, 0.0));
-                }
-            }
-            let id = |x: usize, y: usize| (y * m + x) as u32;
-            let mut tris = Vec::new();
-            for y in 0..m - 1 {
-                for x in 0..m - 1 {
-                    tris.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
-                    tris.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
-                }
-            }
-            let c = id(3, 3) as usize;
-            vertices[c].z = height;
-            let before = vertices.clone();
-            two_step_laplacian(&mut vertices, &tris, &[c as u32], 30, 0.5);
-            prop_assert!(vertices[c].z.abs() < 0.2 * height, "z = {}", vertices[c].z);
-            for (i, (a, b)) in vertices.iter().zip(&before).enumerate() {
-                if i != c {
-                    prop_assert_eq!(a, b);
-                }
-            }
-        }
     }
 }
 
