@@ -33,8 +33,8 @@ pub struct GlobalArgs {
 pub enum Command {
     /// Report what a geometry file holds: counts, bounding box, attributes, normals, non-finite values.
     Info(InfoArgs),
-    /// Reconstruct a surface mesh from scanned points (not available yet).
-    Recon(PendingArgs),
+    /// Reconstruct a surface mesh from scanned points (oriented or not), robust to noise and outliers.
+    Recon(ReconArgs),
     /// Extract the skeletal sheet (mid-surface) of a thin part from a CT volume.
     Skeleton(SkeletonArgs),
     /// Build a spherical cover of oriented scan points or of a CT volume.
@@ -71,6 +71,70 @@ pub struct TetraArgs {
     /// Seed of the insertion order and point-location walks (the mesh does not depend on it).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    #[command(flatten)]
+    pub read: InputArgs,
+}
+
+/// Reconstruction methods of `sphcover recon`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReconMethodArg {
+    /// Cover, graph cut against outliers, diffusion against noise, polygonisation (default).
+    Integrated,
+    /// Graph cut on the tetrahedral mesh, marching tetrahedra on the labels (thesis §5.2.2).
+    Graphcut,
+    /// Cover, diffusion, polygonisation (no graph cut).
+    Diffusion,
+    /// The plain partition-of-unity function of the cover.
+    Pu,
+}
+
+/// Arguments of `sphcover recon`.
+#[derive(Debug, Args)]
+pub struct ReconArgs {
+    /// Scanned points: PLY, OBJ, OFF, STL, XYZ/PWN, LAS; with normals or without (they are
+    /// then estimated); a PLY `confidence` property is used as the scanner's confidence.
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// Output mesh (PLY keeps the per-vertex confidence as `value`; OBJ, OFF, STL).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Cover tolerance ε, relative to the longest bounding-box edge (default 2.5e-3).
+    #[arg(long, value_name = "E")]
+    pub eps: Option<f64>,
+    /// Pipeline.
+    #[arg(long, value_enum, default_value_t = ReconMethodArg::Integrated)]
+    pub method: ReconMethodArg,
+    /// Graph-cut ratio k of terminal to edge cost (default 28 on the sphere intersection
+    /// graph, 5 for --method graphcut).
+    #[arg(long, value_name = "K")]
+    pub k: Option<f64>,
+    /// Remove surface farther than D from every confident sample, D relative to the longest
+    /// bounding-box edge (default when given without a value: 0.01).
+    #[arg(long, value_name = "D", num_args = 0..=1, default_missing_value = "0.01")]
+    pub trim: Option<f64>,
+    /// Polygonisation grid: step = longest edge / 2^DEPTH (default from the point count,
+    /// 6..=10).
+    #[arg(long, value_name = "DEPTH")]
+    pub depth: Option<u32>,
+    /// Neighbours for normal estimation of unoriented input.
+    #[arg(long, default_value_t = 12, value_name = "N")]
+    pub normal_neighbors: usize,
+    /// Estimate normals even when the input has them (for unreliable normals).
+    #[arg(long)]
+    pub estimate_normals: bool,
+    /// Seed of the random choices (cover expansion order).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Also write the input points with their confidence and outlier label (PLY
+    /// properties `confidence` and `value` = 1 for outliers).
+    #[arg(long, value_name = "FILE")]
+    pub points_out: Option<PathBuf>,
+    /// Also write the final cover (cover PLY, readable by `sphcover tetra` and the library).
+    #[arg(long, value_name = "FILE")]
+    pub cover_out: Option<PathBuf>,
+    /// Also write the report (counts, timings) as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
     #[command(flatten)]
     pub read: InputArgs,
 }

@@ -33,7 +33,7 @@ fn main() -> ExitCode {
     }
     let result = match &cli.command {
         Command::Info(a) => commands::info::run(a, &reporter),
-        Command::Recon(a) => commands::unavailable::run("recon", a, &reporter),
+        Command::Recon(a) => commands::recon::run(a, &reporter),
         Command::Skeleton(a) => commands::skeleton::run(a, &reporter),
         Command::Cover(a) => commands::cover::run(a, &reporter),
         Command::Tetra(a) => commands::tetra::run(a, &reporter),

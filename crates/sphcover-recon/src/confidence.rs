@@ -47,9 +47,9 @@ pub enum ConfidenceError {
     /// The scanner confidence does not have one entry per sample.
     #[error("scanner confidence has {found} entries for {expected} samples")]
     LengthMismatch {
-        /// Number of samples.
+        /// Expected length (samples, or supports for per-support values).
         expected: usize,
-        /// Length of the scanner confidence.
+        /// Length given.
         found: usize,
     },
     /// A scanner confidence is NaN or outside `[0, 1]`.
@@ -177,6 +177,18 @@ pub fn sample_confidence(
     scanner: Option<&[f64]>,
     params: &ConfidenceParams,
 ) -> Result<SampleConfidence, ConfidenceError> {
+    sample_confidence_with(cover, samples, scanner, params, |_| false)
+}
+
+/// As [`sample_confidence`], with the supports for which `distrusted(i)` holds given
+/// confidence `τ_i = 0` (thesis §5.2.4: the supports the graph cut found inconsistent).
+pub fn sample_confidence_with(
+    cover: &Cover,
+    samples: &[DVec3],
+    scanner: Option<&[f64]>,
+    params: &ConfidenceParams,
+    distrusted: impl Fn(usize) -> bool,
+) -> Result<SampleConfidence, ConfidenceError> {
     let t = params.outlier_threshold;
     if !(t.is_finite() && t >= 0.0) {
         return Err(ConfidenceError::InvalidThreshold(t));
@@ -202,7 +214,12 @@ pub fn sample_confidence(
         ..Default::default()
     };
     let start = Instant::now();
-    let (tau, degenerate) = support_confidence(cover, samples)?;
+    let (mut tau, degenerate) = support_confidence(cover, samples)?;
+    for (i, t) in tau.iter_mut().enumerate() {
+        if distrusted(i) {
+            *t = 0.0;
+        }
+    }
     stats.degenerate_supports = degenerate;
     stats.support_time = start.elapsed();
 
@@ -213,20 +230,7 @@ pub fn sample_confidence(
             s.to_vec()
         }
         None => {
-            let eval = PuEvaluator::new(cover, 1.0)?;
-            let blended: Vec<Option<f64>> = samples
-                .par_iter()
-                .with_min_len(1024)
-                .map_init(Vec::new, |buf, &p| {
-                    eval.weights(p, buf);
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for &(i, w) in buf.iter() {
-                        num += w * tau[i as usize];
-                        den += w;
-                    }
-                    (den > 0.0).then(|| num / den)
-                })
-                .collect();
+            let blended = blend_over_supports(cover, samples, &tau)?;
             stats.uncovered_samples = blended.iter().filter(|v| v.is_none()).count();
             blended.into_iter().map(|v| v.unwrap_or(0.0)).collect()
         }
@@ -244,6 +248,35 @@ pub fn sample_confidence(
         outliers,
         stats,
     })
+}
+
+/// The partition-of-unity blend `Σ_i w_i(x) v_i / Σ_i w_i(x)` of one value per support at
+/// each of `points` (σ = 1); `None` where no support covers the point.
+pub fn blend_over_supports(
+    cover: &Cover,
+    points: &[DVec3],
+    values: &[f64],
+) -> Result<Vec<Option<f64>>, ConfidenceError> {
+    if values.len() != cover.len() {
+        return Err(ConfidenceError::LengthMismatch {
+            expected: cover.len(),
+            found: values.len(),
+        });
+    }
+    let eval = PuEvaluator::new(cover, 1.0)?;
+    Ok(points
+        .par_iter()
+        .with_min_len(1024)
+        .map_init(Vec::new, |buf, &p| {
+            eval.weights(p, buf);
+            let (mut num, mut den) = (0.0, 0.0);
+            for &(i, w) in buf.iter() {
+                num += w * values[i as usize];
+                den += w;
+            }
+            (den > 0.0).then(|| num / den)
+        })
+        .collect())
 }
 
 #[cfg(test)]

@@ -182,25 +182,8 @@ pub fn graph_cut(
     edges: &[[u32; 2]],
     params: &GraphCutParams,
 ) -> Result<GraphCut, GraphCutError> {
-    if !(params.k.is_finite() && params.k > 0.0) {
-        return Err(GraphCutError::InvalidK(params.k));
-    }
-    if let Some(d) = params.reference_degree
-        && !(d.is_finite() && d > 0.0)
-    {
-        return Err(GraphCutError::InvalidReferenceDegree(d));
-    }
+    check_nodes(positions, values, params)?;
     let n = positions.len();
-    if values.len() != n {
-        return Err(GraphCutError::LengthMismatch {
-            array: "values",
-            expected: n,
-            found: values.len(),
-        });
-    }
-    if let Some(index) = (0..n).find(|&i| !(positions[i].is_finite() && values[i].is_finite())) {
-        return Err(GraphCutError::NonFinite { index });
-    }
     if let Some(edge) = edges
         .iter()
         .position(|e| e[0] as usize >= n || e[1] as usize >= n)
@@ -236,8 +219,34 @@ pub fn graph_cut(
     };
     let floor = ZERO_LENGTH * mean_length;
 
-    let k = params.k;
-    let (source, sink): (Vec<f64>, Vec<f64>) = (0..n)
+    let (source, sink) =
+        terminal_capacities(values, &length_sum, &length_count, mean_length, params);
+    let flow_edges: Vec<FlowEdge> = edges
+        .par_iter()
+        .zip(&lengths)
+        .with_min_len(4096)
+        .map(|(e, &l)| {
+            let w = finite_capacity(
+                (values[e[0] as usize] + values[e[1] as usize]).abs() / l.max(floor),
+            );
+            FlowEdge::undirected(e[0], e[1], w)
+        })
+        .collect();
+    let graph = FlowGraph::new(n, &source, &sink, &flow_edges)?;
+    drop(flow_edges);
+    Ok(solve(graph, values, edges.len(), start))
+}
+
+/// Terminal capacities of eq. 5.1 (with the optional degree normalisation) from the sums and
+/// counts of positive edge lengths at each node.
+fn terminal_capacities(
+    values: &[f64],
+    length_sum: &[f64],
+    length_count: &[u32],
+    mean_length: f64,
+    params: &GraphCutParams,
+) -> (Vec<f64>, Vec<f64>) {
+    (0..values.len())
         .into_par_iter()
         .with_min_len(4096)
         .map(|v| {
@@ -250,28 +259,19 @@ pub fn graph_cut(
                 Some(d) => f64::from(length_count[v].max(1)) / d,
                 None => 1.0,
             };
-            let w = finite_capacity(k * scale * values[v].abs() / l);
+            let w = finite_capacity(params.k * scale * values[v].abs() / l);
             if values[v] > 0.0 { (w, 0.0) } else { (0.0, w) }
         })
-        .unzip();
-    let flow_edges: Vec<FlowEdge> = edges
-        .par_iter()
-        .zip(&lengths)
-        .with_min_len(4096)
-        .map(|(e, &l)| {
-            let w = finite_capacity(
-                (values[e[0] as usize] + values[e[1] as usize]).abs() / l.max(floor),
-            );
-            FlowEdge::undirected(e[0], e[1], w)
-        })
-        .collect();
-    let mut graph = FlowGraph::new(n, &source, &sink, &flow_edges)?;
-    drop(flow_edges);
+        .unzip()
+}
+
+/// Solves the network and reads the labelling off the cut.
+fn solve(mut graph: FlowGraph, values: &[f64], edges: usize, start: Instant) -> GraphCut {
+    let n = values.len();
     let build_time = start.elapsed();
     let solve_start = Instant::now();
     let info = graph.solve();
     let solve_time = solve_start.elapsed();
-
     let labels = graph.source_side();
     let inconsistent: Vec<u32> = (0..n)
         .filter(|&v| (labels[v] && values[v] < 0.0) || (!labels[v] && values[v] > 0.0))
@@ -279,7 +279,7 @@ pub fn graph_cut(
         .collect();
     let stats = GraphCutStats {
         nodes: n,
-        edges: edges.len(),
+        edges,
         inside: info.source_side_nodes,
         inconsistent: inconsistent.len(),
         undefined_values: 0,
@@ -287,12 +287,135 @@ pub fn graph_cut(
         build_time,
         solve_time,
     };
-    Ok(GraphCut {
+    GraphCut {
         labels,
         inconsistent,
         flow: info.flow,
         stats,
-    })
+    }
+}
+
+/// Checks the common inputs of the graph cuts.
+fn check_nodes(
+    positions: &[DVec3],
+    values: &[f64],
+    params: &GraphCutParams,
+) -> Result<(), GraphCutError> {
+    if !(params.k.is_finite() && params.k > 0.0) {
+        return Err(GraphCutError::InvalidK(params.k));
+    }
+    if let Some(d) = params.reference_degree
+        && !(d.is_finite() && d > 0.0)
+    {
+        return Err(GraphCutError::InvalidReferenceDegree(d));
+    }
+    let n = positions.len();
+    if values.len() != n {
+        return Err(GraphCutError::LengthMismatch {
+            array: "values",
+            expected: n,
+            found: values.len(),
+        });
+    }
+    if let Some(index) = (0..n).find(|&i| !(positions[i].is_finite() && values[i].is_finite())) {
+        return Err(GraphCutError::NonFinite { index });
+    }
+    Ok(())
+}
+
+/// [`graph_cut`] over a symmetric adjacency in compressed sparse rows (row `v` is
+/// `neighbors[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`; `j` in row `i`
+/// exactly when `i` in row `j`), such as a sphere intersection graph. The flow network is
+/// built on the rows directly, without an edge list.
+pub fn graph_cut_csr(
+    positions: &[DVec3],
+    values: &[f64],
+    offsets: &[u32],
+    neighbors: &[u32],
+    params: &GraphCutParams,
+) -> Result<GraphCut, GraphCutError> {
+    check_nodes(positions, values, params)?;
+    let n = positions.len();
+    if offsets.len() != n + 1 {
+        return Err(GraphCutError::LengthMismatch {
+            array: "offsets",
+            expected: n + 1,
+            found: offsets.len(),
+        });
+    }
+    if offsets[n] as usize != neighbors.len() || offsets.windows(2).any(|w| w[0] > w[1]) {
+        return Err(GraphCutError::MaxFlow(MaxFlowError::MalformedCsr(
+            "offsets",
+        )));
+    }
+    if let Some(edge) = neighbors.iter().position(|&j| j as usize >= n) {
+        return Err(GraphCutError::NodeOutOfRange { edge, nodes: n });
+    }
+    let start = Instant::now();
+    // Per entry: the length, evaluated with the lower index first so both directions of an
+    // edge get the same bits.
+    let lengths: Vec<f64> = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(|v| {
+            neighbors[offsets[v] as usize..offsets[v + 1] as usize]
+                .iter()
+                .map(move |&j| {
+                    let (a, b) = if (v as u32) < j {
+                        (v, j as usize)
+                    } else {
+                        (j as usize, v)
+                    };
+                    positions[a].distance(positions[b])
+                })
+        })
+        .collect();
+    let (length_sum, length_count): (Vec<f64>, Vec<u32>) = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|v| {
+            let row = &lengths[offsets[v] as usize..offsets[v + 1] as usize];
+            row.iter()
+                .filter(|&&l| l > 0.0)
+                .fold((0.0, 0u32), |(s, c), &l| (s + l, c + 1))
+        })
+        .unzip();
+    // The mean over directed entries equals the mean over edges (each counted twice).
+    let (mut total, mut counted) = (0.0, 0usize);
+    for (s, c) in length_sum.iter().zip(&length_count) {
+        total += s;
+        counted += *c as usize;
+    }
+    let mean_length = if counted > 0 {
+        total / counted as f64
+    } else {
+        1.0
+    };
+    let floor = ZERO_LENGTH * mean_length;
+    let (source, sink) =
+        terminal_capacities(values, &length_sum, &length_count, mean_length, params);
+    let capacities: Vec<f64> = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(|v| {
+            let range = offsets[v] as usize..offsets[v + 1] as usize;
+            neighbors[range.clone()]
+                .iter()
+                .zip(&lengths[range])
+                .map(move |(&j, &l)| {
+                    let (a, b) = if (v as u32) < j {
+                        (v, j as usize)
+                    } else {
+                        (j as usize, v)
+                    };
+                    finite_capacity((values[a] + values[b]).abs() / l.max(floor))
+                })
+        })
+        .collect();
+    drop(lengths);
+    let graph = FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, &capacities)?;
+    drop(capacities);
+    Ok(solve(graph, values, neighbors.len() / 2, start))
 }
 
 /// Keeps a capacity finite when a tiny length meets a large value.
@@ -327,8 +450,13 @@ pub fn graph_cut_sig(
         });
     }
     let (values, undefined) = values_at(cover, cover.centers())?;
-    let edges: Vec<[u32; 2]> = sig.edges().map(|(i, j)| [i, j]).collect();
-    let mut cut = graph_cut(cover.centers(), &values, &edges, params)?;
+    let mut cut = graph_cut_csr(
+        cover.centers(),
+        &values,
+        sig.offsets(),
+        sig.neighbor_array(),
+        params,
+    )?;
     cut.stats.undefined_values = undefined;
     Ok(cut)
 }
@@ -435,6 +563,24 @@ mod tests {
         fn labelling_minimises_the_energy((p, v, e, k) in small_graph()) {
             let cut = graph_cut(&p, &v, &e, &GraphCutParams::with_k(k)).unwrap();
             let n = p.len();
+            // The CSR form of the same graph (parallel edges merged, so compare energies).
+            let mut pairs: Vec<(u32, u32)> = e.iter().flat_map(|&[a, b]| [(a, b), (b, a)]).collect();
+            pairs.sort_unstable();
+            pairs.dedup();
+            let mut offsets = vec![0u32; n + 1];
+            for &(a, _) in &pairs {
+                offsets[a as usize + 1] += 1;
+            }
+            for i in 0..n {
+                offsets[i + 1] += offsets[i];
+            }
+            let neighbors: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
+            let unique: Vec<[u32; 2]> = pairs.iter().filter(|(a, b)| a < b).map(|&(a, b)| [a, b]).collect();
+            let csr = graph_cut_csr(&p, &v, &offsets, &neighbors, &GraphCutParams::with_k(k)).unwrap();
+            let by_list = graph_cut(&p, &v, &unique, &GraphCutParams::with_k(k)).unwrap();
+            let (ea, eb) = (energy(&p, &v, &unique, k, &csr.labels), energy(&p, &v, &unique, k, &by_list.labels));
+            prop_assert!((ea - eb).abs() <= 1e-9 * (1.0 + ea), "csr {} list {}", ea, eb);
+            prop_assert!((csr.flow - by_list.flow).abs() <= 1e-9 * (1.0 + ea));
             let mut best = f64::INFINITY;
             for mask in 0u32..(1 << n) {
                 let labels: Vec<bool> = (0..n).map(|i| mask & (1 << i) != 0).collect();
@@ -516,6 +662,42 @@ mod tests {
             }
         }
         assert_eq!(cut.stats.inconsistent, cut.inconsistent.len());
+    }
+
+    /// A cover-sized random graph gives the same labels and flow bits on one thread and two.
+    #[test]
+    fn thread_count_does_not_change_the_cut() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let n = 20_000;
+        let positions: Vec<DVec3> = (0..n)
+            .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        let values: Vec<f64> = positions
+            .iter()
+            .map(|p| 0.3 - p.distance(DVec3::splat(0.5)) + rng.random_range(-0.05..0.05))
+            .collect();
+        let sig = SphereIntersectionGraph::build(&positions, &vec![0.04; n], 1.0).unwrap();
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    graph_cut_csr(
+                        &positions,
+                        &values,
+                        sig.offsets(),
+                        sig.neighbor_array(),
+                        &GraphCutParams::sig(),
+                    )
+                    .unwrap()
+                })
+        };
+        let (a, b) = (run(1), run(2));
+        assert_eq!(a.labels, b.labels);
+        assert_eq!(a.flow.to_bits(), b.flow.to_bits());
+        assert!(a.stats.inconsistent > 0 && a.stats.inside > 0);
     }
 
     #[test]

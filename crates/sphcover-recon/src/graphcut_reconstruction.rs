@@ -5,6 +5,10 @@
 //! 1. The dual complex of the cover with the radius shrink `σ_t` (thesis §3.5.2) gives a
 //!    tetrahedral mesh whose vertices are support centres.
 //! 2. [`crate::graph_cut::graph_cut_tet`] labels them inside/outside (`k` ≈ 5–15).
+//!    Vertices on the boundary of the complex are then set outside (beyond the thesis,
+//!    [`GraphCutReconstructionParams::close_at_boundary`]): the
+//!    cut knows nothing of what lies beyond the complex, and an inside label there would
+//!    leave the surface open.
 //! 3. Marching tetrahedra over the tetrahedra with both labels: on a cut edge whose ends have
 //!    opposite signs of `f` the vertex goes to the linear zero (regula falsi); on an
 //!    *inconsistent* cut edge (same sign at both ends) it goes to the end with the smaller
@@ -27,6 +31,7 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 use sphcover_core::{Cover, DVec3, PointIndex, PointIndexError, TriMesh};
+use sphcover_tetra::regular::NO_TET;
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 use thiserror::Error;
 
@@ -74,6 +79,11 @@ pub struct GraphCutReconstructionParams {
     pub smoothing_lambda: f64,
     /// A support holding fewer samples than this is under-sampled (thesis: 10).
     pub undersampled_below: usize,
+    /// Set the complex's boundary vertices outside after the cut, so the surface is closed
+    /// (beyond the thesis; default `true`). Measured on a 100K-point torus with 0.1% noise
+    /// and 1% outliers in its bounding box: `true` gives a watertight mesh of 36 components
+    /// (outlier bubbles at the box face become closed shells), `false` an open mesh of 7.
+    pub close_at_boundary: bool,
 }
 
 impl Default for GraphCutReconstructionParams {
@@ -85,6 +95,7 @@ impl Default for GraphCutReconstructionParams {
             smoothing_rounds: 30,
             smoothing_lambda: 0.5,
             undersampled_below: 10,
+            close_at_boundary: true,
         }
     }
 }
@@ -98,8 +109,10 @@ pub struct GraphCutReconstructionStats {
     pub tet_vertices: usize,
     /// Tetrahedra.
     pub tets: usize,
-    /// The cut.
+    /// The cut (`inside` and `inconsistent` after the boundary is set outside).
     pub cut: GraphCutStats,
+    /// Vertices on the boundary of the complex labelled inside by the cut and set outside.
+    pub boundary_relabelled: usize,
     /// Vertices of the surface (one per cut edge).
     pub surface_vertices: usize,
     /// Triangles of the surface.
@@ -153,14 +166,33 @@ pub fn reconstruct_graphcut(
         .map(|&s| cover.centers()[s as usize])
         .collect();
     let (values, undefined) = values_at(cover, &positions)?;
-    let cut = graph_cut_tet(
+    let mut cut = graph_cut_tet(
         &mesh,
         &positions,
         &values,
         &GraphCutParams::with_k(params.k),
     )?;
+    // Nothing lies beyond the complex: its boundary vertices are outside, so the inside
+    // region never reaches the boundary and the surface closes.
+    for (t, nb) in mesh.tet_neighbors.iter().enumerate() {
+        for i in 0..4 {
+            if params.close_at_boundary && nb[i] == NO_TET {
+                for j in (0..4).filter(|&j| j != i) {
+                    let v = mesh.tets[t][j] as usize;
+                    if cut.labels[v] {
+                        cut.labels[v] = false;
+                        stats.boundary_relabelled += 1;
+                    }
+                }
+            }
+        }
+    }
     stats.cut = cut.stats.clone();
     stats.cut.undefined_values = undefined;
+    stats.cut.inside -= stats.boundary_relabelled;
+    stats.cut.inconsistent = (0..values.len())
+        .filter(|&v| (cut.labels[v] && values[v] < 0.0) || (!cut.labels[v] && values[v] > 0.0))
+        .count();
     stats.cut_time = start.elapsed();
 
     let start = Instant::now();
@@ -489,5 +521,66 @@ mod tests {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod speed {
+    use super::*;
+    use crate::graph_cut::graph_cut_sig;
+    use sphcover_core::{
+        SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
+    };
+
+    /// Timings of the graph-cut path and of the SIG cut on a noisy torus with 1% outliers.
+    /// `cargo test --release -p sphcover-recon graphcut_speed -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn graphcut_speed() {
+        let n = 100_000;
+        let mut cloud = sphcover_fixtures::torus(0.35, 0.15, n);
+        sphcover_fixtures::add_position_noise(&mut cloud, 0.001, 1);
+        let m = cloud.len();
+        sphcover_fixtures::add_uniform_outliers(
+            &mut cloud,
+            m / 100,
+            DVec3::new(-0.5, -0.5, -0.15),
+            DVec3::new(0.5, 0.5, 0.15),
+            2,
+        );
+        let t = Instant::now();
+        let (cover, norm, _) =
+            build_surface_cover_from_cloud(&cloud, &SurfaceCoverParams::default()).unwrap();
+        let cover_time = t.elapsed();
+        let mut samples = cloud.positions.clone();
+        norm.points_to_unit(&mut samples);
+        let t = Instant::now();
+        let (mesh, stats) =
+            reconstruct_graphcut(&cover, &samples, &GraphCutReconstructionParams::default())
+                .unwrap();
+        let recon_time = t.elapsed();
+        let topo = sphcover_core::mesh_topology::MeshTopology::of(&mesh);
+        println!(
+            "graphcut_speed: {} samples, {} supports, cover {:.2} s, graph-cut path {:.2} s ({:?}), components {}, watertight {}",
+            cloud.len(),
+            cover.len(),
+            cover_time.as_secs_f64(),
+            recon_time.as_secs_f64(),
+            stats,
+            topo.components,
+            topo.is_watertight()
+        );
+        let t = Instant::now();
+        let sig = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 0.7).unwrap();
+        let sig_time = t.elapsed();
+        let t = Instant::now();
+        let cut = graph_cut_sig(&cover, &sig, &GraphCutParams::sig()).unwrap();
+        println!(
+            "graphcut_speed: SIG mean degree {:.1}, build {:.2} s, cut {:.2} s, {:?}",
+            sig.mean_degree(),
+            sig_time.as_secs_f64(),
+            t.elapsed().as_secs_f64(),
+            cut.stats
+        );
     }
 }

@@ -15,17 +15,19 @@ pub mod graphcut_reconstruction;
 pub mod maxflow;
 pub mod normals;
 mod pca;
+pub mod pipeline;
 
 pub use confidence::{
-    ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, sample_confidence,
-    support_confidence,
+    ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
+    sample_confidence, sample_confidence_with, support_confidence,
 };
 pub use diffusion::{
     DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
     diffuse,
 };
 pub use graph_cut::{
-    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_sig, graph_cut_tet,
+    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_csr,
+    graph_cut_sig, graph_cut_tet,
 };
 pub use graphcut_reconstruction::{
     GraphCutReconstructionError, GraphCutReconstructionParams, GraphCutReconstructionStats,
@@ -38,4 +40,7 @@ pub mod mesh_smoothing;
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub mod polygonise;
 
+pub use pipeline::{
+    Method, ReconError, ReconParams, ReconStats, Reconstruction, default_depth, reconstruct,
+};
 pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};

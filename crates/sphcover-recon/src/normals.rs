@@ -21,8 +21,6 @@
 //! Determinism: estimation runs per point in parallel; the tree is built sequentially with
 //! ties broken by index. The result does not depend on the thread count.
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
@@ -102,19 +100,21 @@ pub fn estimate_normals(
     let start = Instant::now();
     let index = PointIndex::new(points)?;
     // Neighbour lists, `k` slots per point, `u32::MAX` for a missing neighbour.
-    let mut neighbours = vec![u32::MAX; n * k];
-    let mut normals = vec![DVec3::ZERO; n];
-    neighbours
+    // Queries run in the index's slot order, where consecutive points are neighbours in
+    // space (the tree's buckets), so the tree nodes they visit stay in cache; the results
+    // are scattered back to the caller's order afterwards. Non-finite points are not in the
+    // index and keep a zero normal.
+    let order = index.order();
+    let mut by_slot_neighbours = vec![u32::MAX; order.len() * k];
+    let mut by_slot_normals = vec![DVec3::ZERO; order.len()];
+    by_slot_neighbours
         .par_chunks_mut(k)
-        .zip(normals.par_iter_mut())
-        .zip(points.par_iter())
+        .zip(by_slot_normals.par_iter_mut())
+        .zip(index.slot_points().par_iter())
         .with_min_len(512)
         .for_each_init(
             || (Vec::with_capacity(k), Vec::with_capacity(k)),
             |(ids, pts), ((slots, normal), &p)| {
-                if !p.is_finite() {
-                    return;
-                }
                 index.nearest_k(p, k, ids);
                 pts.clear();
                 pts.extend(ids.iter().map(|&j| points[j as usize]));
@@ -124,6 +124,15 @@ pub fn estimate_normals(
                 slots[..ids.len()].copy_from_slice(ids);
             },
         );
+    let mut neighbours = vec![u32::MAX; n * k];
+    let mut normals = vec![DVec3::ZERO; n];
+    for (slot, &i) in order.iter().enumerate() {
+        let i = i as usize;
+        normals[i] = by_slot_normals[slot];
+        neighbours[i * k..(i + 1) * k]
+            .copy_from_slice(&by_slot_neighbours[slot * k..(slot + 1) * k]);
+    }
+    drop((by_slot_neighbours, by_slot_normals));
     let mut stats = NormalStats {
         points: n,
         undetermined: normals.iter().filter(|v| **v == DVec3::ZERO).count(),
@@ -140,6 +149,12 @@ pub fn estimate_normals(
 
 /// Orients `normals` along a minimum spanning tree of the kNN graph, then each component
 /// outward.
+///
+/// The tree is built by Kruskal's algorithm over the edges sorted by `(cost, i, j)`: a strict
+/// total order, so the tree is unique and the same as Prim's would be, and the parallel sort
+/// cannot make it depend on the thread count. Signs then propagate by breadth-first search
+/// from the lowest index of each component; the sign of a node relative to the root is the
+/// product along its tree path, whatever the visiting order.
 fn orient(
     points: &[DVec3],
     normals: &mut [DVec3],
@@ -148,32 +163,77 @@ fn orient(
     stats: &mut NormalStats,
 ) {
     let n = points.len();
-    // Reverse kNN lists (who lists me), so the graph is symmetric: CSR by counting.
-    let mut rev_offsets = vec![0u32; n + 1];
-    for (i, row) in neighbours.chunks(k).enumerate() {
-        for &j in row {
-            if j != u32::MAX && j as usize != i {
-                rev_offsets[j as usize + 1] += 1;
-            }
+    let determined = |i: usize| normals[i] != DVec3::ZERO;
+    // Each kNN pair once as (cost bits, low, high); non-negative floats order like their
+    // bits.
+    let normals_ro: &[DVec3] = normals;
+    let mut edges: Vec<(u64, u32, u32)> = neighbours
+        .par_chunks(k)
+        .enumerate()
+        .with_min_len(512)
+        .flat_map_iter(|(i, row)| {
+            row.iter().filter_map(move |&j| {
+                let ju = j as usize;
+                if j == u32::MAX || ju == i || !determined(i) || !determined(ju) {
+                    return None;
+                }
+                let (a, b) = if i < ju { (i, ju) } else { (ju, i) };
+                let cost = (1.0 - normals_ro[a].dot(normals_ro[b]).abs()).max(0.0);
+                Some((cost.to_bits(), a as u32, b as u32))
+            })
+        })
+        .collect();
+    edges.par_sort_unstable();
+    edges.dedup();
+
+    // Kruskal with a union-find (path halving, union by size).
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    let mut size = vec![1u32; n];
+    let find = |parent: &mut [u32], mut x: u32| {
+        while parent[x as usize] != x {
+            let gp = parent[parent[x as usize] as usize];
+            parent[x as usize] = gp;
+            x = gp;
         }
+        x
+    };
+    let mut tree: Vec<(u32, u32)> = Vec::with_capacity(n);
+    for &(_, a, b) in &edges {
+        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+        if ra == rb {
+            continue;
+        }
+        let (big, small) = if size[ra as usize] >= size[rb as usize] {
+            (ra, rb)
+        } else {
+            (rb, ra)
+        };
+        parent[small as usize] = big;
+        size[big as usize] += size[small as usize];
+        tree.push((a, b));
+    }
+    drop(edges);
+
+    // Tree adjacency in CSR.
+    let mut offsets = vec![0u32; n + 1];
+    for &(a, b) in &tree {
+        offsets[a as usize + 1] += 1;
+        offsets[b as usize + 1] += 1;
     }
     for v in 0..n {
-        rev_offsets[v + 1] += rev_offsets[v];
+        offsets[v + 1] += offsets[v];
     }
-    let mut fill = rev_offsets.clone();
-    let mut reverse = vec![0u32; rev_offsets[n] as usize];
-    for (i, row) in neighbours.chunks(k).enumerate() {
-        for &j in row {
-            if j != u32::MAX && j as usize != i {
-                reverse[fill[j as usize] as usize] = i as u32;
-                fill[j as usize] += 1;
-            }
-        }
+    let mut fill = offsets.clone();
+    let mut adjacent = vec![0u32; offsets[n] as usize];
+    for &(a, b) in &tree {
+        adjacent[fill[a as usize] as usize] = b;
+        fill[a as usize] += 1;
+        adjacent[fill[b as usize] as usize] = a;
+        fill[b as usize] += 1;
     }
 
     let mut visited = vec![false; n];
-    let mut heap: BinaryHeap<Reverse<(u64, u32, u32)>> = BinaryHeap::new();
-    let mut component = Vec::new();
+    let mut component: Vec<u32> = Vec::new();
     for root in 0..n {
         if visited[root] || normals[root] == DVec3::ZERO {
             continue;
@@ -182,36 +242,22 @@ fn orient(
         component.clear();
         visited[root] = true;
         component.push(root as u32);
-        let push_edges =
-            |v: usize,
-             normals: &[DVec3],
-             visited: &[bool],
-             heap: &mut BinaryHeap<Reverse<(u64, u32, u32)>>| {
-                let forward = neighbours[v * k..(v + 1) * k].iter();
-                let backward = reverse[rev_offsets[v] as usize..rev_offsets[v + 1] as usize].iter();
-                for &j in forward.chain(backward) {
-                    let ju = j as usize;
-                    if j == u32::MAX || ju == v || visited[ju] || normals[ju] == DVec3::ZERO {
-                        continue;
-                    }
-                    let cost = (1.0 - normals[v].dot(normals[ju]).abs()).max(0.0);
-                    // Non-negative floats order like their bit patterns.
-                    heap.push(Reverse((cost.to_bits(), j, v as u32)));
+        let mut head = 0;
+        while head < component.len() {
+            let v = component[head] as usize;
+            head += 1;
+            for &j in &adjacent[offsets[v] as usize..offsets[v + 1] as usize] {
+                let j = j as usize;
+                if visited[j] {
+                    continue;
                 }
-            };
-        push_edges(root, normals, &visited, &mut heap);
-        while let Some(Reverse((_, j, parent))) = heap.pop() {
-            let j = j as usize;
-            if visited[j] {
-                continue;
+                visited[j] = true;
+                if normals[j].dot(normals[v]) < 0.0 {
+                    normals[j] = -normals[j];
+                    stats.propagation_flips += 1;
+                }
+                component.push(j as u32);
             }
-            visited[j] = true;
-            component.push(j as u32);
-            if normals[j].dot(normals[parent as usize]) < 0.0 {
-                normals[j] = -normals[j];
-                stats.propagation_flips += 1;
-            }
-            push_edges(j, normals, &visited, &mut heap);
         }
         if outward_vote(points, normals, &component) < 0.0 {
             stats.flipped_components += 1;

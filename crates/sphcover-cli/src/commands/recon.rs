@@ -1,0 +1,226 @@
+//! `sphcover recon`: a surface mesh from scanned points (thesis §5), robust to noise,
+//! outliers and wrong normals.
+
+use std::path::Path;
+
+use serde_json::json;
+use sphcover_core::{PointCloud, SurfaceCoverParams};
+use sphcover_core::io::{self, CoverFileMeta, Format, WriteOptions};
+use sphcover_recon::{
+    GraphCutParams, Method, ReconError, ReconParams, Reconstruction, reconstruct,
+};
+
+use crate::args::{ReconArgs, ReconMethodArg};
+use crate::exit::BadInput;
+use crate::report::Reporter;
+
+/// Runs `sphcover recon`.
+pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    let params = params(args)?;
+    for extra in [&args.points_out, &args.cover_out, &args.report]
+        .into_iter()
+        .flatten()
+    {
+        if extra == &args.output || extra == &args.input {
+            return Err(BadInput(format!(
+                "{}: an extra output must differ from the input and the mesh output",
+                extra.display()
+            ))
+            .into());
+        }
+    }
+    let stage = reporter.stage("read points");
+    let mut cloud = io::read_point_cloud(&args.input, &args.read.read_options())?;
+    stage.finish();
+    if args.estimate_normals {
+        cloud.normals = None;
+    }
+
+    let bar = reporter.progress(None, "reconstructing");
+    let on_stage = |name: &'static str| bar.set_message(name);
+    let result = reconstruct(&cloud, &params, &on_stage);
+    bar.finish_and_clear();
+    let recon = result.map_err(|e| match e {
+        ReconError::TooFewPoints { .. } | ReconError::NoExtent(_) | ReconError::Empty(_) => {
+            anyhow::Error::from(BadInput(format!("{}: {e}", args.input.display())))
+        }
+        other => anyhow::Error::from(other).context(format!("{}", args.input.display())),
+    })?;
+    for (name, time) in &recon.stats.stages {
+        reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
+    }
+    details(&recon, reporter);
+
+    let stage = reporter.stage("write");
+    let options = WriteOptions {
+        inputs: vec![args.input.clone()],
+        ..WriteOptions::default()
+    };
+    let mut mesh = recon.mesh.clone();
+    match Format::from_path(&args.output)? {
+        Format::Ply => {}
+        Format::Stl => {
+            mesh.values = None;
+            mesh.normals = None;
+        }
+        _ => mesh.values = None,
+    }
+    io::write_mesh(&args.output, &mesh, &options)?;
+    if let Some(path) = &args.points_out {
+        let points = PointCloud {
+            positions: cloud.positions.clone(),
+            normals: cloud.normals.clone(),
+            confidence: Some(recon.confidence.clone()),
+            values: Some(recon.outliers.iter().map(|&o| f64::from(u8::from(o))).collect()),
+        };
+        io::write_point_cloud(path, &points, &options)?;
+    }
+    if let Some(path) = &args.cover_out {
+        let meta = CoverFileMeta {
+            normalisation: recon.normalisation,
+            notes: vec![format!(
+                "sphcover recon --method {} of {}",
+                params.method.name(),
+                file_name(&args.input)
+            )],
+            ..CoverFileMeta::default()
+        };
+        io::write_cover(path, &recon.cover, &meta, &options)?;
+    }
+    if let Some(path) = &args.report {
+        let text = serde_json::to_string_pretty(&report_json(args, &recon))?;
+        io::write_atomic(path, &[args.input.clone()], |w| w.write_all(text.as_bytes()))?;
+    }
+    stage.finish();
+
+    let s = &recon.stats;
+    reporter.summary(&format!(
+        "{} points{}{}: {} supports, {} inconsistent; {} triangles, {} component{}, {}; {:.2} s -> {}",
+        s.points,
+        if s.normals_estimated {
+            " (normals estimated)"
+        } else {
+            ""
+        },
+        if s.outliers > 0 {
+            format!(", {} outliers", s.outliers)
+        } else {
+            String::new()
+        },
+        s.supports,
+        s.inconsistent_supports,
+        s.triangles,
+        s.components,
+        if s.components == 1 { "" } else { "s" },
+        if s.watertight { "watertight" } else { "open" },
+        s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),
+        args.output.display()
+    ));
+    Ok(())
+}
+
+fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
+    let defaults = ReconParams::default();
+    let method = match args.method {
+        ReconMethodArg::Integrated => Method::Integrated,
+        ReconMethodArg::Graphcut => Method::GraphCut,
+        ReconMethodArg::Diffusion => Method::Diffusion,
+        ReconMethodArg::Pu => Method::PartitionOfUnity,
+    };
+    if let Some(eps) = args.eps
+        && !(eps.is_finite() && eps > 0.0 && eps < 1.0)
+    {
+        return Err(BadInput(format!("--eps {eps} must be in (0, 1)")).into());
+    }
+    if let Some(k) = args.k
+        && !(k.is_finite() && k > 0.0)
+    {
+        return Err(BadInput(format!("--k {k} must be a positive number")).into());
+    }
+    if let Some(t) = args.trim
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(BadInput(format!("--trim {t} must be a positive number")).into());
+    }
+    if let Some(d) = args.depth
+        && !(1..=14).contains(&d)
+    {
+        return Err(BadInput(format!("--depth {d} must be in 1..=14")).into());
+    }
+    if args.normal_neighbors < 3 {
+        return Err(BadInput("--normal-neighbors must be at least 3".to_owned()).into());
+    }
+    let mut params = ReconParams {
+        method,
+        cover: SurfaceCoverParams {
+            eps: args.eps.unwrap_or(defaults.cover.eps),
+            seed: args.seed,
+            ..defaults.cover.clone()
+        },
+        depth: args.depth,
+        trim: args.trim,
+        ..defaults
+    };
+    params.normals.k = args.normal_neighbors;
+    if let Some(k) = args.k {
+        params.graph_cut = GraphCutParams { k, ..params.graph_cut };
+        params.graph_cut_only.k = k;
+    }
+    Ok(params)
+}
+
+/// With `-v`: the stage counts.
+fn details(recon: &Reconstruction, reporter: &Reporter) {
+    let s = &recon.stats;
+    reporter.detail(&format!(
+        "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}",
+        s.supports, s.cover.supports_over_eps, s.cover.max_error, s.graph_mean_degree
+    ));
+    if let Some(d) = &s.diffusion {
+        reporter.detail(&format!(
+            "  diffusion: {} rounds, CG iterations {:?}, {} supports fitted",
+            d.rounds, d.cg_iterations, d.fitted_supports
+        ));
+    }
+    if let Some(p) = &s.polygonise {
+        reporter.detail(&format!(
+            "  polygonise: depth {}, step {:.3e}, {} cells visited, {} evaluations",
+            s.depth, p.step, p.cells_visited, p.grid_evaluations
+        ));
+    }
+    reporter.detail(&format!(
+        "  result: {} vertices, {} triangles, {} components ({} dropped), Euler characteristic {}",
+        s.vertices, s.triangles, s.components, s.dropped_components, s.euler_characteristic
+    ));
+}
+
+fn report_json(args: &ReconArgs, recon: &Reconstruction) -> serde_json::Value {
+    let s = &recon.stats;
+    json!({
+        "input": args.input.display().to_string(),
+        "output": args.output.display().to_string(),
+        "method": s.method.name(),
+        "points": s.points,
+        "non_finite_points": s.non_finite_points,
+        "normals_estimated": s.normals_estimated,
+        "outliers": s.outliers,
+        "supports": s.supports,
+        "supports_over_eps": s.cover.supports_over_eps,
+        "graph_mean_degree": s.graph_mean_degree,
+        "inconsistent_supports": s.inconsistent_supports,
+        "depth": s.depth,
+        "vertices": s.vertices,
+        "triangles": s.triangles,
+        "components": s.components,
+        "dropped_components": s.dropped_components,
+        "watertight": s.watertight,
+        "euler_characteristic": s.euler_characteristic,
+        "stages_seconds": s.stages.iter().map(|(n, t)| json!({"stage": n, "seconds": t.as_secs_f64()})).collect::<Vec<_>>(),
+        "total_seconds": s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),
+    })
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
+}

@@ -1,0 +1,598 @@
+//! The reconstruction pipeline (thesis §5.2.4): from a scanned point cloud to a triangle mesh.
+//!
+//! [`Method::Integrated`] (the default) runs, in the unit frame of the points' bounding box:
+//!
+//! 1. normals by PCA and consistent orientation when the input has none (beyond the thesis);
+//! 2. the surface cover (thesis §3.4.1), weighted by a scanner-given confidence if any;
+//! 3. the graph cut on the sphere intersection graph (thesis §5.2.4): supports whose label
+//!    disagrees with the sign of `f` at their centre are *inconsistent* (outliers and wrong
+//!    normals make them) and get a zero local function and confidence 0;
+//! 4. the confidence of every sample (eq. 5.39–5.40) and the outlier labels;
+//! 5. diffusion of the local functions with confidence-weighted fitting (§5.2.3);
+//! 6. polygonisation by surface nets from the confident samples, so a sheet that no
+//!    confident sample touches (floating outlier surfaces) is never meshed; components far
+//!    smaller than the largest are dropped;
+//!
+//! and maps the mesh back to input coordinates. [`Method::Diffusion`] skips the cut,
+//! [`Method::PartitionOfUnity`] polygonises the cover as built, and [`Method::GraphCut`] is
+//! the graph-cut-only path of §5.2.2 (marching tetrahedra on the labels of the dual complex).
+//!
+//! Lengths in [`ReconParams`] are relative to the longest edge of the input's bounding box
+//! (the unit frame), so one parameter set suits any scan's units.
+
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+use sphcover_core::{
+    Cover, CoverError, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex,
+    PointIndexError, PuEvaluator, SigError, SphereIntersectionGraph, SurfaceCoverError,
+    SurfaceCoverParams, SurfaceCoverStats, TriMesh, build_surface_cover_with_confidence,
+};
+use sphcover_ops::{OpsError, PairGeometry};
+use thiserror::Error;
+
+use crate::confidence::{
+    ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
+    sample_confidence, sample_confidence_with,
+};
+use crate::diffusion::{DiffusionError, DiffusionParams, DiffusionStats, FittingTerms, diffuse};
+use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut_sig};
+use crate::graphcut_reconstruction::{
+    GraphCutReconstructionError, GraphCutReconstructionParams, reconstruct_graphcut,
+};
+use crate::normals::{NormalError, NormalParams, estimate_normals};
+use crate::polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
+
+/// Which reconstruction to run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Method {
+    /// Cover, graph cut on the sphere intersection graph, diffusion, polygonisation
+    /// (thesis §5.2.4).
+    #[default]
+    Integrated,
+    /// Cover, diffusion, polygonisation: no graph cut.
+    Diffusion,
+    /// Cover, polygonisation: the plain partition-of-unity function (multi-level
+    /// partition of unity, as MPU).
+    PartitionOfUnity,
+    /// Cover, dual-complex tetrahedral mesh, graph cut, marching tetrahedra on the labels
+    /// (thesis §5.2.2).
+    GraphCut,
+}
+
+impl Method {
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Integrated => "integrated",
+            Method::Diffusion => "diffusion",
+            Method::PartitionOfUnity => "pu",
+            Method::GraphCut => "graphcut",
+        }
+    }
+}
+
+/// Parameters of [`reconstruct`]. Lengths are relative to the longest edge of the input's
+/// bounding box.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReconParams {
+    /// The pipeline.
+    pub method: Method,
+    /// Surface cover: ε, `n_min`, kernel, seed (thesis §3.4.1).
+    pub cover: SurfaceCoverParams,
+    /// Shrink factor of the sphere intersection graph (SPEC: 0.7).
+    pub graph_shrink: f64,
+    /// Graph cut on the sphere intersection graph.
+    pub graph_cut: GraphCutParams,
+    /// The graph-cut-only path ([`Method::GraphCut`]).
+    pub graph_cut_only: GraphCutReconstructionParams,
+    /// Outlier threshold of the sample confidence.
+    pub confidence: ConfidenceParams,
+    /// Diffusion of the local functions.
+    pub diffusion: DiffusionParams,
+    /// Normal estimation, used when the input has no normals.
+    pub normals: NormalParams,
+    /// Octree depth of the polygonisation grid (step = longest edge / 2^depth); `None`
+    /// chooses it from the number of points (module docs of [`default_depth`]).
+    pub depth: Option<u32>,
+    /// Drop surface farther than this from every confident sample.
+    pub trim: Option<f64>,
+    /// Drop components with fewer triangles than this fraction of the largest one.
+    pub min_component_fraction: f64,
+    /// Samples at least this confident seed the polygonisation.
+    pub seed_confidence: f64,
+}
+
+impl Default for ReconParams {
+    fn default() -> Self {
+        ReconParams {
+            method: Method::Integrated,
+            cover: SurfaceCoverParams::default(),
+            graph_shrink: 0.7,
+            graph_cut: GraphCutParams::sig(),
+            graph_cut_only: GraphCutReconstructionParams::default(),
+            confidence: ConfidenceParams::default(),
+            diffusion: DiffusionParams::default(),
+            normals: NormalParams::default(),
+            depth: None,
+            trim: None,
+            min_component_fraction: 0.01,
+            seed_confidence: 0.5,
+        }
+    }
+}
+
+/// The polygonisation depth chosen for `points` samples: `⌈log₂(0.85 √n)⌉` clamped to
+/// 6..=10, which puts a grid vertex about every sample spacing on a closed scan (the grid
+/// step follows the sample spacing `∝ 1/√n` of a surface).
+pub fn default_depth(points: usize) -> u32 {
+    let d = (0.85 * (points.max(1) as f64).sqrt()).log2().ceil();
+    d.clamp(6.0, 10.0) as u32
+}
+
+/// Why reconstruction failed.
+#[derive(Debug, Error)]
+pub enum ReconError {
+    /// Too few usable points.
+    #[error("{found} usable points; reconstruction needs at least {needed}")]
+    TooFewPoints {
+        /// Points with finite coordinates.
+        found: usize,
+        /// The minimum.
+        needed: usize,
+    },
+    /// All points coincide (no extent to reconstruct).
+    #[error("all {0} points coincide: there is no surface to reconstruct")]
+    NoExtent(usize),
+    /// A parameter is out of range.
+    #[error("parameter `{name}` = {value} is out of range ({expected})")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// The accepted range.
+        expected: &'static str,
+    },
+    /// Normal estimation failed.
+    #[error("normal estimation: {0}")]
+    Normals(#[from] NormalError),
+    /// The cover could not be built.
+    #[error("surface cover: {0}")]
+    Cover(#[from] SurfaceCoverError),
+    /// A cover operation failed.
+    #[error("cover: {0}")]
+    CoverUpdate(#[from] CoverError),
+    /// The sphere intersection graph could not be built.
+    #[error("sphere intersection graph: {0}")]
+    Graph(#[from] SigError),
+    /// The graph cut failed.
+    #[error("graph cut: {0}")]
+    GraphCut(#[from] GraphCutError),
+    /// The graph-cut-only reconstruction failed.
+    #[error("graph-cut reconstruction: {0}")]
+    GraphCutReconstruction(#[from] GraphCutReconstructionError),
+    /// Confidence could not be computed.
+    #[error("confidence: {0}")]
+    Confidence(#[from] ConfidenceError),
+    /// The pair geometry could not be built.
+    #[error("operators: {0}")]
+    Operators(#[from] OpsError),
+    /// Diffusion failed.
+    #[error("diffusion: {0}")]
+    Diffusion(#[from] DiffusionError),
+    /// Polygonisation failed.
+    #[error("polygonisation: {0}")]
+    Polygonise(#[from] PolygoniseError),
+    /// The samples could not be indexed.
+    #[error("sample index: {0}")]
+    Index(#[from] PointIndexError),
+    /// Nothing was left to mesh.
+    #[error("the reconstruction is empty: {0}")]
+    Empty(&'static str),
+}
+
+/// Counts and timings of [`reconstruct`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReconStats {
+    /// Method run.
+    pub method: Method,
+    /// Input points.
+    pub points: usize,
+    /// Points skipped because a coordinate is not finite.
+    pub non_finite_points: usize,
+    /// Normals were estimated (the input had none).
+    pub normals_estimated: bool,
+    /// Samples labelled outliers.
+    pub outliers: usize,
+    /// The cover's statistics.
+    pub cover: SurfaceCoverStats,
+    /// Supports.
+    pub supports: usize,
+    /// Mean degree of the sphere intersection graph.
+    pub graph_mean_degree: f64,
+    /// The graph cut's statistics (integrated method).
+    pub cut: Option<GraphCutStats>,
+    /// Supports whose label disagreed with the sign of `f` (zeroed).
+    pub inconsistent_supports: usize,
+    /// Confidence statistics.
+    pub confidence: Option<ConfidenceStats>,
+    /// Diffusion statistics.
+    pub diffusion: Option<DiffusionStats>,
+    /// Polygonisation statistics.
+    pub polygonise: Option<PolygoniseStats>,
+    /// Octree depth of the polygonisation grid.
+    pub depth: u32,
+    /// Components dropped as too small.
+    pub dropped_components: usize,
+    /// Triangles of the result.
+    pub triangles: usize,
+    /// Vertices of the result.
+    pub vertices: usize,
+    /// Connected components of the result.
+    pub components: usize,
+    /// Every edge has exactly two triangles.
+    pub watertight: bool,
+    /// Euler characteristic of the result.
+    pub euler_characteristic: i64,
+    /// Wall time per stage, in order.
+    pub stages: Vec<(&'static str, Duration)>,
+}
+
+/// The product of [`reconstruct`].
+#[derive(Clone, Debug)]
+pub struct Reconstruction {
+    /// The surface, in input coordinates, with per-vertex outward normals and, as values,
+    /// the confidence of the surface (the partition-of-unity blend of the support
+    /// confidences).
+    pub mesh: TriMesh,
+    /// Confidence of every input point (0 for non-finite points).
+    pub confidence: Vec<f64>,
+    /// Outlier label of every input point.
+    pub outliers: Vec<bool>,
+    /// The final cover, in the unit frame.
+    pub cover: Cover,
+    /// The unit frame.
+    pub normalisation: Normalisation,
+    /// Counts and timings.
+    pub stats: ReconStats,
+}
+
+/// Reconstructs the surface sampled by `cloud` (module docs). `on_stage` is told the name of
+/// each stage as it starts (for progress display).
+pub fn reconstruct(
+    cloud: &PointCloud,
+    params: &ReconParams,
+    on_stage: &(dyn Fn(&'static str) + Sync),
+) -> Result<Reconstruction, ReconError> {
+    check_params(params)?;
+    let mut stats = ReconStats {
+        method: params.method,
+        points: cloud.len(),
+        ..ReconStats::default()
+    };
+    let mut clock = StageClock::new(on_stage);
+
+    // Input in the unit frame; non-finite points are left out (and get confidence 0).
+    clock.start("normalise");
+    let kept: Vec<usize> = (0..cloud.len())
+        .filter(|&i| cloud.positions[i].is_finite())
+        .collect();
+    stats.non_finite_points = cloud.len() - kept.len();
+    const MIN_POINTS: usize = 4;
+    if kept.len() < MIN_POINTS {
+        return Err(ReconError::TooFewPoints {
+            found: kept.len(),
+            needed: MIN_POINTS,
+        });
+    }
+    let input_points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
+    let normalisation =
+        Normalisation::of_points(&input_points).ok_or(ReconError::NoExtent(kept.len()))?;
+    let mut points = input_points;
+    normalisation.points_to_unit(&mut points);
+    let scanner: Option<Vec<f64>> = cloud
+        .confidence
+        .as_ref()
+        .map(|c| kept.iter().map(|&i| c[i].clamp(0.0, 1.0)).collect());
+
+    let normals: Vec<DVec3> = match &cloud.normals {
+        Some(n) => kept.iter().map(|&i| n[i]).collect(),
+        None => {
+            clock.start("normals");
+            stats.normals_estimated = true;
+            estimate_normals(&points, &params.normals)?.normals
+        }
+    };
+
+    clock.start("cover");
+    let (mut cover, cover_stats) =
+        build_surface_cover_with_confidence(&points, &normals, scanner.as_deref(), &params.cover)?;
+    stats.cover = cover_stats;
+    stats.supports = cover.len();
+
+    let depth = params.depth.unwrap_or_else(|| default_depth(points.len()));
+    stats.depth = depth;
+
+    let (unit_mesh, conf) = if params.method == Method::GraphCut {
+        clock.start("graph cut");
+        let (mesh, gc_stats) = reconstruct_graphcut(&cover, &points, &params.graph_cut_only)?;
+        stats.cut = Some(gc_stats.cut.clone());
+        stats.inconsistent_supports = gc_stats.cut.inconsistent;
+        clock.start("confidence");
+        let conf = sample_confidence(&cover, &points, scanner.as_deref(), &params.confidence)?;
+        (mesh, conf)
+    } else {
+        let mut zeroed = vec![false; cover.len()];
+        if matches!(params.method, Method::Integrated | Method::Diffusion) {
+            clock.start("graph");
+            let graph = SphereIntersectionGraph::build(
+                cover.centers(),
+                cover.radii(),
+                params.graph_shrink,
+            )?;
+            stats.graph_mean_degree = graph.mean_degree();
+            if params.method == Method::Integrated {
+                clock.start("graph cut");
+                let cut = graph_cut_sig(&cover, &graph, &params.graph_cut)?;
+                stats.inconsistent_supports = cut.inconsistent.len();
+                for &i in &cut.inconsistent {
+                    zeroed[i as usize] = true;
+                }
+                stats.cut = Some(cut.stats);
+                zero_functions(&mut cover, &zeroed)?;
+            }
+            clock.start("confidence");
+            let conf = sample_confidence_with(
+                &cover,
+                &points,
+                scanner.as_deref(),
+                &params.confidence,
+                |i| zeroed[i],
+            )?;
+
+            clock.start("diffusion");
+            let index = PointIndex::new(&points)?;
+            let terms = FittingTerms::gather(&cover, &index, &points, &normals, &conf.confidence)?;
+            let pairs = PairGeometry::build(cover.centers(), cover.radii(), &graph)?;
+            drop(graph);
+            stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
+            clock.start("polygonise");
+            let mesh = polygonise_confident(&cover, &points, &conf, depth, params, &mut stats)?;
+            (mesh, conf)
+        } else {
+            clock.start("confidence");
+            let conf = sample_confidence(&cover, &points, scanner.as_deref(), &params.confidence)?;
+            clock.start("polygonise");
+            let mesh = polygonise_confident(&cover, &points, &conf, depth, params, &mut stats)?;
+            (mesh, conf)
+        }
+    };
+
+    clock.start("clean");
+    let mut mesh = unit_mesh;
+    let surface_confidence = blend_over_supports(&cover, &mesh.vertices, &conf.support_confidence)?;
+    mesh.values = Some(
+        surface_confidence
+            .into_iter()
+            .map(|v| v.unwrap_or(0.0))
+            .collect(),
+    );
+    stats.dropped_components = retain_large_components(&mut mesh, params.min_component_fraction);
+    if mesh.triangles.is_empty() {
+        return Err(ReconError::Empty(
+            "no surface was found near the confident samples",
+        ));
+    }
+    mesh.to_input(&normalisation);
+    let topology = MeshTopology::of(&mesh);
+    stats.triangles = mesh.triangles.len();
+    stats.vertices = mesh.vertices.len();
+    stats.components = topology.components;
+    stats.watertight = topology.is_watertight();
+    stats.euler_characteristic = topology.euler_characteristic();
+
+    // Per input point, in input order.
+    let mut point_confidence = vec![0.0; cloud.len()];
+    let mut point_outlier = vec![true; cloud.len()];
+    for (slot, &i) in kept.iter().enumerate() {
+        point_confidence[i] = conf.confidence[slot];
+        point_outlier[i] = conf.outliers[slot];
+    }
+    stats.confidence = Some(conf.stats);
+    stats.outliers = point_outlier.iter().filter(|&&o| o).count();
+    stats.stages = clock.finish();
+    Ok(Reconstruction {
+        mesh,
+        confidence: point_confidence,
+        outliers: point_outlier,
+        cover,
+        normalisation,
+        stats,
+    })
+}
+
+fn check_params(params: &ReconParams) -> Result<(), ReconError> {
+    let checks = [
+        (
+            "graph_shrink",
+            params.graph_shrink,
+            params.graph_shrink > 0.0 && params.graph_shrink <= 1.0,
+            "(0, 1]",
+        ),
+        (
+            "min_component_fraction",
+            params.min_component_fraction,
+            (0.0..=1.0).contains(&params.min_component_fraction),
+            "[0, 1]",
+        ),
+        (
+            "seed_confidence",
+            params.seed_confidence,
+            (0.0..=1.0).contains(&params.seed_confidence),
+            "[0, 1]",
+        ),
+        (
+            "trim",
+            params.trim.unwrap_or(1.0),
+            params.trim.is_none_or(|t| t > 0.0 && t.is_finite()),
+            "> 0",
+        ),
+        (
+            "depth",
+            f64::from(params.depth.unwrap_or(8)),
+            params.depth.is_none_or(|d| (1..=14).contains(&d)),
+            "1..=14",
+        ),
+    ];
+    for (name, value, ok, expected) in checks {
+        if !ok {
+            return Err(ReconError::InvalidParameter {
+                name,
+                value,
+                expected,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Sets the local functions of the `zeroed` supports to zero.
+fn zero_functions(cover: &mut Cover, zeroed: &[bool]) -> Result<(), ReconError> {
+    if let LocalFunctions::Linear { alpha, beta } = cover.funcs() {
+        let (mut alpha, mut beta) = (alpha.clone(), beta.clone());
+        for (i, _) in zeroed.iter().enumerate().filter(|(_, z)| **z) {
+            alpha[i] = DVec3::ZERO;
+            beta[i] = 0.0;
+        }
+        cover.set_funcs(LocalFunctions::Linear { alpha, beta })?;
+    }
+    Ok(())
+}
+
+/// Polygonises the cover from the confident, non-outlier samples.
+fn polygonise_confident(
+    cover: &Cover,
+    points: &[DVec3],
+    conf: &SampleConfidence,
+    depth: u32,
+    params: &ReconParams,
+    stats: &mut ReconStats,
+) -> Result<TriMesh, ReconError> {
+    let confident = |threshold: f64| -> Vec<DVec3> {
+        points
+            .par_iter()
+            .zip(conf.confidence.par_iter().zip(conf.outliers.par_iter()))
+            .filter(|(_, (c, o))| !**o && **c >= threshold)
+            .map(|(&p, _)| p)
+            .collect()
+    };
+    let mut seeds = confident(params.seed_confidence);
+    if seeds.is_empty() {
+        seeds = confident(0.0);
+    }
+    if seeds.is_empty() {
+        return Err(ReconError::Empty("every sample is an outlier"));
+    }
+    let eval = PuEvaluator::new(cover, 1.0)?;
+    let poly = PolygoniseParams {
+        step: GridStep::Absolute(1.0 / f64::from(1u32 << depth)),
+        trim: params.trim,
+        ..PolygoniseParams::default()
+    };
+    let (mesh, poly_stats) = polygonise(&eval, &seeds, &poly)?;
+    stats.polygonise = Some(poly_stats);
+    Ok(mesh)
+}
+
+/// Drops the components with fewer triangles than `fraction` of the largest; returns how many
+/// were dropped. Unused vertices are removed.
+fn retain_large_components(mesh: &mut TriMesh, fraction: f64) -> usize {
+    let topology = MeshTopology::of(mesh);
+    let sizes = topology.component_sizes();
+    let Some(&largest) = sizes.iter().max() else {
+        return 0;
+    };
+    let keep: Vec<bool> = sizes
+        .iter()
+        .map(|&s| s as f64 >= fraction * largest as f64)
+        .collect();
+    let dropped = keep.iter().filter(|&&k| !k).count();
+    if dropped == 0 {
+        return 0;
+    }
+    let triangles: Vec<[u32; 3]> = mesh
+        .triangles
+        .iter()
+        .zip(&topology.triangle_component)
+        .filter(|(_, c)| **c != u32::MAX && keep[**c as usize])
+        .map(|(t, _)| *t)
+        .collect();
+    let mut remap = vec![u32::MAX; mesh.vertices.len()];
+    let mut next = 0u32;
+    for t in &triangles {
+        for &v in t {
+            if remap[v as usize] == u32::MAX {
+                remap[v as usize] = next;
+                next += 1;
+            }
+        }
+    }
+    let mut vertices = vec![DVec3::ZERO; next as usize];
+    for (old, &new) in remap.iter().enumerate() {
+        if new != u32::MAX {
+            vertices[new as usize] = mesh.vertices[old];
+        }
+    }
+    mesh.normals = mesh.normals.as_ref().map(|a| remap_attribute(a, &remap, next));
+    mesh.values = mesh.values.as_ref().map(|a| remap_attribute(a, &remap, next));
+    mesh.vertices = vertices;
+    mesh.triangles = triangles
+        .iter()
+        .map(|t| t.map(|v| remap[v as usize]))
+        .collect();
+    dropped
+}
+
+/// `attr` moved to the new vertex numbering `remap` (`u32::MAX`: vertex dropped).
+fn remap_attribute<T: Copy + Default>(attr: &[T], remap: &[u32], len: u32) -> Vec<T> {
+    let mut out = vec![T::default(); len as usize];
+    for (old, &new) in remap.iter().enumerate() {
+        if new != u32::MAX {
+            out[new as usize] = attr[old];
+        }
+    }
+    out
+}
+
+/// Times the stages and reports each start.
+struct StageClock<'a> {
+    on_stage: &'a (dyn Fn(&'static str) + Sync),
+    current: Option<(&'static str, Instant)>,
+    done: Vec<(&'static str, Duration)>,
+}
+
+impl<'a> StageClock<'a> {
+    fn new(on_stage: &'a (dyn Fn(&'static str) + Sync)) -> StageClock<'a> {
+        StageClock {
+            on_stage,
+            current: None,
+            done: Vec::new(),
+        }
+    }
+
+    fn start(&mut self, name: &'static str) {
+        if let Some((prev, t)) = self.current.take() {
+            self.done.push((prev, t.elapsed()));
+        }
+        (self.on_stage)(name);
+        self.current = Some((name, Instant::now()));
+    }
+
+    fn finish(mut self) -> Vec<(&'static str, Duration)> {
+        if let Some((prev, t)) = self.current.take() {
+            self.done.push((prev, t.elapsed()));
+        }
+        self.done
+    }
+}
