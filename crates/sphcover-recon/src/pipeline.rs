@@ -334,7 +334,7 @@ pub fn reconstruct(
         });
     }
     let input_points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
-    let normalisation =
+    let mut normalisation =
         Normalisation::of_points(&input_points).ok_or(ReconError::NoExtent(kept.len()))?;
     let mut points = input_points;
     normalisation.points_to_unit(&mut points);
@@ -344,26 +344,34 @@ pub fn reconstruct(
         .map(|c| kept.iter().map(|&i| c[i].clamp(0.0, 1.0)).collect());
 
     clock.start("scan statistics");
-    let index = PointIndex::new(&points)?;
-    let scan = scan_statistics(&points, &index, &params.scan);
+    let mut index = PointIndex::new(&points)?;
+    let mut scan = scan_statistics(&points, &index, &params.scan);
+    let drop_isolated = params.drop_isolated && scan.isolated_count > 0;
+    if drop_isolated {
+        // The frame and the cover's octree follow the object, not the outliers' extent:
+        // with far outliers in the box, the octree's cells near the object are coarser and
+        // data-less regions (scanner shadows) reach much farther.
+        let inliers: Vec<DVec3> = (0..points.len())
+            .filter(|&s| !scan.isolated[s])
+            .map(|s| cloud.positions[kept[s]])
+            .collect();
+        if let Some(tight) = Normalisation::of_points(&inliers) {
+            let ratio = normalisation.scale / tight.scale;
+            scan.spacing *= ratio;
+            scan.noise *= ratio;
+            normalisation = tight;
+            points = kept
+                .iter()
+                .map(|&i| normalisation.to_unit(cloud.positions[i]))
+                .collect();
+            index = PointIndex::new(&points)?;
+        }
+    }
     let mut cover_params = params.cover.clone();
     if let Some(factor) = params.noise_tolerance {
         cover_params.eps = cover_params.eps.max(factor * scan.noise);
     }
     stats.eps = cover_params.eps;
-    // Isolated samples weigh nothing in the cover (they are left out of it).
-    let trust: Option<Vec<f64>> = if params.drop_isolated && scan.isolated_count > 0 {
-        Some(
-            (0..points.len())
-                .map(|i| {
-                    let given = scanner.as_ref().map_or(1.0, |s| s[i]);
-                    if scan.isolated[i] { 0.0 } else { given }
-                })
-                .collect(),
-        )
-    } else {
-        scanner.clone()
-    };
 
     let normals: Vec<DVec3> = match &cloud.normals {
         Some(n) => kept.iter().map(|&i| n[i]).collect(),
@@ -375,8 +383,20 @@ pub fn reconstruct(
     };
 
     clock.start("cover");
-    let (mut cover, cover_stats) =
-        build_surface_cover_with_confidence(&points, &normals, trust.as_deref(), &cover_params)?;
+    // Isolated samples are left out of the cover.
+    let in_cover: Vec<usize> = (0..points.len())
+        .filter(|&s| !(drop_isolated && scan.isolated[s]))
+        .collect();
+    let pick = |v: &[DVec3]| -> Vec<DVec3> { in_cover.iter().map(|&s| v[s]).collect() };
+    let cover_trust: Option<Vec<f64>> = scanner
+        .as_ref()
+        .map(|c| in_cover.iter().map(|&s| c[s]).collect());
+    let (mut cover, cover_stats) = build_surface_cover_with_confidence(
+        &pick(&points),
+        &pick(&normals),
+        cover_trust.as_deref(),
+        &cover_params,
+    )?;
     stats.cover = cover_stats;
     stats.supports = cover.len();
 

@@ -170,8 +170,17 @@ mod tests {
         let far = |i: usize| (cloud.positions[i].length() - 0.4).abs() > 10.0 * stats.spacing;
         let far_outliers: Vec<usize> = (20_000..cloud.len()).filter(|&i| far(i)).collect();
         let missed = far_outliers.iter().filter(|&&i| !stats.isolated[i]).count();
-        assert!(far_outliers.len() > 100, "{} far outliers", far_outliers.len());
-        assert_eq!(missed, 0, "missed {missed} of {} far outliers", far_outliers.len());
+        assert!(
+            far_outliers.len() > 100,
+            "{} far outliers",
+            far_outliers.len()
+        );
+        assert_eq!(
+            missed,
+            0,
+            "missed {missed} of {} far outliers",
+            far_outliers.len()
+        );
         let false_alarms = stats.isolated[..20_000].iter().filter(|&&o| o).count();
         assert!(false_alarms <= 20, "{false_alarms} surface samples flagged");
     }
