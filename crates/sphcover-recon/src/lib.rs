@@ -1,11 +1,40 @@
-//! Surface reconstruction from scanned points (thesis §5).
+//! Surface reconstruction from scanned points (thesis §5), robust to noise, outliers and
+//! wrong normals.
 //!
-//! This crate will hold the reconstruction pipeline: confidence of samples (eq. 5.39–5.40),
-//! a Boykov–Kolmogorov max-flow graph cut on the sphere intersection graph and on the
-//! tetrahedral mesh, diffusion of local functions with fitting terms, normal estimation for
-//! unoriented input, and polygonisation by surface nets visited only near the zero set.
+//! [`reconstruct`] runs the whole pipeline (module [`pipeline`]): scan statistics (spacing,
+//! noise, isolated samples), normals when the input has none, the surface cover, the graph
+//! cut on the sphere intersection graph ([`graph_cut`], in-house Boykov–Kolmogorov
+//! [`maxflow`]), the confidence of samples (eq. 5.39–5.40), diffusion of the local functions
+//! ([`diffusion`], over the operators of `sphcover-ops`), and polygonisation by surface nets
+//! visited only near the zero set ([`polygonise`]). Every stage is public so a caller can run
+//! one alone.
 //!
-//! It builds on `sphcover-core`, `sphcover-ops` and `sphcover-tetra`.
+//! ```
+//! use sphcover_core::{DVec3, MeshTopology, PointCloud};
+//! use sphcover_recon::{ReconParams, reconstruct};
+//!
+//! // 3,000 points on a sphere of radius 2 (a Fibonacci lattice), without normals.
+//! let n = 3000;
+//! let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+//! let positions: Vec<DVec3> = (0..n)
+//!     .map(|i| {
+//!         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+//!         let s = (1.0 - z * z).sqrt();
+//!         let a = golden * i as f64;
+//!         2.0 * DVec3::new(s * a.cos(), s * a.sin(), z)
+//!     })
+//!     .collect();
+//! let cloud = PointCloud::from_positions(positions);
+//!
+//! let result = reconstruct(&cloud, &ReconParams::default(), &|_stage| {})?;
+//! assert!(result.stats.normals_estimated);
+//! let topology = MeshTopology::of(&result.mesh);
+//! assert!(topology.is_closed_oriented_manifold());
+//! assert_eq!((topology.components, topology.euler_characteristic()), (1, 2));
+//! // Vertices lie on the sphere, in the input's units.
+//! assert!(result.mesh.vertices.iter().all(|v| (v.length() - 2.0).abs() < 0.05));
+//! # Ok::<(), sphcover_recon::ReconError>(())
+//! ```
 #![deny(missing_docs)]
 
 pub mod confidence;
