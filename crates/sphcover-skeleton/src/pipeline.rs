@@ -14,6 +14,7 @@ use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
+use crate::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
 use crate::medial_correction::centre_between_faces;
 use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
@@ -72,6 +73,10 @@ pub struct SkeletonParams {
     /// of flat plates (0.23 → 0.19 voxel) but raise it at the T-junction (0.45 → 0.52) and on
     /// the spherical cap (0.32 → 0.37), where the umbrella step pulls towards chords.
     pub smoothing_rounds: usize,
+    /// Filling holes of the sheets meeting at a junction (see [`crate::junction_holes`]):
+    /// triangles whose planes meet at less than this angle (degrees) belong to one sheet; 0
+    /// disables the step.
+    pub junction_angle_degrees: f64,
     /// Holes with at most this many edges…
     pub max_hole_edges: usize,
     /// …and at most this perimeter (voxels) are filled.
@@ -99,6 +104,7 @@ impl Default for SkeletonParams {
             rim_trim_factor: 0.9,
             max_centring_shift_voxels: 2.0,
             smoothing_rounds: 0,
+            junction_angle_degrees: 45.0,
             max_hole_edges: 200,
             max_hole_perimeter_voxels: 60.0,
             seed: 0,
@@ -173,6 +179,8 @@ pub struct SkeletonStats {
     pub cleaning: CleaningStats,
     /// Triangles removed by rim trimming.
     pub rim_triangles: usize,
+    /// Holes filled in the sheets meeting at junctions.
+    pub junction_holes: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
     /// Triangles of the output.
@@ -321,6 +329,14 @@ pub fn extract_skeleton(
         cleaning.pinch_triangles += second.pinch_triangles;
         sheet = again;
     }
+    let mut junction_holes = 0;
+    if params.junction_angle_degrees > 0.0 {
+        let holes = SheetHoleParams {
+            min_angle: params.junction_angle_degrees.to_radians(),
+            max_perimeter: params.max_hole_perimeter_voxels * voxel,
+        };
+        junction_holes = fill_holes_within_sheets(&mut sheet, &holes, is_material);
+    }
     let mut centred = 0;
     if params.max_centring_shift_voxels > 0.0 {
         let trim = RimTrimParams {
@@ -358,6 +374,7 @@ pub fn extract_skeleton(
         raw_triangles: raw.triangles.len(),
         cleaning,
         rim_triangles,
+        junction_holes,
         centred_vertices: centred,
         triangles: sheet.triangles.len(),
         vertices: sheet.vertices.len(),
@@ -406,6 +423,7 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("min_component_area_voxels", p.min_component_area_voxels),
         ("max_hole_perimeter_voxels", p.max_hole_perimeter_voxels),
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
+        ("junction_angle_degrees", p.junction_angle_degrees),
     ] {
         if !(value.is_finite() && value >= 0.0) {
             return bad(name, value, "must be finite and non-negative");
