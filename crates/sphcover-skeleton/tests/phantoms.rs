@@ -45,8 +45,14 @@ fn noise_10_percent_meets_the_goals() {
         assert!(m.boundary_reach_mean <= 0.5, "{name}: {m:?}");
         assert_eq!(m.components, 1, "{name}: {m:?}");
         // The Euler characteristic of the true sheet, except at the T-junction (goal not
-        // reached: the junction leaves small tunnels, measured χ = −9 for 1).
-        if !junction {
+        // reached: the junction leaves small tunnels; measured χ = −7 for 1 with the
+        // junction hole filling, −9 without it).
+        if junction {
+            assert!(
+                m.euler_characteristic.is_some_and(|e| e >= -7),
+                "{name}: {m:?}"
+            );
+        } else {
             assert_eq!(
                 m.euler_characteristic,
                 Some(phantom.truth.euler_characteristic),
