@@ -11,7 +11,8 @@
 //!        ─► cleaning (weld, undo pinches, fill holes over material, drop fragments)
 //!        ─► rim trimming (medial-axis test) ─► cleaning again
 //!        ─► holes of the sheets meeting at junctions
-//!        ─► re-centring between the faces ─► optional smoothing across the sheet
+//!        ─► re-centring between the faces, folding junction fillets onto the plates
+//!        ─► optional smoothing across the sheet
 //!        ─► TriMesh in world units
 //! ```
 //!
@@ -47,7 +48,7 @@ pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
 pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
 pub use junction_holes::{SheetHoleParams, fill_holes_within_sheets};
-pub use medial_correction::centre_between_faces;
+pub use medial_correction::{centre_between_faces, fold_junction_vertices};
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};
 pub use patches::ridge_patches;

@@ -15,7 +15,7 @@ use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
 use crate::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
-use crate::medial_correction::centre_between_faces;
+use crate::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
 use crate::ridge_points::{RidgeFilter, orient_eigenvectors, ridge_points, vertex_derivatives};
@@ -77,6 +77,12 @@ pub struct SkeletonParams {
     /// triangles whose planes meet at less than this angle (degrees) belong to one sheet; 0
     /// disables the step.
     pub junction_angle_degrees: f64,
+    /// Vertices where the part's faces are not both found along `±e` (junctions) are
+    /// projected onto the tangent plane of the nearest re-centred vertex within this
+    /// distance (voxels; see [`fold_junction_vertices`]); 0 disables it. Measured
+    /// (`phantom_table`, seed 1): T-junction p95 away from the rim 0.41 → 0.40, 0.46 → 0.43,
+    /// 0.40 → 0.36 at 0, 10, 30 % noise, no other phantom worse.
+    pub junction_fold_reach_voxels: f64,
     /// Holes with at most this many edges…
     pub max_hole_edges: usize,
     /// …and at most this perimeter (voxels) are filled.
@@ -105,6 +111,7 @@ impl Default for SkeletonParams {
             max_centring_shift_voxels: 2.0,
             smoothing_rounds: 0,
             junction_angle_degrees: 45.0,
+            junction_fold_reach_voxels: 4.0,
             max_hole_edges: 200,
             max_hole_perimeter_voxels: 60.0,
             seed: 0,
@@ -181,6 +188,8 @@ pub struct SkeletonStats {
     pub rim_triangles: usize,
     /// Holes filled in the sheets meeting at junctions.
     pub junction_holes: usize,
+    /// Junction vertices folded onto a plate's tangent plane.
+    pub junction_folded_vertices: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
     /// Triangles of the output.
@@ -338,6 +347,7 @@ pub fn extract_skeleton(
         junction_holes = fill_holes_within_sheets(&mut sheet, &holes, is_material);
     }
     let mut centred = 0;
+    let mut folded = 0;
     if params.max_centring_shift_voxels > 0.0 {
         let trim = RimTrimParams {
             surface_level: level,
@@ -351,6 +361,14 @@ pub fn extract_skeleton(
             &trim,
             params.max_centring_shift_voxels * voxel,
         );
+        if params.junction_fold_reach_voxels > 0.0 {
+            folded = fold_junction_vertices(
+                &mut sheet,
+                &plain,
+                &trim,
+                params.junction_fold_reach_voxels * voxel,
+            );
+        }
     }
     smooth_across(&mut sheet, params.smoothing_rounds, 0.5);
     let topology = MeshTopology::of(&sheet);
@@ -375,6 +393,7 @@ pub fn extract_skeleton(
         cleaning,
         rim_triangles,
         junction_holes,
+        junction_folded_vertices: folded,
         centred_vertices: centred,
         triangles: sheet.triangles.len(),
         vertices: sheet.vertices.len(),
@@ -424,6 +443,7 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("max_hole_perimeter_voxels", p.max_hole_perimeter_voxels),
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
         ("junction_angle_degrees", p.junction_angle_degrees),
+        ("junction_fold_reach_voxels", p.junction_fold_reach_voxels),
     ] {
         if !(value.is_finite() && value >= 0.0) {
             return bad(name, value, "must be finite and non-negative");
