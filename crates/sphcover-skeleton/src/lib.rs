@@ -10,7 +10,9 @@
 //!        ─► patches (fans around ridge edges, open at the mesh boundary)
 //!        ─► cleaning (weld, undo pinches, fill holes over material, drop fragments)
 //!        ─► rim trimming (medial-axis test) ─► cleaning again
-//!        ─► re-centring between the faces ─► optional smoothing across the sheet
+//!        ─► holes of the sheets meeting at junctions
+//!        ─► re-centring between the faces, folding junction fillets onto the plates
+//!        ─► optional smoothing across the sheet
 //!        ─► TriMesh in world units
 //! ```
 //!
@@ -31,6 +33,7 @@ pub mod cleaning;
 pub mod error;
 pub mod gaussian_filter;
 pub mod intensity_model;
+pub mod junction_holes;
 pub mod medial_correction;
 pub mod nms_baseline;
 pub mod object_mask;
@@ -44,7 +47,8 @@ pub mod symmetric_eigen;
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
 pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
-pub use medial_correction::centre_between_faces;
+pub use junction_holes::{SheetHoleParams, fill_holes_within_sheets};
+pub use medial_correction::{centre_between_faces, fold_junction_vertices};
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};
 pub use patches::ridge_patches;

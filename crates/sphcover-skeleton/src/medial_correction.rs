@@ -9,6 +9,8 @@
 //! within reach (a junction, where the other sheet's material continues along `e`), or the
 //! shift would exceed a bound, the vertex stays: the correction only re-centres, it never
 //! moves a vertex far.
+//!
+//! Those junction vertices are handled by [`fold_junction_vertices`] instead.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -46,6 +48,77 @@ pub fn centre_between_faces(
             if m != *v {
                 count += 1;
             }
+            *v = m;
+        }
+    }
+    count
+}
+
+/// Projects each vertex where the part's two faces are not both found along `±e` (a
+/// junction: the other plate's material continues there) onto the tangent plane of the
+/// nearest vertex where both are (within `reach`). Near a T-junction the ridge is a fillet
+/// bending from one plate into the other; each of its vertices goes to the plate it is
+/// nearest to, which folds the fillet into the corner. Returns the number of vertices moved.
+pub fn fold_junction_vertices(
+    mesh: &mut TriMesh,
+    evaluator: &PuEvaluator<'_>,
+    params: &RimTrimParams,
+    reach: f64,
+) -> usize {
+    let Some(normals) = &mesh.normals else {
+        return 0;
+    };
+    let junction: Vec<bool> = mesh
+        .vertices
+        .par_iter()
+        .zip(normals)
+        .with_min_len(256)
+        .map(|(&p, &e)| {
+            surface_distance(evaluator, p, e, params).is_none()
+                || surface_distance(evaluator, p, -e, params).is_none()
+        })
+        .collect();
+    let cell = reach.max(f64::MIN_POSITIVE);
+    let key = |p: DVec3| (p / cell).floor().to_array().map(|c| c as i64);
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<u32>> = Default::default();
+    for (i, p) in mesh.vertices.iter().enumerate() {
+        if !junction[i] {
+            grid.entry(key(*p)).or_default().push(i as u32);
+        }
+    }
+    let vertices = &mesh.vertices;
+    let moved: Vec<Option<DVec3>> = (0..vertices.len())
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|i| {
+            if !junction[i] {
+                return None;
+            }
+            let p = vertices[i];
+            let [lx, ly, lz] = key(p - DVec3::splat(reach));
+            let [hx, hy, hz] = key(p + DVec3::splat(reach));
+            let mut best: Option<(f64, u32)> = None;
+            for x in lx..=hx {
+                for y in ly..=hy {
+                    for z in lz..=hz {
+                        for &v in grid.get(&[x, y, z]).map(Vec::as_slice).unwrap_or_default() {
+                            let d = vertices[v as usize].distance(p);
+                            if d <= reach && best.is_none_or(|b| (d, v) < b) {
+                                best = Some((d, v));
+                            }
+                        }
+                    }
+                }
+            }
+            let (_, v) = best?;
+            let n = normals[v as usize].normalize_or_zero();
+            Some(p - (p - vertices[v as usize]).dot(n) * n)
+        })
+        .collect();
+    let mut count = 0;
+    for (v, m) in mesh.vertices.iter_mut().zip(moved) {
+        if let Some(m) = m {
+            count += usize::from(m != *v);
             *v = m;
         }
     }
@@ -91,6 +164,39 @@ mod tests {
             let p = mesh.vertices[0];
             prop_assert!((p.z - z0).abs() < 1e-3 * w, "{p} vs {z0}");
             prop_assert!(p.x == x && p.y == 0.0);
+        }
+    }
+
+    proptest! {
+        /// In a slab, a vertex whose across direction lies in the slab's plane finds no face
+        /// along it (as at a junction) and is projected onto the tangent plane of the nearest
+        /// vertex across the slab (its normal finds both faces), keeping its in-plane
+        /// position; that vertex stays. Beyond `reach` nothing moves.
+        #[test]
+        fn junction_vertices_fold_onto_the_nearest_plate(
+            z0 in -1.0..1.0f64, w in 1.0..3.0f64, a in -0.5..0.5f64, b in -0.5..0.5f64,
+            dx in -1.0..1.0f64, dy in -1.0..1.0f64,
+        ) {
+            let cover = slab(z0, w);
+            let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+            let params = RimTrimParams { surface_level: 0.5, step: 0.01, max_half_thickness: 5.0, factor: 0.9 };
+            let plate = DVec3::new(0.0, 0.0, z0 + a * w);
+            let fillet = DVec3::new(dx, dy, z0 + b * w);
+            let make = || {
+                let mut mesh = TriMesh::new(vec![plate, fillet], vec![]);
+                mesh.normals = Some(vec![DVec3::Z, DVec3::X]);
+                mesh
+            };
+            let mut mesh = make();
+            prop_assert_eq!(fold_junction_vertices(&mut mesh, &eval, &params, 4.0), usize::from(a != b));
+            prop_assert_eq!(mesh.vertices[0], plate);
+            let folded = mesh.vertices[1];
+            prop_assert!((folded.z - plate.z).abs() < 1e-12);
+            prop_assert!(folded.x == dx && folded.y == dy);
+            let mut far = make();
+            let reach = 0.99 * plate.distance(fillet);
+            prop_assert_eq!(fold_junction_vertices(&mut far, &eval, &params, reach), 0);
+            prop_assert_eq!(far.vertices[1], fillet);
         }
     }
 

@@ -14,7 +14,8 @@ use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
-use crate::medial_correction::centre_between_faces;
+use crate::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
+use crate::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
 use crate::ridge_points::{RidgeFilter, orient_eigenvectors, ridge_points, vertex_derivatives};
@@ -72,6 +73,16 @@ pub struct SkeletonParams {
     /// of flat plates (0.23 → 0.19 voxel) but raise it at the T-junction (0.45 → 0.52) and on
     /// the spherical cap (0.32 → 0.37), where the umbrella step pulls towards chords.
     pub smoothing_rounds: usize,
+    /// Filling holes of the sheets meeting at a junction (see [`crate::junction_holes`]):
+    /// triangles whose planes meet at less than this angle (degrees) belong to one sheet; 0
+    /// disables the step.
+    pub junction_angle_degrees: f64,
+    /// Vertices where the part's faces are not both found along `±e` (junctions) are
+    /// projected onto the tangent plane of the nearest re-centred vertex within this
+    /// distance (voxels; see [`fold_junction_vertices`]); 0 disables it. Measured
+    /// (`phantom_table`, seed 1): T-junction p95 away from the rim 0.41 → 0.40, 0.46 → 0.43,
+    /// 0.40 → 0.36 at 0, 10, 30 % noise, no other phantom worse.
+    pub junction_fold_reach_voxels: f64,
     /// Holes with at most this many edges…
     pub max_hole_edges: usize,
     /// …and at most this perimeter (voxels) are filled.
@@ -99,6 +110,8 @@ impl Default for SkeletonParams {
             rim_trim_factor: 0.9,
             max_centring_shift_voxels: 2.0,
             smoothing_rounds: 0,
+            junction_angle_degrees: 45.0,
+            junction_fold_reach_voxels: 4.0,
             max_hole_edges: 200,
             max_hole_perimeter_voxels: 60.0,
             seed: 0,
@@ -173,6 +186,10 @@ pub struct SkeletonStats {
     pub cleaning: CleaningStats,
     /// Triangles removed by rim trimming.
     pub rim_triangles: usize,
+    /// Holes filled in the sheets meeting at junctions.
+    pub junction_holes: usize,
+    /// Junction vertices folded onto a plate's tangent plane.
+    pub junction_folded_vertices: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
     /// Triangles of the output.
@@ -321,7 +338,16 @@ pub fn extract_skeleton(
         cleaning.pinch_triangles += second.pinch_triangles;
         sheet = again;
     }
+    let mut junction_holes = 0;
+    if params.junction_angle_degrees > 0.0 {
+        let holes = SheetHoleParams {
+            min_angle: params.junction_angle_degrees.to_radians(),
+            max_perimeter: params.max_hole_perimeter_voxels * voxel,
+        };
+        junction_holes = fill_holes_within_sheets(&mut sheet, &holes, is_material);
+    }
     let mut centred = 0;
+    let mut folded = 0;
     if params.max_centring_shift_voxels > 0.0 {
         let trim = RimTrimParams {
             surface_level: level,
@@ -335,6 +361,14 @@ pub fn extract_skeleton(
             &trim,
             params.max_centring_shift_voxels * voxel,
         );
+        if params.junction_fold_reach_voxels > 0.0 {
+            folded = fold_junction_vertices(
+                &mut sheet,
+                &plain,
+                &trim,
+                params.junction_fold_reach_voxels * voxel,
+            );
+        }
     }
     smooth_across(&mut sheet, params.smoothing_rounds, 0.5);
     let topology = MeshTopology::of(&sheet);
@@ -358,6 +392,8 @@ pub fn extract_skeleton(
         raw_triangles: raw.triangles.len(),
         cleaning,
         rim_triangles,
+        junction_holes,
+        junction_folded_vertices: folded,
         centred_vertices: centred,
         triangles: sheet.triangles.len(),
         vertices: sheet.vertices.len(),
@@ -406,6 +442,8 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("min_component_area_voxels", p.min_component_area_voxels),
         ("max_hole_perimeter_voxels", p.max_hole_perimeter_voxels),
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
+        ("junction_angle_degrees", p.junction_angle_degrees),
+        ("junction_fold_reach_voxels", p.junction_fold_reach_voxels),
     ] {
         if !(value.is_finite() && value >= 0.0) {
             return bad(name, value, "must be finite and non-negative");

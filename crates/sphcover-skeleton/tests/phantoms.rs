@@ -39,14 +39,21 @@ fn noise_10_percent_meets_the_goals() {
         assert!(m.coverage >= coverage, "{name}: {m:?}");
         assert!(m.spurious <= 0.03, "{name}: {m:?}");
         assert!(m.spurious_interior <= 0.01, "{name}: {m:?}");
-        // Goal ≤ 0.3 voxel: met on six shapes (0.10–0.15); measured 0.46 at the T-junction.
-        let p95 = if junction { 0.5 } else { 0.3 };
+        // Goal ≤ 0.3 voxel: met on six shapes (0.10–0.15); measured 0.43 at the T-junction
+        // with junction folding (0.46 without).
+        let p95 = if junction { 0.45 } else { 0.3 };
         assert!(m.distance_interior_p95 <= p95, "{name}: {m:?}");
         assert!(m.boundary_reach_mean <= 0.5, "{name}: {m:?}");
         assert_eq!(m.components, 1, "{name}: {m:?}");
         // The Euler characteristic of the true sheet, except at the T-junction (goal not
-        // reached: the junction leaves small tunnels, measured χ = −9 for 1).
-        if !junction {
+        // reached: the junction leaves small tunnels; measured χ = −7 for 1 with the
+        // junction hole filling, −9 without it).
+        if junction {
+            assert!(
+                m.euler_characteristic.is_some_and(|e| e >= -7),
+                "{name}: {m:?}"
+            );
+        } else {
             assert_eq!(
                 m.euler_characteristic,
                 Some(phantom.truth.euler_characteristic),
