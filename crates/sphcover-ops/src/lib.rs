@@ -6,7 +6,7 @@
 //! `φ_ij = D_ij / d_ij`, stored in compressed sparse rows aligned with the graph's neighbour
 //! array, and the masses `m_i`. The thesis Laplacian is `Lap = M⁻¹ (W − diag(W·1))` with
 //! `W = [φ_ij]`: self-adjoint in the `M` inner product, negative semi-definite, so implicit
-//! smoothing and Poisson problems are solved by [`conjugate_gradient`].
+//! smoothing and Poisson problems are solved by [`conjugate_gradient()`].
 //!
 //! ```
 //! use sphcover_core::{synthetic, Aabb, DVec3, SphereIntersectionGraph};

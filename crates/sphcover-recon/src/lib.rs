@@ -3,10 +3,10 @@
 //!
 //! [`reconstruct`] runs the whole pipeline (module [`pipeline`]): scan statistics (spacing,
 //! noise, isolated samples), normals when the input has none, the surface cover, the graph
-//! cut on the sphere intersection graph ([`graph_cut`], in-house Boykov–Kolmogorov
+//! cut on the sphere intersection graph ([`mod@graph_cut`], in-house Boykov–Kolmogorov
 //! [`maxflow`]), the confidence of samples (eq. 5.39–5.40), diffusion of the local functions
 //! ([`diffusion`], over the operators of `sphcover-ops`), and polygonisation by surface nets
-//! visited only near the zero set ([`polygonise`]). Every stage is public so a caller can run
+//! visited only near the zero set ([`mod@polygonise`]). Every stage is public so a caller can run
 //! one alone.
 //!
 //! ```

@@ -104,12 +104,12 @@ pub struct ReconParams {
     pub min_component_fraction: f64,
     /// Samples at least this confident seed the polygonisation (and count for trimming).
     /// 0: every sample not labelled an outlier, because the thesis confidence separates
-    /// surface samples from outliers poorly (module docs of [`crate::scan_statistics`]).
+    /// surface samples from outliers poorly (module docs of [`mod@crate::scan_statistics`]).
     pub seed_confidence: f64,
     /// Spacing, noise and isolated samples of the scan (beyond the thesis).
     pub scan: ScanStatisticsParams,
     /// The cover tolerance is at least this multiple of the measured noise σ̂ (module docs
-    /// of [`crate::scan_statistics`]); `None` keeps ε as given.
+    /// of [`mod@crate::scan_statistics`]); `None` keeps ε as given.
     pub noise_tolerance: Option<f64>,
     /// Leave isolated samples out of the cover and label them outliers.
     pub drop_isolated: bool,

@@ -130,7 +130,7 @@ impl From<Failure> for DecodeError {
 }
 
 /// The type of the samples a volume file stores (NIfTI `datatype`, INRIMAGE `TYPE` and
-/// `PIXSIZE`): every reader decodes through [`decode_samples`].
+/// `PIXSIZE`): every reader decodes through `decode_samples`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SampleType {
     /// Unsigned 8-bit integer.
