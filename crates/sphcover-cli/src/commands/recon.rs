@@ -95,7 +95,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.report {
         let text = serde_json::to_string_pretty(&report_json(args, &recon))?;
-        io::write_atomic(path, &[args.input.clone()], |w| {
+        io::write_atomic(path, std::slice::from_ref(&args.input), |w| {
             w.write_all(text.as_bytes())
         })?;
     }
