@@ -35,8 +35,8 @@ use packed::{PackedSupport, PackedSupports};
 use rayon::prelude::*;
 use std::cell::RefCell;
 
-/// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type and packed supports of the
-/// evaluator.
+/// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type and packed
+/// supports of the evaluator.
 macro_rules! dispatch {
     ($self:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {{
         match &$self.supports {
