@@ -63,6 +63,14 @@ const ROW_REACH_SQ_MARGIN: f64 = 1e-10;
 /// underflow, so the distance test may accept balls up to that far beyond its threshold.
 const REACH_ABSOLUTE_MARGIN: f64 = 1e-150;
 
+/// Widening of the squared bound in [`BallIndex::extend_within_loose`]: the squared distance,
+/// the square of the bound and the literal test's square root are each off by a few ulps.
+const LOOSE_SQ_FACTOR: f64 = 1.0 + 1e-12;
+
+/// Bounds below this are squared into the subnormal range, where [`LOOSE_SQ_FACTOR`] no
+/// longer covers the rounding.
+const TINY_BOUND: f64 = 1e-140;
+
 /// Why a [`BallIndex`] could not be built.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]
 pub enum BallIndexError {
@@ -223,6 +231,36 @@ impl BallIndex {
                 }
             }
         });
+    }
+
+    /// Appends to `out`, in no particular order, every ball `j` with
+    /// `‖x − c_j‖ < scale·r_j + extra` and possibly a few more within rounding of that bound.
+    ///
+    /// For callers that apply their own exact test afterwards: comparing squared distances
+    /// against a bound widened by a relative 1e-12 takes no square root per candidate, and
+    /// the widening keeps every ball the literal test of [`BallIndex::for_each_within`] keeps.
+    pub(crate) fn extend_within_loose(&self, x: DVec3, scale: f64, extra: f64, out: &mut Vec<u32>) {
+        let mut len = out.len();
+        self.for_each_candidate_run(x, scale, extra, |balls| {
+            if out.len() < len + balls.len() {
+                out.resize(2 * (len + balls.len()), 0);
+            }
+            // Write every candidate and keep it on a hit, as in `containing`.
+            let run_out = &mut out[len..len + balls.len()];
+            let mut hits = 0;
+            for ball in balls {
+                let t = scale * ball.radius + extra;
+                let d2 = ball.center.distance_squared(x);
+                run_out[hits] = ball.id;
+                // Below about 1e-150 the square of the bound loses its precision to
+                // underflow: such balls get the literal test.
+                let hit =
+                    d2 < t * t * LOOSE_SQ_FACTOR || (t < TINY_BOUND && ball.center.distance(x) < t);
+                hits += usize::from(hit);
+            }
+            len += hits;
+        });
+        out.truncate(len);
     }
 
     /// The balls whose open interior contains `x` (`‖x − c_j‖ < r_j`), ascending, into `out`
@@ -557,6 +595,54 @@ impl Level {
                 let end = self.cell_start[last + 1] as usize;
                 if start < end {
                     visit(&self.balls[start..end]);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn coord() -> impl Strategy<Value = f64> {
+        -1.0f64..1.0
+    }
+
+    proptest! {
+        /// The loose query keeps every ball of the literal one, only adds balls within
+        /// rounding of the bound, and appends after what `out` held.
+        #[test]
+        fn loose_query_holds_the_literal_one(
+            balls in prop::collection::vec((coord(), coord(), coord(), 1e-3f64..0.5), 1..200),
+            (qx, qy, qz) in (coord(), coord(), coord()),
+            on_sphere in any::<prop::sample::Index>(),
+            extra in prop_oneof![Just(0.0), 0.0f64..0.3],
+        ) {
+            let centers: Vec<DVec3> = balls.iter().map(|b| DVec3::new(b.0, b.1, b.2)).collect();
+            let radii: Vec<f64> = balls.iter().map(|b| b.3).collect();
+            let index = BallIndex::new(&centers, &radii);
+            // Half of the queries sit on a sphere, where the two tests are closest.
+            let mut queries = vec![DVec3::new(qx, qy, qz)];
+            let j = on_sphere.index(centers.len());
+            let dir = DVec3::new(qx, qy, qz).normalize_or(DVec3::X);
+            queries.push(centers[j] + dir * (radii[j] + extra));
+            for x in queries {
+                let mut literal = Vec::new();
+                index.for_each_within(x, 1.0, extra, |j| literal.push(j));
+                literal.sort_unstable();
+                let mut loose = vec![u32::MAX];
+                index.extend_within_loose(x, 1.0, extra, &mut loose);
+                prop_assert_eq!(loose[0], u32::MAX);
+                let mut loose = loose.split_off(1);
+                loose.sort_unstable();
+                for j in &literal {
+                    prop_assert!(loose.binary_search(j).is_ok(), "ball {j} missing");
+                }
+                for &j in &loose {
+                    let bound = radii[j as usize] + extra;
+                    prop_assert!(centers[j as usize].distance(x) < bound * (1.0 + 1e-9));
                 }
             }
         }

@@ -35,20 +35,26 @@ use packed::{PackedSupport, PackedSupports};
 use rayon::prelude::*;
 use std::cell::RefCell;
 
-/// Calls `$method::<K, _>(supports, x, ids)` with the kernel type and packed supports of the
-/// evaluator.
+/// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type and packed
+/// supports of the evaluator.
 macro_rules! dispatch {
-    ($self:ident, $x:ident, $ids:ident, $method:ident) => {{
+    ($self:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {{
         match &$self.supports {
-            PackedSupports::Linear(v) => dispatch!(@kernel $self, v, $x, $ids, $method),
-            PackedSupports::Quadratic(v) => dispatch!(@kernel $self, v, $x, $ids, $method),
+            PackedSupports::Linear(v) => dispatch!(@kernel $self, v, $x, $ids, $method $(, $extra)*),
+            PackedSupports::Quadratic(v) => {
+                dispatch!(@kernel $self, v, $x, $ids, $method $(, $extra)*)
+            }
         }
     }};
-    (@kernel $self:ident, $v:ident, $x:ident, $ids:ident, $method:ident) => {
+    (@kernel $self:ident, $v:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {
         match $self.cover.kernel() {
-            Kernel::QuadraticBSpline => $method::<QuadraticBSplineKernel, _>($v, $x, $ids),
-            Kernel::TruncatedGaussian => $method::<TruncatedGaussianKernel, _>($v, $x, $ids),
-            Kernel::WendlandC2 => $method::<WendlandC2Kernel, _>($v, $x, $ids),
+            Kernel::QuadraticBSpline => {
+                $method::<QuadraticBSplineKernel, _>($v, $x, $ids $(, $extra)*)
+            }
+            Kernel::TruncatedGaussian => {
+                $method::<TruncatedGaussianKernel, _>($v, $x, $ids $(, $extra)*)
+            }
+            Kernel::WendlandC2 => $method::<WendlandC2Kernel, _>($v, $x, $ids $(, $extra)*),
         }
     };
 }
@@ -78,8 +84,10 @@ pub struct ValueGradientHessian {
 /// Built once per cover and σ (it owns a [`BallIndex`] over the expanded balls and a packed
 /// copy of the supports); every query takes `&self`, so one evaluator serves many threads. A
 /// query returns `None` where no weight is positive (outside every expanded ball), where `f`
-/// is undefined, and for a non-finite `x`. The support set at `x` is the open expanded balls:
-/// a point on a sphere `‖x − c_i‖ = σ r_i` gets no weight from support `i`.
+/// is undefined, and for a non-finite `x`. The support set at `x` is the open expanded balls,
+/// decided by `‖(x − c_i) / (σ r_i)‖² < 1` as computed in floating point (so within a few
+/// ulps of a sphere it may differ from `‖x − c_i‖ < σ r_i`, where the weight is negligible
+/// anyway): a point on a sphere gets no weight from support `i`.
 ///
 /// The evaluator copies the local functions when it is built; to evaluate after changing
 /// them, build a new evaluator on the changed cover.
@@ -89,8 +97,6 @@ pub struct PuEvaluator<'a> {
     sigma: f64,
     supports: PackedSupports,
     index: BallIndex,
-    /// Centres and σ-expanded radii, for the exact containment test of batch evaluation.
-    expanded_radii: Vec<f64>,
 }
 
 thread_local! {
@@ -126,7 +132,6 @@ impl<'a> PuEvaluator<'a> {
             sigma,
             supports,
             index,
-            expanded_radii: expanded,
         })
     }
 
@@ -205,15 +210,33 @@ impl<'a> PuEvaluator<'a> {
         })
     }
 
+    /// The partition-of-unity blend `Σ w_i(x) v_i / Σ w_i(x)` of one value per support at
+    /// every point, in parallel, in input order; `None` where no weight is positive.
+    ///
+    /// Bitwise equal to summing [`PuEvaluator::weights`] in its ascending order, but the
+    /// supports are gathered per block of neighbouring points as in the other batch queries,
+    /// which is several times cheaper than one index query per point.
+    pub fn blend(&self, points: &[DVec3], values: &[f64]) -> Result<Vec<Option<f64>>, CoverError> {
+        if values.len() != self.cover.len() {
+            return Err(CoverError::LengthMismatch {
+                array: "blended values",
+                expected: self.cover.len(),
+                found: values.len(),
+            });
+        }
+        Ok(self.batch(points, |x, ids| dispatch!(self, x, ids, blend_sum, values)))
+    }
+
     /// `eval(x, supports at x)` at every point, in parallel, in input order, bitwise equal to
     /// the single-point queries.
     ///
     /// Large batches run in Morton order in blocks of [`BLOCK_LEN`] neighbouring points: the
     /// index is asked once per block for the balls within reach of the block's bounding
-    /// sphere, and each point keeps the candidates that pass the index's own containment test
-    /// (`‖c − x‖ < r`, evaluated literally), so its support list is exactly what a
-    /// single-point query returns, in the same ascending order. This amortises the index
-    /// traversal, which otherwise dominates the cost, over the block.
+    /// sphere, and every point of the block runs its sum over that ascending candidate list.
+    /// The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so each point sums
+    /// over exactly the supports of a single-point query, in the same order. This amortises
+    /// the index traversal, which otherwise dominates the cost, over the block, and spares a
+    /// containment pass (a square root per candidate) before the sum.
     fn batch<R: Copy + Send + Sync>(
         &self,
         points: &[DVec3],
@@ -228,7 +251,6 @@ impl<'a> PuEvaluator<'a> {
                 .collect();
         }
         let order = spatial_order::morton_order(points);
-        let centers = self.cover.centers();
         let in_order: Vec<R> = order
             .par_chunks(BLOCK_LEN)
             .with_min_len(BATCH_MIN_LEN / BLOCK_LEN)
@@ -244,25 +266,24 @@ impl<'a> PuEvaluator<'a> {
                 if !bounds.is_empty() {
                     let reach = 0.5 * bounds.diagonal();
                     // Widen by a relative margin so rounding in the reach never drops a ball
-                    // that holds one of the points; the exact test below decides.
+                    // that holds one of the points; the sums' own test `s < 1` decides.
                     let reach =
                         reach * (1.0 + 1e-9) + f64::EPSILON * bounds.center().abs().max_element();
-                    self.index
-                        .for_each_within(bounds.center(), 1.0, reach, |j| candidates.push(j));
+                    self.index.extend_within_loose(
+                        bounds.center(),
+                        GATHER_SCALE,
+                        reach,
+                        &mut candidates,
+                    );
                     candidates.sort_unstable();
                 }
-                let mut ids = Vec::with_capacity(candidates.len());
+                // The sums skip every candidate with `s ≥ 1`, so the candidates serve as the
+                // support list directly: no separate containment pass.
                 block
                     .iter()
                     .map(|&i| {
                         let x = points[i as usize];
-                        ids.clear();
-                        if x.is_finite() {
-                            ids.extend(candidates.iter().copied().filter(|&j| {
-                                centers[j as usize].distance(x) < self.expanded_radii[j as usize]
-                            }));
-                        }
-                        eval(x, &ids)
+                        eval(x, if x.is_finite() { &candidates } else { &[] })
                     })
                     .collect::<Vec<R>>()
             })
@@ -274,8 +295,9 @@ impl<'a> PuEvaluator<'a> {
         rank.par_iter().map(|&k| in_order[k as usize]).collect()
     }
 
-    /// Runs `body` on the supports whose expanded ball holds `x` (none for a non-finite `x`),
-    /// sorted ascending, using the thread's reusable buffer.
+    /// Runs `body` on a superset of the supports whose expanded ball holds `x` (none for a
+    /// non-finite `x`; see [`GATHER_SCALE`]), sorted ascending, using the thread's reusable
+    /// buffer.
     #[inline]
     fn with_supports<R>(&self, x: DVec3, body: impl FnOnce(&[u32]) -> R) -> R {
         let gather = |buf: &mut Vec<u32>| {
@@ -285,7 +307,7 @@ impl<'a> PuEvaluator<'a> {
             if !x.is_finite() {
                 return;
             }
-            self.index.for_each_within(x, 1.0, 0.0, |j| buf.push(j));
+            self.index.extend_within_loose(x, GATHER_SCALE, 0.0, buf);
             buf.sort_unstable();
         };
         SUPPORT_BUFFER.with(|cell| match cell.try_borrow_mut() {
@@ -302,6 +324,12 @@ impl<'a> PuEvaluator<'a> {
         })
     }
 }
+
+/// The supports at `x` are those with `s = ‖(x − c_i) / (σ r_i)‖² < 1`, the test every sum
+/// applies. Gathering the balls with `‖x − c_i‖ < GATHER_SCALE · σ r_i` from the index holds
+/// all of them (the two tests differ by a few ulps), so single-point and batch queries,
+/// which gather differently, sum over the same supports in the same ascending order.
+const GATHER_SCALE: f64 = 1.0 + 1e-9;
 
 /// Points per rayon task at least: one point costs about a microsecond, so smaller tasks would
 /// spend more on scheduling than on work.
@@ -343,6 +371,31 @@ fn value_sum<K: FixedKernel, S: PackedSupport>(
         n_sum += w * sup.value(d);
     }
     (w_sum > 0.0).then(|| n_sum / w_sum)
+}
+
+/// `Σ w_i v_i / Σ w_i` over the listed supports with `s < 1`, in the order of `ids`.
+#[inline]
+fn blend_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+    values: &[f64],
+) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let u = (x - sup.center()) * sup.inv_radius();
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let w = K::KERNEL.value_sq(s);
+        if w > 0.0 {
+            num += w * values[j as usize];
+            den += w;
+        }
+    }
+    (den > 0.0).then(|| num / den)
 }
 
 #[inline]

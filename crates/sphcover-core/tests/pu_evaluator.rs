@@ -272,3 +272,50 @@ fn invalid_input_is_reported_with_its_index() {
         Err(CoverError::ExpandedRadiusOverflow { index: 1, .. })
     ));
 }
+
+#[test]
+fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
+    for kernel in Kernel::ALL {
+        let (cover, mut points) = sample_cover(kernel);
+        // Points on spheres, where the support set is decided by rounding.
+        for i in 0..200 {
+            let c = cover.centers()[i];
+            let r = 1.5 * cover.radii()[i];
+            points.push(c + DVec3::new(0.6, -0.48, 0.64) * r);
+        }
+        let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).sin()).collect();
+        let eval = PuEvaluator::new(&cover, 1.5).unwrap();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| eval.blend(&points, &values).unwrap())
+        };
+        let one = run(1);
+        assert_eq!(one, run(3), "{kernel}");
+        assert!(one.iter().any(Option::is_none) && one.iter().any(Option::is_some));
+        let mut weights = Vec::new();
+        for (x, blended) in points.iter().zip(&one) {
+            eval.weights(*x, &mut weights);
+            let (num, den) = weights.iter().fold((0.0, 0.0), |(n, d), &(i, w)| {
+                (n + w * values[i as usize], d + w)
+            });
+            assert_eq!(*blended, (den > 0.0).then(|| num / den), "{kernel} at {x}");
+            assert_eq!(blended.is_some(), eval.value(*x).is_some());
+        }
+        // The same points one by one (below the batch threshold) agree too.
+        let few = eval.blend(&points[..100], &values).unwrap();
+        assert_eq!(few, one[..100]);
+    }
+    let (cover, points) = sample_cover(Kernel::default());
+    let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+    assert_eq!(
+        eval.blend(&points, &[1.0]),
+        Err(CoverError::LengthMismatch {
+            array: "blended values",
+            expected: cover.len(),
+            found: 1
+        })
+    );
+}

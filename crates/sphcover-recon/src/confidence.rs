@@ -264,19 +264,7 @@ pub fn blend_over_supports(
         });
     }
     let eval = PuEvaluator::new(cover, 1.0)?;
-    Ok(points
-        .par_iter()
-        .with_min_len(1024)
-        .map_init(Vec::new, |buf, &p| {
-            eval.weights(p, buf);
-            let (mut num, mut den) = (0.0, 0.0);
-            for &(i, w) in buf.iter() {
-                num += w * values[i as usize];
-                den += w;
-            }
-            (den > 0.0).then(|| num / den)
-        })
-        .collect())
+    Ok(eval.blend(points, values)?)
 }
 
 #[cfg(test)]
