@@ -1,0 +1,127 @@
+//! Helpers shared by the end-to-end tests of hostile input, determinism and output safety:
+//! running the binary under a time limit and writing small point files.
+
+#![allow(dead_code)]
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+
+/// Exit status of a Rust panic: never acceptable from the command.
+pub const PANIC_EXIT: i32 = 101;
+
+/// A bundled fixture by its path under `fixtures/`.
+pub fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(rel)
+}
+
+/// Lossy text of captured output, for assertion messages.
+pub fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Runs `sphcover` with `args` in `dir` (or the current directory), killing it after
+/// `limit`: a run that hangs fails the test instead of blocking the suite.
+pub fn sphcover_in(dir: Option<&Path>, args: &[&str], limit: Duration) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_sphcover"));
+    command
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    if let Some(dir) = dir {
+        command.current_dir(dir);
+    }
+    run_with_limit(command, limit, &format!("sphcover {}", args.join(" ")))
+}
+
+/// [`sphcover_in`] in the current directory.
+pub fn sphcover(args: &[&str], limit: Duration) -> Output {
+    sphcover_in(None, args, limit)
+}
+
+/// Runs `command` to completion, panicking (with `what`) when it outlives `limit`.
+pub fn run_with_limit(mut command: Command, limit: Duration, what: &str) -> Output {
+    let mut child = command.spawn().expect("the command starts");
+    // Drain the pipes on threads so that a chatty child cannot block on a full pipe.
+    let mut stdout = child.stdout.take().expect("stdout is piped");
+    let mut stderr = child.stderr.take().expect("stderr is piped");
+    let out_reader = std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        std::io::Read::read_to_end(&mut stdout, &mut buf).ok();
+        buf
+    });
+    let err_reader = std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        std::io::Read::read_to_end(&mut stderr, &mut buf).ok();
+        buf
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("the child can be waited for") {
+            break status;
+        }
+        if start.elapsed() > limit {
+            child.kill().ok();
+            child.wait().ok();
+            panic!("{what} still ran after {limit:?}: a hang");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    Output {
+        status,
+        stdout: out_reader.join().unwrap_or_default(),
+        stderr: err_reader.join().unwrap_or_default(),
+    }
+}
+
+/// Writes an ascii PLY of `points` (doubles, so that 1e±30 survive exactly), with normals
+/// when given.
+pub fn write_points_ply(path: &Path, points: &[DVec3], normals: Option<&[DVec3]>) {
+    let mut s = String::new();
+    s.push_str("ply\nformat ascii 1.0\n");
+    writeln!(s, "element vertex {}", points.len()).unwrap();
+    s.push_str("property double x\nproperty double y\nproperty double z\n");
+    if normals.is_some() {
+        s.push_str("property double nx\nproperty double ny\nproperty double nz\n");
+    }
+    s.push_str("end_header\n");
+    for (i, p) in points.iter().enumerate() {
+        write!(s, "{:e} {:e} {:e}", p.x, p.y, p.z).unwrap();
+        if let Some(n) = normals {
+            write!(s, " {:e} {:e} {:e}", n[i].x, n[i].y, n[i].z).unwrap();
+        }
+        s.push('\n');
+    }
+    std::fs::write(path, s).expect("the test directory is writable");
+}
+
+/// `n` points spread evenly over the unit sphere (Fibonacci lattice) with their outward
+/// normals, which are the points themselves.
+pub fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - y * y).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), y, r * phi.sin())
+        })
+        .collect()
+}
+
+/// The files of `dir`, sorted, for checking that nothing (not even a temporary file) was
+/// left behind.
+pub fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("the directory is readable")
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
