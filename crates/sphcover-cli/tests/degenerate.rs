@@ -149,9 +149,6 @@ fn identical_points_are_refused() {
 }
 
 #[test]
-#[ignore = "bug in sphcover-recon pipeline / sphcover-cli recon: identical points without \
-            normals reach normal estimation before the `all points coincide` check; the cover \
-            then fails with `no usable point` and the CLI exits 1 instead of 2"]
 fn identical_points_without_normals_are_refused() {
     let points = vec![DVec3::new(0.5, -2.0, 7.0); 200];
     let case = Case::new(&points, None);
@@ -221,9 +218,6 @@ fn collinear_points_with_normals_give_the_strip_their_normals_span() {
 }
 
 #[test]
-#[ignore = "bug in sphcover-cli recon: PCA normals of collinear points are zero, the surface \
-            cover fails with `no usable point` and the CLI exits 1 (runtime failure) instead \
-            of 2 (bad input)"]
 fn collinear_points_without_normals_are_refused_as_bad_input() {
     let case = Case::new(&collinear_points(), None);
     let run = case.recon(&[]);
@@ -293,9 +287,6 @@ fn every_point_duplicated_gives_the_closed_sphere() {
 }
 
 #[test]
-#[ignore = "bug in sphcover-cli recon: all-zero normals make the surface cover fail with `no \
-            usable point` and the CLI exits 1 (runtime failure); expected: normals estimated \
-            as for a file without normals, or a refusal with exit status 2"]
 fn all_zero_normals_give_a_mesh_or_a_refusal_as_bad_input() {
     let (points, _) = sphere_with_normals();
     let case = Case::new(&points, Some(&vec![DVec3::ZERO; points.len()]));

@@ -41,10 +41,6 @@ fn las_with_a_point_offset_in_range_and_no_points_reads_as_empty() {
 }
 
 #[test]
-#[ignore = "bug in sphcover-core io/las.rs: with zero points and an offset to point data past \
-            the end of the file, `&bytes[offset..offset + 0]` panics (slice start out of \
-            range); found by `cargo fuzz run las` (artifact crash-1e9c2531…, 292 bytes, \
-            offset 58147)"]
 fn las_with_no_points_and_a_point_offset_past_the_end_is_refused() {
     let bytes = las_header(0, 58_147);
     let result = io::parse_geometry(

@@ -334,6 +334,10 @@ pub fn reconstruct(
         });
     }
     let input_points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
+    let extent = sphcover_core::Aabb::from_points(&input_points).longest_edge();
+    if !(extent > 0.0) {
+        return Err(ReconError::NoExtent(kept.len()));
+    }
     let mut normalisation =
         Normalisation::of_points(&input_points).ok_or(ReconError::NoExtent(kept.len()))?;
     let mut points = input_points;

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_json::json;
 use sphcover_core::io::{self, CoverFileMeta, Format, WriteOptions};
-use sphcover_core::{PointCloud, SurfaceCoverParams};
+use sphcover_core::{PointCloud, SurfaceCoverError, SurfaceCoverParams};
 use sphcover_recon::{
     GraphCutParams, Method, ReconError, ReconParams, Reconstruction, Trim, reconstruct,
 };
@@ -41,7 +41,10 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let result = reconstruct(&cloud, &params, &on_stage);
     bar.finish_and_clear();
     let recon = result.map_err(|e| match e {
-        ReconError::TooFewPoints { .. } | ReconError::NoExtent(_) | ReconError::Empty(_) => {
+        ReconError::TooFewPoints { .. }
+        | ReconError::NoExtent(_)
+        | ReconError::Empty(_)
+        | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. }) => {
             anyhow::Error::from(BadInput(format!("{}: {e}", args.input.display())))
         }
         other => anyhow::Error::from(other).context(format!("{}", args.input.display())),

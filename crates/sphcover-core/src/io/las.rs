@@ -245,6 +245,15 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
         }
     }
 
+    if offset > bytes.len() {
+        return Err(header(
+            96,
+            format!(
+                "point data offset {offset} lies past the end of the file ({} bytes)",
+                bytes.len()
+            ),
+        ));
+    }
     let available = bytes.len().saturating_sub(offset) as u64 / record_length as u64;
     if count > available {
         let first_missing =
