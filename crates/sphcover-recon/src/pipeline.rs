@@ -137,13 +137,15 @@ impl Default for ReconParams {
     }
 }
 
-/// The polygonisation depth chosen for `points` samples: `log₂(0.7 √n)` rounded and clamped
-/// to 6..=9. The grid step follows the sample spacing (`∝ 1/√n` on a surface): on the
-/// bunny this gives 2–5 triangles per sample (100K samples: depth 8, 450K triangles), where
-/// a step one level finer quadruples the polygonisation time for no gain in the scores.
+/// The polygonisation depth chosen for `points` samples: `log₂(0.7 √n)` rounded, clamped to
+/// 6..=8 below a million samples and 9 from there. The grid step follows the sample spacing
+/// (`∝ 1/√n` on a surface): 2–5 triangles per sample on the bunny. On the 362K-point bunny
+/// depth 9 gave 1.79M triangles, 446 MB and Chamfer 0.0107% of the diagonal; depth 8 gives
+/// 447K triangles, 255 MB and 0.0111%: the function, not the grid, limits the accuracy.
 pub fn default_depth(points: usize) -> u32 {
     let d = (0.7 * (points.max(1) as f64).sqrt()).log2().round();
-    d.clamp(6.0, 9.0) as u32
+    let finest = if points >= 1_000_000 { 9.0 } else { 8.0 };
+    d.clamp(6.0, finest) as u32
 }
 
 /// Trimming of surface far from the samples.
@@ -668,5 +670,50 @@ impl<'a> StageClock<'a> {
             self.done.push((prev, t.elapsed()));
         }
         self.done
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_depth_follows_the_sample_count() {
+        let depths: Vec<u32> = [1, 5_210, 100_000, 362_000, 999_999, 1_000_000, 10_000_000]
+            .map(default_depth)
+            .to_vec();
+        assert_eq!(depths, [6, 6, 8, 8, 8, 9, 9]);
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_before_any_work() {
+        let cloud = PointCloud::from_positions(vec![DVec3::ZERO; 10]);
+        for params in [
+            ReconParams {
+                graph_shrink: 0.0,
+                ..ReconParams::default()
+            },
+            ReconParams {
+                min_component_fraction: 2.0,
+                ..ReconParams::default()
+            },
+            ReconParams {
+                trim: Trim::Distance(-1.0),
+                ..ReconParams::default()
+            },
+            ReconParams {
+                depth: Some(0),
+                ..ReconParams::default()
+            },
+        ] {
+            assert!(matches!(
+                reconstruct(&cloud, &params, &|_| {}),
+                Err(ReconError::InvalidParameter { .. })
+            ));
+        }
+        assert!(matches!(
+            reconstruct(&cloud, &ReconParams::default(), &|_| {}),
+            Err(ReconError::NoExtent(10))
+        ));
     }
 }
