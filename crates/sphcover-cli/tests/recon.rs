@@ -1,26 +1,17 @@
 //! End-to-end tests of `sphcover recon` on the bundled scans.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod support;
+
+use std::process::Output;
+use std::time::Duration;
 
 use sphcover_core::MeshTopology;
 use sphcover_core::io::{self, ReadOptions};
+use support::{fixture, text};
 
-fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(rel)
-}
-
+/// `sphcover` with a limit far above what these small inputs need: a hang fails the test.
 fn sphcover(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sphcover"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
+    support::sphcover(args, Duration::from_secs(120))
 }
 
 fn summary(t: &MeshTopology) -> String {

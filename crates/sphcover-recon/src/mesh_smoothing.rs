@@ -234,67 +234,9 @@ mod tests {
     use proptest::prelude::*;
     use std::collections::BTreeSet;
 
-    /// An icosahedron subdivided `levels` times and pushed onto the unit sphere.
+    /// An icosahedron subdivided `levels` times on the unit sphere.
     pub(crate) fn icosphere(levels: usize) -> TriMesh {
-        let t = (1.0 + 5f64.sqrt()) / 2.0;
-        let mut vertices: Vec<DVec3> = [
-            (-1.0, t, 0.0),
-            (1.0, t, 0.0),
-            (-1.0, -t, 0.0),
-            (1.0, -t, 0.0),
-            (0.0, -1.0, t),
-            (0.0, 1.0, t),
-            (0.0, -1.0, -t),
-            (0.0, 1.0, -t),
-            (t, 0.0, -1.0),
-            (t, 0.0, 1.0),
-            (-t, 0.0, -1.0),
-            (-t, 0.0, 1.0),
-        ]
-        .iter()
-        .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-        .collect();
-        let mut triangles: Vec<[u32; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        for _ in 0..levels {
-            let mut midpoint = std::collections::HashMap::new();
-            let mut mid = |a: u32, b: u32, vertices: &mut Vec<DVec3>| -> u32 {
-                *midpoint.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    vertices
-                        .push(((vertices[a as usize] + vertices[b as usize]) * 0.5).normalize());
-                    (vertices.len() - 1) as u32
-                })
-            };
-            let mut next = Vec::with_capacity(triangles.len() * 4);
-            for &[a, b, c] in &triangles {
-                let ab = mid(a, b, &mut vertices);
-                let bc = mid(b, c, &mut vertices);
-                let ca = mid(c, a, &mut vertices);
-                next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-            }
-            triangles = next;
-        }
-        TriMesh::new(vertices, triangles)
+        sphcover_fixtures::ground_truth_meshes::icosphere(DVec3::ZERO, 1.0, levels as u32)
     }
 
     /// A deterministic pseudo-random value in [−1, 1) from an integer (splitmix64).
