@@ -337,7 +337,7 @@ pub fn reconstruct(
     }
     let input_points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
     let extent = sphcover_core::Aabb::from_points(&input_points).longest_edge();
-    if !(extent > 0.0) {
+    if extent.is_nan() || extent <= 0.0 {
         return Err(ReconError::NoExtent(kept.len()));
     }
     let mut normalisation =
