@@ -220,6 +220,10 @@ pub struct SkeletonArgs {
     /// Seed of the random choices (cover centres, triangulation order).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Also write the report (threshold, stage counts, per-stage seconds) as JSON (ridge
+    /// method).
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
     /// Write the PLY as ascii instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,

@@ -242,3 +242,26 @@ fn bad_inputs_exit_2_without_writing() {
         assert!(out_path.exists());
     }
 }
+
+#[test]
+fn the_report_file_holds_the_stage_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let sheet = dir.path().join("sheet.ply");
+    let report = dir.path().join("report.json");
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let out = sphcover(&[
+        "skeleton",
+        input.to_str().unwrap(),
+        "-o",
+        sheet.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["components"], 1);
+    assert!(json["triangles"].as_u64().unwrap() > 1000);
+    assert!(json["supports"].as_u64().unwrap() > 100);
+    assert_eq!(json["stages_seconds"].as_array().unwrap().len(), 8);
+}

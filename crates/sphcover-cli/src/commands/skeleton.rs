@@ -93,6 +93,12 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
             let stage = reporter.stage("write");
             io::write_mesh(&args.output, &sheet, &options)?;
             stage.finish();
+            if let Some(path) = &args.report {
+                let text = serde_json::to_string_pretty(&report_json(args, &stats))?;
+                io::write_atomic(path, std::slice::from_ref(&args.input), |w| {
+                    w.write_all(text.as_bytes())
+                })?;
+            }
             reporter.summary(&summary(&stats, &args.output.display().to_string()));
         }
         SkeletonMethod::Nms => {
@@ -178,6 +184,28 @@ fn check_volume(
         }
     }
     Ok(())
+}
+
+/// The `--report` JSON: the closing line's counts and the per-stage seconds.
+fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
+    serde_json::json!({
+        "input": args.input.display().to_string(),
+        "output": args.output.display().to_string(),
+        "threshold": s.intensity.threshold,
+        "automatic_threshold": s.intensity.automatic_threshold,
+        "tolerance": s.tolerance,
+        "object_voxels": s.cover.object_points,
+        "supports": s.cover.supports,
+        "tetrahedra": s.tetrahedra,
+        "ridge_points": s.ridge_points,
+        "triangles": s.triangles,
+        "vertices": s.vertices,
+        "components": s.components,
+        "euler_characteristic": s.euler_characteristic,
+        "stages_seconds": s.timings.stages().iter()
+            .map(|(n, t)| serde_json::json!({"stage": n, "seconds": t.as_secs_f64()}))
+            .collect::<Vec<_>>(),
+    })
 }
 
 fn summary(s: &SkeletonStats, output: &str) -> String {
