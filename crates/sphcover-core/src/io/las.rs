@@ -245,15 +245,6 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
         }
     }
 
-    if offset > bytes.len() {
-        return Err(header(
-            96,
-            format!(
-                "point data offset {offset} lies past the end of the file ({} bytes)",
-                bytes.len()
-            ),
-        ));
-    }
     let available = bytes.len().saturating_sub(offset) as u64 / record_length as u64;
     if count > available {
         let first_missing =
@@ -265,6 +256,16 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
                 index: available,
                 declared: count,
             },
+        ));
+    }
+    // Zero points at an offset past the end: nothing is truncated, but the header lies.
+    if offset > bytes.len() {
+        return Err(header(
+            96,
+            format!(
+                "point data offset {offset} lies past the end of the file ({} bytes)",
+                bytes.len()
+            ),
         ));
     }
     // `count ≤ available`, so this fits in memory: it is bounded by the file size.
