@@ -1,24 +1,8 @@
 //! End-to-end tests of the `sphcover` binary on the bundled fixtures.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod support;
 
-fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(rel)
-}
-
-fn sphcover(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sphcover"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use support::{fixture, run as sphcover, text};
 
 #[test]
 fn info_reports_a_scan_with_normals() {

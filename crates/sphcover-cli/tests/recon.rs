@@ -2,17 +2,9 @@
 
 mod support;
 
-use std::process::Output;
-use std::time::Duration;
-
 use sphcover_core::MeshTopology;
 use sphcover_core::io::{self, ReadOptions};
-use support::{fixture, text};
-
-/// `sphcover` with a limit far above what these small inputs need: a hang fails the test.
-fn sphcover(args: &[&str]) -> Output {
-    support::sphcover(args, Duration::from_secs(120))
-}
+use support::{fixture, run as sphcover, text};
 
 fn summary(t: &MeshTopology) -> String {
     format!(

@@ -1,26 +1,12 @@
 //! End-to-end tests of `sphcover render`: silhouettes, determinism, colour by a property,
 //! point splats and refused inputs.
 
+mod support;
+
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(rel)
-}
-
-fn sphcover(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sphcover"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use support::{fixture, run as sphcover, text};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

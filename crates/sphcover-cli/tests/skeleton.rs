@@ -1,25 +1,11 @@
 //! End-to-end tests of `sphcover skeleton`: the bundled CT phantom, the NMS baseline, and
 //! every kind of bad input the command must refuse with exit code 2 and no output file.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
 
-fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(rel)
-}
+use std::path::Path;
 
-fn sphcover(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sphcover"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use support::{fixture, run as sphcover, text};
 
 /// A minimal NIfTI-1 file of `float32` values: `dims` (3 or 4 entries), voxel sizes, and an
 /// optional sform (three rows of the voxel→world map).
