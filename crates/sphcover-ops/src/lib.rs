@@ -47,6 +47,7 @@ pub mod pair_geometry;
 pub mod poisson;
 pub mod quadratic_fit_operators;
 pub mod thesis_operators;
+mod weighted_fit;
 
 pub use conjugate_gradient::{
     CgError, CgInfo, CgParams, CgScratch, Preconditioner, SymmetricOperator, conjugate_gradient,
