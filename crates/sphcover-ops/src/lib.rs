@@ -42,6 +42,7 @@ pub mod conjugate_gradient;
 pub mod discrete_operators;
 pub mod error;
 pub mod implicit_smoothing;
+pub mod laguerre_operators;
 pub mod least_squares_gradient;
 pub mod pair_geometry;
 pub mod poisson;
@@ -55,6 +56,7 @@ pub use conjugate_gradient::{
 pub use discrete_operators::DiscreteOperators;
 pub use error::{OpsError, SolveError};
 pub use implicit_smoothing::{ShiftedStiffness, implicit_smoothing};
+pub use laguerre_operators::{CellBound, LaguerreOperators, LaguerreStats};
 pub use least_squares_gradient::LeastSquaresGradient;
 pub use pair_geometry::{MassKind, PairGeometry, PairTerms};
 pub use poisson::{PoissonBoundary, solve_poisson};
