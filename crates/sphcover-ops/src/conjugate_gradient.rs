@@ -14,6 +14,8 @@
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::gauss_seidel::{SparseRows, SymmetricGaussSeidel};
+
 /// Entries per partial sum of a dot product (fixed, so the reduction order never depends on
 /// the thread pool).
 pub const DOT_CHUNK: usize = 8192;
@@ -26,6 +28,12 @@ pub trait SymmetricOperator: Sync {
     fn apply(&self, x: &[f64], y: &mut [f64]);
     /// Writes the diagonal of `A` (for the Jacobi preconditioner).
     fn diagonal(&self, diag: &mut [f64]);
+    /// The matrix of `A` in compressed rows, for
+    /// [`Preconditioner::SymmetricGaussSeidel`]; `None` (the default) when the operator is
+    /// only available matrix-free.
+    fn matrix(&self) -> Option<SparseRows> {
+        None
+    }
 }
 
 /// Preconditioner of [`conjugate_gradient`].
@@ -36,6 +44,10 @@ pub enum Preconditioner {
     /// Diagonal scaling by `1 / A_ii` (entries with `A_ii ≤ 0` are left unscaled).
     #[default]
     Jacobi,
+    /// Symmetric Gauss–Seidel on a fixed greedy multicolour ordering ([`SymmetricGaussSeidel`]):
+    /// fewer iterations than Jacobi, about twice the work per iteration; needs
+    /// [`SymmetricOperator::matrix`] (falls back to Jacobi when the operator has none).
+    SymmetricGaussSeidel,
 }
 
 /// Parameters of [`conjugate_gradient`].
@@ -140,6 +152,7 @@ pub struct CgScratch {
     p: Vec<f64>,
     q: Vec<f64>,
     inv_diag: Vec<f64>,
+    work: Vec<f64>,
 }
 
 impl CgScratch {
@@ -216,14 +229,19 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
         p,
         q,
         inv_diag,
+        work,
     } = scratch;
     for v in [&mut *r, &mut *z, &mut *p, &mut *q, &mut *inv_diag] {
         v.clear();
         v.resize(n, 0.0);
     }
+    let gauss_seidel = match params.preconditioner {
+        Preconditioner::SymmetricGaussSeidel => op.matrix().map(|m| SymmetricGaussSeidel::new(&m)),
+        _ => None,
+    };
     match params.preconditioner {
         Preconditioner::Identity => inv_diag.fill(1.0),
-        Preconditioner::Jacobi => {
+        Preconditioner::Jacobi | Preconditioner::SymmetricGaussSeidel => {
             op.diagonal(inv_diag);
             inv_diag.par_iter_mut().for_each(|d| {
                 *d = if *d > 0.0 && d.is_finite() {
@@ -252,7 +270,7 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
             rhs_norm,
         });
     }
-    precondition(inv_diag, r, z);
+    precondition(gauss_seidel.as_ref(), inv_diag, r, z, work);
     p.copy_from_slice(z);
     let mut rz = dot(r, z);
 
@@ -286,7 +304,7 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
                 rhs_norm,
             });
         }
-        precondition(inv_diag, r, z);
+        precondition(gauss_seidel.as_ref(), inv_diag, r, z, work);
         let rz_next = dot(r, z);
         let beta = rz_next / rz;
         rz = rz_next;
@@ -303,7 +321,17 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
     })
 }
 
-fn precondition(inv_diag: &[f64], r: &[f64], z: &mut [f64]) {
+fn precondition(
+    gauss_seidel: Option<&SymmetricGaussSeidel>,
+    inv_diag: &[f64],
+    r: &[f64],
+    z: &mut [f64],
+    work: &mut Vec<f64>,
+) {
+    if let Some(m) = gauss_seidel {
+        m.apply(r, z, work);
+        return;
+    }
     z.par_iter_mut()
         .zip(r.par_iter().zip(inv_diag.par_iter()))
         .for_each(|(zi, (ri, di))| *zi = ri * di);

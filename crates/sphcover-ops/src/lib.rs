@@ -40,6 +40,7 @@
 
 pub mod conjugate_gradient;
 pub mod discrete_operators;
+pub mod gauss_seidel;
 pub mod error;
 pub mod implicit_smoothing;
 pub mod laguerre_operators;
@@ -54,6 +55,7 @@ pub use conjugate_gradient::{
     CgError, CgInfo, CgParams, CgScratch, Preconditioner, SymmetricOperator, conjugate_gradient,
 };
 pub use discrete_operators::DiscreteOperators;
+pub use gauss_seidel::{SparseRows, SymmetricGaussSeidel};
 pub use error::{OpsError, SolveError};
 pub use implicit_smoothing::{ShiftedStiffness, implicit_smoothing};
 pub use laguerre_operators::{CellBound, LaguerreOperators, LaguerreStats};

@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use sphcover_core::SphereIntersectionGraph;
 use sphcover_ops::{
     CgParams, DiscreteOperators, FluxKind, MassKind, OpsError, PairGeometry, PairTerms,
-    PoissonBoundary, QuadraticFitOperators, RowKind, SolveError, ThesisOperators,
+    PoissonBoundary, Preconditioner, QuadraticFitOperators, RowKind, SolveError, ThesisOperators,
     implicit_smoothing, solve_poisson,
 };
 
@@ -315,10 +315,16 @@ fn implicit_smoothing_matches_a_dense_solve() {
         .iter()
         .map(|c| (3.0 * c.x).sin() + c.y * c.z)
         .collect();
-    for mass in [MassKind::Thesis, MassKind::MomentMatched] {
+    for (mass, preconditioner) in [
+        (MassKind::Thesis, Preconditioner::Jacobi),
+        (MassKind::MomentMatched, Preconditioner::Jacobi),
+        (MassKind::Thesis, Preconditioner::SymmetricGaussSeidel),
+        (MassKind::MomentMatched, Preconditioner::Identity),
+    ] {
         let t = 0.05;
         let params = CgParams {
             relative_tolerance: 1e-12,
+            preconditioner,
             ..CgParams::default()
         };
         let (u, info) = implicit_smoothing(&g, mass, t, &u0, &params).unwrap();
@@ -409,10 +415,19 @@ fn poisson_with_an_anchor_solves_the_thesis_laplacian() {
         support: 3,
         value: target[3],
     };
-    let (u, _) = solve_poisson(&g, MassKind::MomentMatched, &f, &anchor, &params).unwrap();
+    let (u, jacobi) = solve_poisson(&g, MassKind::MomentMatched, &f, &anchor, &params).unwrap();
     for i in 0..g.len() {
         assert!((u[i] - target[i]).abs() < 1e-8, "support {i}");
     }
+    let sgs = CgParams {
+        preconditioner: Preconditioner::SymmetricGaussSeidel,
+        ..params
+    };
+    let (u, info) = solve_poisson(&g, MassKind::MomentMatched, &f, &anchor, &sgs).unwrap();
+    for i in 0..g.len() {
+        assert!((u[i] - target[i]).abs() < 1e-8, "support {i}");
+    }
+    assert!(info.iterations < jacobi.iterations, "{info:?} vs {jacobi:?}");
 }
 
 /// Bit-identical results with one thread and with two.
@@ -441,7 +456,15 @@ fn results_do_not_depend_on_the_thread_count() {
             let (smooth, info) =
                 implicit_smoothing(&g, MassKind::MomentMatched, 1e-3, &u, &CgParams::default())
                     .unwrap();
-            (g.phi().to_vec(), lap, quad, smooth, info.iterations)
+            let sgs = CgParams {
+                preconditioner: Preconditioner::SymmetricGaussSeidel,
+                ..CgParams::default()
+            };
+            let (smooth_sgs, _) =
+                implicit_smoothing(&g, MassKind::Thesis, 1e-2, &u, &sgs).unwrap();
+            let mut all = smooth;
+            all.extend(smooth_sgs);
+            (g.phi().to_vec(), lap, quad, all, info.iterations)
         })
     };
     let one = run(1);
