@@ -90,6 +90,7 @@ fn cg(c: &mut Criterion) {
     for (name, preconditioner) in [
         ("jacobi", Preconditioner::Jacobi),
         ("sgs", Preconditioner::SymmetricGaussSeidel),
+        ("two_level", Preconditioner::TwoLevel),
     ] {
         let params = CgParams {
             preconditioner,
@@ -100,8 +101,7 @@ fn cg(c: &mut Criterion) {
         let (_, info) = solve_poisson(&g, MassKind::Thesis, &f, &anchor, &params).unwrap();
         let poisson_time = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let (_, smooth_info) =
-            implicit_smoothing(&g, MassKind::Thesis, 1e-4, &f, &params).unwrap();
+        let (_, smooth_info) = implicit_smoothing(&g, MassKind::Thesis, 1e-4, &f, &params).unwrap();
         let smooth_time = start.elapsed().as_secs_f64();
         eprintln!(
             "cg_200k ({name}): {} supports, {} stored entries; Poisson {} iterations \
@@ -114,9 +114,7 @@ fn cg(c: &mut Criterion) {
             smooth_info.iterations
         );
         group.bench_function(format!("poisson_anchor_1e-8_{name}"), |b| {
-            b.iter(|| {
-                solve_poisson(&g, MassKind::Thesis, black_box(&f), &anchor, &params).unwrap()
-            })
+            b.iter(|| solve_poisson(&g, MassKind::Thesis, black_box(&f), &anchor, &params).unwrap())
         });
         group.bench_function(format!("implicit_smoothing_t1e-4_1e-8_{name}"), |b| {
             b.iter(|| {

@@ -140,8 +140,8 @@ fn run(name: &str, levels: &[Level]) {
         let quad = QuadraticFitOperators::new(&geometry);
         let stats = quad.stats();
         // The power cells need every intersecting pair: their own graph, shrink 1.
-        let full_graph = SphereIntersectionGraph::build(&level.centers, &level.radii, 1.0)
-            .expect("valid cover");
+        let full_graph =
+            SphereIntersectionGraph::build(&level.centers, &level.radii, 1.0).expect("valid cover");
         let full_geometry =
             PairGeometry::build(&level.centers, &level.radii, &full_graph).expect("valid cover");
         let laguerre_box = LaguerreOperators::new(&full_geometry, CellBound::CoverBox);

@@ -91,27 +91,57 @@ fn box_faces(lo: DVec3, hi: DVec3) -> Vec<Face> {
     vec![
         quad(
             DVec3::NEG_X,
-            [corner(f, f, f), corner(f, f, t), corner(f, t, t), corner(f, t, f)],
+            [
+                corner(f, f, f),
+                corner(f, f, t),
+                corner(f, t, t),
+                corner(f, t, f),
+            ],
         ),
         quad(
             DVec3::X,
-            [corner(t, f, f), corner(t, t, f), corner(t, t, t), corner(t, f, t)],
+            [
+                corner(t, f, f),
+                corner(t, t, f),
+                corner(t, t, t),
+                corner(t, f, t),
+            ],
         ),
         quad(
             DVec3::NEG_Y,
-            [corner(f, f, f), corner(t, f, f), corner(t, f, t), corner(f, f, t)],
+            [
+                corner(f, f, f),
+                corner(t, f, f),
+                corner(t, f, t),
+                corner(f, f, t),
+            ],
         ),
         quad(
             DVec3::Y,
-            [corner(f, t, f), corner(f, t, t), corner(t, t, t), corner(t, t, f)],
+            [
+                corner(f, t, f),
+                corner(f, t, t),
+                corner(t, t, t),
+                corner(t, t, f),
+            ],
         ),
         quad(
             DVec3::NEG_Z,
-            [corner(f, f, f), corner(f, t, f), corner(t, t, f), corner(t, f, f)],
+            [
+                corner(f, f, f),
+                corner(f, t, f),
+                corner(t, t, f),
+                corner(t, f, f),
+            ],
         ),
         quad(
             DVec3::Z,
-            [corner(f, f, t), corner(t, f, t), corner(t, t, t), corner(f, t, t)],
+            [
+                corner(f, f, t),
+                corner(t, f, t),
+                corner(t, t, t),
+                corner(f, t, t),
+            ],
         ),
     ]
 }

@@ -40,8 +40,8 @@
 
 pub mod conjugate_gradient;
 pub mod discrete_operators;
-pub mod gauss_seidel;
 pub mod error;
+pub mod gauss_seidel;
 pub mod implicit_smoothing;
 pub mod laguerre_operators;
 pub mod least_squares_gradient;
@@ -49,14 +49,15 @@ pub mod pair_geometry;
 pub mod poisson;
 pub mod quadratic_fit_operators;
 pub mod thesis_operators;
+pub mod two_level;
 mod weighted_fit;
 
 pub use conjugate_gradient::{
     CgError, CgInfo, CgParams, CgScratch, Preconditioner, SymmetricOperator, conjugate_gradient,
 };
 pub use discrete_operators::DiscreteOperators;
-pub use gauss_seidel::{SparseRows, SymmetricGaussSeidel};
 pub use error::{OpsError, SolveError};
+pub use gauss_seidel::{SparseRows, SymmetricGaussSeidel};
 pub use implicit_smoothing::{ShiftedStiffness, implicit_smoothing};
 pub use laguerre_operators::{CellBound, LaguerreOperators, LaguerreStats};
 pub use least_squares_gradient::LeastSquaresGradient;
@@ -64,3 +65,4 @@ pub use pair_geometry::{MassKind, PairGeometry, PairTerms};
 pub use poisson::{PoissonBoundary, solve_poisson};
 pub use quadratic_fit_operators::{QuadraticFitOperators, QuadraticFitStats, RowKind};
 pub use thesis_operators::{FluxKind, ThesisOperators};
+pub use two_level::TwoLevel;

@@ -320,6 +320,7 @@ fn implicit_smoothing_matches_a_dense_solve() {
         (MassKind::MomentMatched, Preconditioner::Jacobi),
         (MassKind::Thesis, Preconditioner::SymmetricGaussSeidel),
         (MassKind::MomentMatched, Preconditioner::Identity),
+        (MassKind::MomentMatched, Preconditioner::TwoLevel),
     ] {
         let t = 0.05;
         let params = CgParams {
@@ -427,7 +428,10 @@ fn poisson_with_an_anchor_solves_the_thesis_laplacian() {
     for i in 0..g.len() {
         assert!((u[i] - target[i]).abs() < 1e-8, "support {i}");
     }
-    assert!(info.iterations < jacobi.iterations, "{info:?} vs {jacobi:?}");
+    assert!(
+        info.iterations < jacobi.iterations,
+        "{info:?} vs {jacobi:?}"
+    );
 }
 
 /// Bit-identical results with one thread and with two.
@@ -460,8 +464,7 @@ fn results_do_not_depend_on_the_thread_count() {
                 preconditioner: Preconditioner::SymmetricGaussSeidel,
                 ..CgParams::default()
             };
-            let (smooth_sgs, _) =
-                implicit_smoothing(&g, MassKind::Thesis, 1e-2, &u, &sgs).unwrap();
+            let (smooth_sgs, _) = implicit_smoothing(&g, MassKind::Thesis, 1e-2, &u, &sgs).unwrap();
             let mut all = smooth;
             all.extend(smooth_sgs);
             (g.phi().to_vec(), lap, quad, all, info.iterations)
