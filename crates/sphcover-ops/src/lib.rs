@@ -6,7 +6,14 @@
 //! `φ_ij = D_ij / d_ij`, stored in compressed sparse rows aligned with the graph's neighbour
 //! array, and the masses `m_i`. The thesis Laplacian is `Lap = M⁻¹ (W − diag(W·1))` with
 //! `W = [φ_ij]`: self-adjoint in the `M` inner product, negative semi-definite, so implicit
-//! smoothing and Poisson problems are solved by [`conjugate_gradient()`].
+//! smoothing and Poisson problems are solved by [`conjugate_gradient()`] (Jacobi, block
+//! symmetric Gauss–Seidel or two-level preconditioning, [`Preconditioner`]).
+//!
+//! Operator families behind [`DiscreteOperators`]: the thesis form ([`ThesisOperators`]), the
+//! consistent second-order least-squares fit ([`QuadraticFitOperators`], exact on quadratics),
+//! and power-cell finite volumes ([`LaguerreOperators`], symmetric and closed, consistent only
+//! where the radii vary slowly; see `docs/algorithms.md` §6 for the measured trade-offs).
+//! Least-squares fits are solved by pivoted Householder QR, never by normal equations.
 //!
 //! ```
 //! use sphcover_core::{synthetic, Aabb, DVec3, SphereIntersectionGraph};
