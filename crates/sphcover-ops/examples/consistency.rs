@@ -111,7 +111,7 @@ fn order(coarse: (f64, f64), fine: (f64, f64)) -> String {
 }
 
 fn run(name: &str, levels: &[Level]) {
-    println!("\n### ({name})\n");
+    println!("\n### ({name}\n");
     let families = [
         "thesis",
         "thesis, central flux",
