@@ -6,17 +6,21 @@
 //! * `memory_read`: a dot product of two 32M-entry vectors (512 MB read), the bandwidth
 //!   reference: the apply streams 12 bytes per stored neighbour (φ and the u32 index).
 //! * `cg_200k`: Poisson `Lap u = f` (thesis mass, one anchor) to a 1e-8 relative residual, and
-//!   one implicit smoothing step, on a jittered lattice of 59³ ≈ 205K supports (r = 1.3 h).
+//!   one implicit smoothing step, on a jittered lattice of 59³ ≈ 205K supports (r = 1.3 h),
+//!   with the Jacobi and the multicolour symmetric Gauss–Seidel preconditioners.
 //!
-//! Run: `cargo bench -p sphcover-ops --bench operators`
+//! Run: `cargo bench -p sphcover-ops --bench operators` (add `-- 'laplacian|memory'` to skip
+//! the criterion CG runs; the one-shot CG timings are printed either way).
 
 use std::hint::black_box;
+use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 use sphcover_core::{Aabb, SphereIntersectionGraph, synthetic};
 use sphcover_ops::{
-    CgParams, MassKind, PairGeometry, PoissonBoundary, implicit_smoothing, solve_poisson,
+    CgParams, MassKind, PairGeometry, PoissonBoundary, Preconditioner, implicit_smoothing,
+    solve_poisson,
 };
 
 fn jittered(cells: usize, radius_factor: f64) -> PairGeometry {
@@ -81,26 +85,43 @@ fn cg(c: &mut Criterion) {
         support: 0,
         value: 0.0,
     };
-    let params = CgParams::default();
-    let (_, info) = solve_poisson(&g, MassKind::Thesis, &f, &anchor, &params).unwrap();
-    let (_, smooth_info) = implicit_smoothing(&g, MassKind::Thesis, 1e-4, &f, &params).unwrap();
-    eprintln!(
-        "cg_200k: {} supports, {} stored entries; Poisson {} iterations (residual {:.1e}); \
-         smoothing t = 1e-4: {} iterations",
-        g.len(),
-        g.stored_entries(),
-        info.iterations,
-        info.relative_residual,
-        smooth_info.iterations
-    );
     let mut group = c.benchmark_group("cg_200k");
     group.sample_size(10);
-    group.bench_function("poisson_anchor_1e-8", |b| {
-        b.iter(|| solve_poisson(&g, MassKind::Thesis, black_box(&f), &anchor, &params).unwrap())
-    });
-    group.bench_function("implicit_smoothing_t1e-4_1e-8", |b| {
-        b.iter(|| implicit_smoothing(&g, MassKind::Thesis, 1e-4, black_box(&f), &params).unwrap())
-    });
+    for (name, preconditioner) in [
+        ("jacobi", Preconditioner::Jacobi),
+        ("sgs", Preconditioner::SymmetricGaussSeidel),
+        ("two_level", Preconditioner::TwoLevel),
+    ] {
+        let params = CgParams {
+            preconditioner,
+            ..CgParams::default()
+        };
+        // One timed solve each, printed even when a filter skips the criterion runs below.
+        let start = Instant::now();
+        let (_, info) = solve_poisson(&g, MassKind::Thesis, &f, &anchor, &params).unwrap();
+        let poisson_time = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let (_, smooth_info) = implicit_smoothing(&g, MassKind::Thesis, 1e-4, &f, &params).unwrap();
+        let smooth_time = start.elapsed().as_secs_f64();
+        eprintln!(
+            "cg_200k ({name}): {} supports, {} stored entries; Poisson {} iterations \
+             (residual {:.1e}) in {poisson_time:.2} s; smoothing t = 1e-4: {} iterations in \
+             {smooth_time:.3} s",
+            g.len(),
+            g.stored_entries(),
+            info.iterations,
+            info.relative_residual,
+            smooth_info.iterations
+        );
+        group.bench_function(format!("poisson_anchor_1e-8_{name}"), |b| {
+            b.iter(|| solve_poisson(&g, MassKind::Thesis, black_box(&f), &anchor, &params).unwrap())
+        });
+        group.bench_function(format!("implicit_smoothing_t1e-4_1e-8_{name}"), |b| {
+            b.iter(|| {
+                implicit_smoothing(&g, MassKind::Thesis, 1e-4, black_box(&f), &params).unwrap()
+            })
+        });
+    }
     group.finish();
 }
 

@@ -19,7 +19,8 @@ use sphcover_core::{
     Aabb, DVec3, SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover,
 };
 use sphcover_ops::{
-    DiscreteOperators, FluxKind, MassKind, PairGeometry, QuadraticFitOperators, ThesisOperators,
+    CellBound, DiscreteOperators, FluxKind, LaguerreOperators, MassKind, PairGeometry,
+    QuadraticFitOperators, ThesisOperators,
 };
 
 const SHRINK: f64 = 0.7;
@@ -110,12 +111,14 @@ fn order(coarse: (f64, f64), fine: (f64, f64)) -> String {
 }
 
 fn run(name: &str, levels: &[Level]) {
-    println!("\n### ({name})\n");
+    println!("\n### ({name}\n");
     let families = [
         "thesis",
         "thesis, central flux",
         "moment-matched",
         "quadratic fit",
+        "Laguerre, cover box",
+        "Laguerre, ball cube",
     ];
     let mut table: Vec<Vec<(f64, [f64; 8])>> = vec![Vec::new(); families.len()];
     for level in levels {
@@ -136,7 +139,21 @@ fn run(name: &str, levels: &[Level]) {
         let moment = ThesisOperators::new(&geometry, MassKind::MomentMatched, FluxKind::Central);
         let quad = QuadraticFitOperators::new(&geometry);
         let stats = quad.stats();
-        let ops: [&dyn DiscreteOperators; 4] = [&thesis, &central, &moment, &quad];
+        // The power cells need every intersecting pair: their own graph, shrink 1.
+        let full_graph =
+            SphereIntersectionGraph::build(&level.centers, &level.radii, 1.0).expect("valid cover");
+        let full_geometry =
+            PairGeometry::build(&level.centers, &level.radii, &full_graph).expect("valid cover");
+        let laguerre_box = LaguerreOperators::new(&full_geometry, CellBound::CoverBox);
+        let laguerre_ball = LaguerreOperators::new(&full_geometry, CellBound::BallCube);
+        let ops: [&dyn DiscreteOperators; 6] = [
+            &thesis,
+            &central,
+            &moment,
+            &quad,
+            &laguerre_box,
+            &laguerre_ball,
+        ];
         for (f, op) in ops.iter().enumerate() {
             table[f].push((level.h, errors(*op, &level.centers, &interior)));
         }
@@ -152,6 +169,45 @@ fn run(name: &str, levels: &[Level]) {
             stats.isolated_rows,
             start.elapsed().as_secs_f64()
         );
+        // Power cells need not contain their centre: c_i is outside when r_j² − r_i² > d² for
+        // some neighbour, and the two-point flux then has no consistency to lean on.
+        let outside = interior
+            .iter()
+            .filter(|&&i| {
+                full_geometry.neighbors(i).iter().any(|&j| {
+                    let j = j as usize;
+                    let d2 = level.centers[j].distance_squared(level.centers[i]);
+                    level.radii[j].powi(2) - level.radii[i].powi(2) > d2
+                })
+            })
+            .count();
+        let small = interior
+            .iter()
+            .filter(|&&i| laguerre_box.volumes()[i] < 0.1 * level.h.powi(3))
+            .count();
+        println!(
+            "  - power cells: {outside} interior centres outside their own cell, {small} interior \
+             cells below 0.1 h³ (of {})",
+            interior.len()
+        );
+        for (name, l) in [("cover box", &laguerre_box), ("ball cube", &laguerre_ball)] {
+            let s = l.stats();
+            let interior_bounded = interior
+                .iter()
+                .filter(|&&i| l.bound_areas()[i] > 0.0)
+                .count();
+            println!(
+                "  - Laguerre, {name} (shrink-1 graph, mean degree {:.1}): {} empty cells, \
+                 {} cells touching the bound ({} of them interior), face mismatch \
+                 |A_ij − A_ji|/A: max {:.1e}, {} pairs above 1e-9",
+                full_graph.mean_degree(),
+                s.empty_cells,
+                s.bounded_cells,
+                interior_bounded,
+                s.max_face_mismatch,
+                s.mismatched_pairs
+            );
+        }
     }
     println!();
     println!("| operator | level | {} |", QUANTITIES.join(" | "));

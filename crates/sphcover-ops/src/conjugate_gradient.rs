@@ -14,6 +14,9 @@
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::gauss_seidel::{SparseRows, SymmetricGaussSeidel};
+use crate::two_level::TwoLevel;
+
 /// Entries per partial sum of a dot product (fixed, so the reduction order never depends on
 /// the thread pool).
 pub const DOT_CHUNK: usize = 8192;
@@ -26,6 +29,12 @@ pub trait SymmetricOperator: Sync {
     fn apply(&self, x: &[f64], y: &mut [f64]);
     /// Writes the diagonal of `A` (for the Jacobi preconditioner).
     fn diagonal(&self, diag: &mut [f64]);
+    /// The matrix of `A` in compressed rows, for
+    /// [`Preconditioner::SymmetricGaussSeidel`]; `None` (the default) when the operator is
+    /// only available matrix-free.
+    fn matrix(&self) -> Option<SparseRows> {
+        None
+    }
 }
 
 /// Preconditioner of [`conjugate_gradient`].
@@ -36,6 +45,14 @@ pub enum Preconditioner {
     /// Diagonal scaling by `1 / A_ii` (entries with `A_ii ≤ 0` are left unscaled).
     #[default]
     Jacobi,
+    /// Symmetric Gauss–Seidel inside fixed blocks of rows ([`SymmetricGaussSeidel`]): fewer
+    /// iterations than Jacobi, about twice the work per iteration; needs
+    /// [`SymmetricOperator::matrix`] (falls back to Jacobi when the operator has none).
+    SymmetricGaussSeidel,
+    /// Jacobi plus a coarse correction on aggregates of the matrix graph ([`TwoLevel`]): far
+    /// fewer iterations on Poisson problems; needs [`SymmetricOperator::matrix`] (falls back to
+    /// Jacobi when the operator has none).
+    TwoLevel,
 }
 
 /// Parameters of [`conjugate_gradient`].
@@ -221,9 +238,19 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
         v.clear();
         v.resize(n, 0.0);
     }
+    let gauss_seidel = match params.preconditioner {
+        Preconditioner::SymmetricGaussSeidel => op.matrix().map(|m| SymmetricGaussSeidel::new(&m)),
+        _ => None,
+    };
+    let two_level = match params.preconditioner {
+        Preconditioner::TwoLevel => op.matrix().map(|m| TwoLevel::new(&m)),
+        _ => None,
+    };
     match params.preconditioner {
         Preconditioner::Identity => inv_diag.fill(1.0),
-        Preconditioner::Jacobi => {
+        Preconditioner::Jacobi
+        | Preconditioner::SymmetricGaussSeidel
+        | Preconditioner::TwoLevel => {
             op.diagonal(inv_diag);
             inv_diag.par_iter_mut().for_each(|d| {
                 *d = if *d > 0.0 && d.is_finite() {
@@ -252,7 +279,7 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
             rhs_norm,
         });
     }
-    precondition(inv_diag, r, z);
+    precondition(gauss_seidel.as_ref(), two_level.as_ref(), inv_diag, r, z);
     p.copy_from_slice(z);
     let mut rz = dot(r, z);
 
@@ -286,7 +313,7 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
                 rhs_norm,
             });
         }
-        precondition(inv_diag, r, z);
+        precondition(gauss_seidel.as_ref(), two_level.as_ref(), inv_diag, r, z);
         let rz_next = dot(r, z);
         let beta = rz_next / rz;
         rz = rz_next;
@@ -303,7 +330,21 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
     })
 }
 
-fn precondition(inv_diag: &[f64], r: &[f64], z: &mut [f64]) {
+fn precondition(
+    gauss_seidel: Option<&SymmetricGaussSeidel>,
+    two_level: Option<&TwoLevel>,
+    inv_diag: &[f64],
+    r: &[f64],
+    z: &mut [f64],
+) {
+    if let Some(m) = gauss_seidel {
+        m.apply(r, z);
+        return;
+    }
+    if let Some(m) = two_level {
+        m.apply(r, z);
+        return;
+    }
     z.par_iter_mut()
         .zip(r.par_iter().zip(inv_diag.par_iter()))
         .for_each(|(zi, (ri, di))| *zi = ri * di);

@@ -12,6 +12,7 @@ use crate::conjugate_gradient::{
     CgInfo, CgParams, CgScratch, SymmetricOperator, conjugate_gradient,
 };
 use crate::error::{OpsError, SolveError};
+use crate::gauss_seidel::SparseRows;
 use crate::pair_geometry::{MassKind, PairGeometry, ROWS_PER_TASK};
 
 /// The operator `x ↦ M x − t L_W x`, with identity rows for supports of zero mass.
@@ -72,6 +73,19 @@ impl SymmetricOperator for ShiftedStiffness<'_> {
             let m = self.mass[i];
             *d = if m > 0.0 { m + self.time * w[i] } else { 1.0 };
         });
+    }
+
+    fn matrix(&self) -> Option<SparseRows> {
+        let g = self.geometry;
+        let mut diagonal = vec![0.0; g.len()];
+        self.diagonal(&mut diagonal);
+        let values = g.phi().iter().map(|&phi| -self.time * phi).collect();
+        Some(SparseRows {
+            offsets: g.offsets().to_vec(),
+            columns: g.neighbor_array().to_vec(),
+            values,
+            diagonal,
+        })
     }
 }
 

@@ -5,88 +5,130 @@
 //! solution is
 //!
 //! ```text
-//! Grad(u)_i = G_i⁺ Σ_j φ_ij d_ij (u_j − u_i),   G_i = Σ_j φ_ij d_ij d_ijᵀ,   d_ij = c_j − c_i
+//! Grad(u)_i = Σ_j w_ij (u_j − u_i),   w_ij = G_i⁺ φ_ij d_ij,   G_i = Σ_j φ_ij d_ij d_ijᵀ,   d_ij = c_j − c_i
 //! ```
 //!
 //! exact for linear `u` whenever the neighbour offsets span ℝ³. When they do not (one
-//! neighbour, or all neighbours on a line or plane), `G_i⁺` is the pseudo-inverse and the
-//! result is the minimum-norm gradient: the projection of the true gradient onto the span of
-//! the offsets, which still reproduces every difference `u_j − u_i` of a linear field. Then
-//! `Div(Grad(u)) = Lap(u)` holds for linear `u` in every case (thesis eq. 4.23–4.28).
+//! neighbour, or all neighbours on a line or plane), the result is the minimum-norm gradient:
+//! the projection of the true gradient onto the span of the offsets, which still reproduces
+//! every difference `u_j − u_i` of a linear field. Then `Div(Grad(u)) = Lap(u)` holds for
+//! linear `u` in every case (thesis eq. 4.23–4.28).
+//!
+//! Accuracy. The weights `w_ij` are computed from a singular-value decomposition of the
+//! row-weighted, column-scaled offsets (never from `G_i`, whose condition number is the square
+//! of theirs), and then refined so that `Σ_j w_ij d_ijᵀ = I` holds to rounding: with
+//! `E = I − Σ_j w_ij d_ijᵀ`, `w ← (I + E) w` leaves `I − E²`. The gradient of a linear field
+//! then reproduces every neighbour difference to rounding, however badly conditioned the
+//! neighbourhood (nearly nested or nearly coplanar neighbours).
 
-use glam::{DMat3, DVec3};
-use nalgebra::{Matrix3, SymmetricEigen};
+use glam::DVec3;
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 
-use crate::pair_geometry::PairGeometry;
+use crate::pair_geometry::{PairGeometry, ROWS_PER_TASK};
+use crate::weighted_fit::WeightedFit;
 
-/// Eigenvalues of `G_i` below this fraction of the largest are treated as zero.
+/// Singular values of the scaled offsets below this fraction of the largest count as zero: the
+/// offsets are then treated as not spanning ℝ³ (exactly degenerate configurations give
+/// ratios near 1e-16).
 const RANK_TOLERANCE: f64 = 1e-12;
 
-/// The pseudo-inverse of the symmetric 3×3 matrix `m`, cutting eigenvalues below
-/// `RANK_TOLERANCE ×` the largest (zero for the zero matrix).
-pub(crate) fn symmetric_pseudo_inverse(m: DMat3) -> DMat3 {
-    let a = Matrix3::from_fn(|r, c| m.col(c)[r]);
-    let eigen = SymmetricEigen::new(a);
-    let largest = eigen
-        .eigenvalues
-        .iter()
-        .fold(0.0f64, |acc, v| acc.max(v.abs()));
-    if largest == 0.0 || !largest.is_finite() {
-        return DMat3::ZERO;
-    }
-    let mut out = DMat3::ZERO;
-    for k in 0..3 {
-        let lambda = eigen.eigenvalues[k];
-        if lambda > RANK_TOLERANCE * largest {
-            let v = eigen.eigenvectors.column(k);
-            let v = DVec3::new(v[0], v[1], v[2]);
-            out += DMat3::from_cols(v * v.x, v * v.y, v * v.z) * (1.0 / lambda);
-        }
-    }
-    out
-}
-
-/// The least-squares gradient operator of a [`PairGeometry`]: one 3×3 pseudo-inverse per
-/// support.
+/// The least-squares gradient operator of a [`PairGeometry`]: one weight vector per stored
+/// neighbour (zero for unusable pairs), aligned with [`PairGeometry::neighbor_array`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct LeastSquaresGradient {
-    pseudo_inverse: Vec<DMat3>,
+    weights: Vec<DVec3>,
     full_rank: Vec<bool>,
+    condition: Vec<f64>,
+}
+
+/// The gradient weights of row `i` of `geometry` into `out` (aligned with the row); returns
+/// whether the offsets span ℝ³ and the condition number of the scaled offsets.
+pub(crate) fn gradient_row(geometry: &PairGeometry, i: usize, out: &mut [DVec3]) -> (bool, f64) {
+    let c = geometry.centers();
+    let phi = geometry.phi_row(i);
+    let nb = geometry.neighbors(i);
+    let usable: Vec<usize> = (0..nb.len()).filter(|&k| phi[k] > 0.0).collect();
+    out.fill(DVec3::ZERO);
+    if usable.is_empty() {
+        return (false, 1.0);
+    }
+    let offset = |k: usize| c[nb[k] as usize] - c[i];
+    let rows = DMatrix::from_fn(usable.len(), 3, |r, col| offset(usable[r])[col]);
+    let weights: Vec<f64> = usable.iter().map(|&k| phi[k]).collect();
+    let fit = WeightedFit::new(&rows, &weights, RANK_TOLERANCE);
+    for (r, &k) in usable.iter().enumerate() {
+        let w = fit.coefficients.column(r);
+        out[k] = DVec3::new(w[0], w[1], w[2]);
+    }
+    let full = fit.nullity() == 0;
+    if full {
+        refine_linear_exactness(out, offset, &usable);
+    }
+    (full, fit.condition)
+}
+
+/// `w ← (I + E) w` with `E = I − Σ_k w_k d_kᵀ`: one step of refinement towards
+/// `Σ_k w_k d_kᵀ = I`; a left multiplication, so every other moment `Σ_k w_k q(d_k)` that
+/// vanished still vanishes.
+pub(crate) fn refine_linear_exactness(
+    weights: &mut [DVec3],
+    offset: impl Fn(usize) -> DVec3,
+    usable: &[usize],
+) {
+    let mut moment = glam::DMat3::ZERO;
+    for &k in usable {
+        let d = offset(k);
+        moment += glam::DMat3::from_cols(weights[k] * d.x, weights[k] * d.y, weights[k] * d.z);
+    }
+    let correction = glam::DMat3::IDENTITY * 2.0 - moment;
+    for &k in usable {
+        weights[k] = correction * weights[k];
+    }
 }
 
 impl LeastSquaresGradient {
-    /// Precomputes `G_i⁺` for every support, in parallel.
+    /// Computes the weights of every support, in parallel over fixed row blocks (the result
+    /// does not depend on the thread count).
     pub fn new(geometry: &PairGeometry) -> LeastSquaresGradient {
-        let c = geometry.centers();
-        let (pseudo_inverse, full_rank) = (0..geometry.len())
+        let n = geometry.len();
+        let offsets = geometry.offsets();
+        let mut weights = vec![DVec3::ZERO; geometry.stored_entries()];
+        let mut tasks = Vec::new();
+        {
+            let mut rest = &mut weights[..];
+            let mut row = 0;
+            while row < n {
+                let end = (row + ROWS_PER_TASK).min(n);
+                let len = (offsets[end] - offsets[row]) as usize;
+                let (here, next) = rest.split_at_mut(len);
+                tasks.push((row..end, here));
+                rest = next;
+                row = end;
+            }
+        }
+        let per_row: Vec<Vec<(bool, f64)>> = tasks
             .into_par_iter()
-            .map(|i| {
-                let mut g = DMat3::ZERO;
-                for (&j, &phi) in geometry.neighbors(i).iter().zip(geometry.phi_row(i)) {
-                    if phi > 0.0 {
-                        let d = c[j as usize] - c[i];
-                        g += DMat3::from_cols(d * d.x, d * d.y, d * d.z) * phi;
-                    }
-                }
-                let p = symmetric_pseudo_inverse(g);
-                // Full rank exactly when G⁺G is the identity.
-                let full = (p * g - DMat3::IDENTITY)
-                    .to_cols_array()
-                    .iter()
-                    .all(|e| e.abs() < 1e-6);
-                (p, full)
+            .map(|(rows, out)| {
+                let base = offsets[rows.start] as usize;
+                rows.map(|i| {
+                    let range = offsets[i] as usize - base..offsets[i + 1] as usize - base;
+                    gradient_row(geometry, i, &mut out[range])
+                })
+                .collect()
             })
-            .unzip();
+            .collect();
+        let (full_rank, condition) = per_row.into_iter().flatten().unzip();
         LeastSquaresGradient {
-            pseudo_inverse,
+            weights,
             full_rank,
+            condition,
         }
     }
 
-    /// `G_i⁺` per support.
-    pub fn pseudo_inverses(&self) -> &[DMat3] {
-        &self.pseudo_inverse
+    /// The weights `w_ij` of every stored entry: `Grad(u)_i = Σ_j w_ij (u_j − u_i)`.
+    pub fn weights(&self) -> &[DVec3] {
+        &self.weights
     }
 
     /// Whether the neighbour offsets of support `i` span ℝ³ (then the gradient is exact on
@@ -95,18 +137,25 @@ impl LeastSquaresGradient {
         self.full_rank[i]
     }
 
+    /// Condition number of the row-weighted, column-scaled offsets of support `i` (the square
+    /// root of that of `G_i`); 1 without usable neighbours.
+    pub fn condition(&self, i: usize) -> f64 {
+        self.condition[i]
+    }
+
     /// `Grad(u)` at every centre.
     pub fn apply(&self, geometry: &PairGeometry, u: &[f64]) -> Vec<DVec3> {
         assert_eq!(u.len(), geometry.len(), "u has the wrong length");
-        let c = geometry.centers();
+        let offsets = geometry.offsets();
+        let nb = geometry.neighbor_array();
         (0..geometry.len())
             .into_par_iter()
             .map(|i| {
-                let mut rhs = DVec3::ZERO;
-                for (&j, &phi) in geometry.neighbors(i).iter().zip(geometry.phi_row(i)) {
-                    rhs += (phi * (u[j as usize] - u[i])) * (c[j as usize] - c[i]);
+                let mut acc = DVec3::ZERO;
+                for k in offsets[i] as usize..offsets[i + 1] as usize {
+                    acc += self.weights[k] * (u[nb[k] as usize] - u[i]);
                 }
-                self.pseudo_inverse[i] * rhs
+                acc
             })
             .collect()
     }

@@ -6,7 +6,14 @@
 //! `φ_ij = D_ij / d_ij`, stored in compressed sparse rows aligned with the graph's neighbour
 //! array, and the masses `m_i`. The thesis Laplacian is `Lap = M⁻¹ (W − diag(W·1))` with
 //! `W = [φ_ij]`: self-adjoint in the `M` inner product, negative semi-definite, so implicit
-//! smoothing and Poisson problems are solved by [`conjugate_gradient()`].
+//! smoothing and Poisson problems are solved by [`conjugate_gradient()`] (Jacobi, block
+//! symmetric Gauss–Seidel or two-level preconditioning, [`Preconditioner`]).
+//!
+//! Operator families behind [`DiscreteOperators`]: the thesis form ([`ThesisOperators`]), the
+//! consistent second-order least-squares fit ([`QuadraticFitOperators`], exact on quadratics),
+//! and power-cell finite volumes ([`LaguerreOperators`], symmetric and closed, consistent only
+//! where the radii vary slowly; see `docs/algorithms.md` §6 for the measured trade-offs).
+//! Least-squares fits are solved by pivoted Householder QR, never by normal equations.
 //!
 //! ```
 //! use sphcover_core::{synthetic, Aabb, DVec3, SphereIntersectionGraph};
@@ -41,21 +48,28 @@
 pub mod conjugate_gradient;
 pub mod discrete_operators;
 pub mod error;
+pub mod gauss_seidel;
 pub mod implicit_smoothing;
+pub mod laguerre_operators;
 pub mod least_squares_gradient;
 pub mod pair_geometry;
 pub mod poisson;
 pub mod quadratic_fit_operators;
 pub mod thesis_operators;
+pub mod two_level;
+mod weighted_fit;
 
 pub use conjugate_gradient::{
     CgError, CgInfo, CgParams, CgScratch, Preconditioner, SymmetricOperator, conjugate_gradient,
 };
 pub use discrete_operators::DiscreteOperators;
 pub use error::{OpsError, SolveError};
+pub use gauss_seidel::{SparseRows, SymmetricGaussSeidel};
 pub use implicit_smoothing::{ShiftedStiffness, implicit_smoothing};
+pub use laguerre_operators::{CellBound, LaguerreOperators, LaguerreStats};
 pub use least_squares_gradient::LeastSquaresGradient;
 pub use pair_geometry::{MassKind, PairGeometry, PairTerms};
 pub use poisson::{PoissonBoundary, solve_poisson};
 pub use quadratic_fit_operators::{QuadraticFitOperators, QuadraticFitStats, RowKind};
 pub use thesis_operators::{FluxKind, ThesisOperators};
+pub use two_level::TwoLevel;

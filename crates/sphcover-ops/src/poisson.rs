@@ -21,6 +21,7 @@ use crate::conjugate_gradient::{
     CgInfo, CgParams, CgScratch, SymmetricOperator, conjugate_gradient,
 };
 use crate::error::{OpsError, SolveError};
+use crate::gauss_seidel::SparseRows;
 use crate::pair_geometry::{MassKind, PairGeometry, ROWS_PER_TASK};
 
 /// How the solution of [`solve_poisson`] is pinned down.
@@ -80,6 +81,30 @@ impl SymmetricOperator for FreeStiffness<'_> {
         diag.par_iter_mut().enumerate().for_each(|(i, d)| {
             *d = if self.fixed[i] { 1.0 } else { w[i] };
         });
+    }
+
+    fn matrix(&self) -> Option<SparseRows> {
+        let g = self.geometry;
+        let mut diagonal = vec![0.0; g.len()];
+        self.diagonal(&mut diagonal);
+        let nb = g.neighbor_array();
+        let values = (0..g.len())
+            .flat_map(|i| {
+                (g.offsets()[i] as usize..g.offsets()[i + 1] as usize).map(move |k| {
+                    if self.fixed[i] || self.fixed[nb[k] as usize] {
+                        0.0
+                    } else {
+                        -g.phi()[k]
+                    }
+                })
+            })
+            .collect();
+        Some(SparseRows {
+            offsets: g.offsets().to_vec(),
+            columns: nb.to_vec(),
+            values,
+            diagonal,
+        })
     }
 }
 

@@ -13,9 +13,10 @@
 //! All four are linear in the differences, so they are stored as per-entry coefficients
 //! (one `f64` and one `DVec3` per stored neighbour) and applied like a sparse matrix.
 //!
-//! Exactness. The fit is solved with the pseudo-inverse of its 9×9 normal matrix. The
-//! Laplacian is exact on every quadratic exactly when the functional `tr H` is determined by
-//! the data (orthogonal to the null space of the normal matrix): this holds with 9 or more
+//! Exactness. The fit is solved by a singular-value decomposition of the weighted,
+//! column-scaled design matrix (not its normal matrix, whose condition number is the square).
+//! The Laplacian is exact on every quadratic exactly when the functional `tr H` is determined
+//! by the data (orthogonal to the numerical null space of the design): this holds with 9 or more
 //! neighbours in general position, and also on symmetric stencils with fewer (six axis
 //! neighbours determine `tr H` though not the mixed terms). Where it does not hold, the row
 //! *falls back* to the linear-exact form
@@ -26,7 +27,14 @@
 //!
 //! with the least-squares gradient: exact on linear fields and on `|x|²`, not on every
 //! quadratic. The gradient is exact on quadratics wherever it is determined, and otherwise is
-//! the linear least-squares one. [`QuadraticFitStats`] counts the fallbacks.
+//! the linear least-squares one.
+//!
+//! Linear exactness by construction. Whatever the conditioning of the fit, the Laplacian
+//! coefficients are finally projected, `L_k ← L_k − (Σ_l L_l d_l)·G_k` (twice) with the linear
+//! least-squares gradient weights `G_k` (`Σ_k G_k d_kᵀ = I` to rounding), so `Σ_k L_k d_k`
+//! vanishes to the rounding of that sum and `Lap` of a linear field is rounding on any cover;
+//! the gradient weights are refined by `G ← (2I − Σ_k G_k d_kᵀ) G`, a left multiplication
+//! that keeps their quadratic moments zero. [`QuadraticFitStats`] counts the fallbacks.
 //!
 //! Trade-offs (measured by the `consistency` example): exact on quadratics and convergent on
 //! irregular covers, where the thesis form is not, but `Lap` is no longer symmetric nor
@@ -34,19 +42,19 @@
 //! evaluate, and the symmetric [`crate::PairGeometry`] Laplacian to solve.
 
 use glam::DVec3;
-use nalgebra::{SMatrix, SVector, SymmetricEigen};
+use nalgebra::{DMatrix, SVector};
 use rayon::prelude::*;
 
 use crate::discrete_operators::DiscreteOperators;
-use crate::least_squares_gradient::LeastSquaresGradient;
+use crate::least_squares_gradient::{gradient_row, refine_linear_exactness};
 use crate::pair_geometry::{MassKind, PairGeometry, ROWS_PER_TASK};
+use crate::weighted_fit::WeightedFit;
 
-type Mat9 = SMatrix<f64, 9, 9>;
 type Vec9 = SVector<f64, 9>;
 
-/// Eigenvalues of the scaled normal matrix below this fraction of the largest are treated as
-/// zero.
-const RANK_TOLERANCE: f64 = 1e-10;
+/// Singular values of the weighted, column-scaled design matrix below this fraction of the
+/// largest are treated as zero (1e-10 on the normal matrix's eigenvalues).
+const RANK_TOLERANCE: f64 = 1e-5;
 /// A functional counts as determined when its component in the null space is below this
 /// fraction of its norm.
 const DETERMINED_TOLERANCE: f64 = 1e-9;
@@ -105,7 +113,6 @@ pub enum RowKind {
 impl QuadraticFitOperators {
     /// Fits every support's neighbourhood, in parallel (deterministic for any thread count).
     pub fn new(geometry: &PairGeometry) -> QuadraticFitOperators {
-        let linear = LeastSquaresGradient::new(geometry);
         let n = geometry.len();
         let offsets = geometry.offsets();
         let mut lap_coeff = vec![0.0; geometry.stored_entries()];
@@ -135,7 +142,6 @@ impl QuadraticFitOperators {
                     let range = offsets[i] as usize - base..offsets[i + 1] as usize - base;
                     let (kind, grad_fallback) = fit_row(
                         geometry,
-                        &linear,
                         i,
                         &mut lap_out[range.clone()],
                         &mut grad_out[range],
@@ -202,7 +208,6 @@ impl QuadraticFitOperators {
 /// back.
 fn fit_row(
     geometry: &PairGeometry,
-    linear: &LeastSquaresGradient,
     i: usize,
     lap_out: &mut [f64],
     grad_out: &mut [DVec3],
@@ -214,66 +219,62 @@ fn fit_row(
     if mass <= 0.0 {
         return (RowKind::Isolated, false);
     }
+    let offset = |k: usize| c[nb[k] as usize] - c[i];
+    let usable: Vec<usize> = (0..nb.len()).filter(|&k| phi[k] > 0.0).collect();
     let h = geometry.radii()[i].max(f64::MIN_POSITIVE);
-    let mut normal = Mat9::zeros();
-    for (&j, &w) in nb.iter().zip(phi) {
-        if w > 0.0 {
-            let b = basis((c[j as usize] - c[i]) / h);
-            normal += (b * b.transpose()) * w;
-        }
-    }
-    let eigen = SymmetricEigen::new(normal);
-    let largest = eigen.eigenvalues.amax();
-    let mut pinv = Mat9::zeros();
-    let mut null = Vec::new();
-    for k in 0..9 {
-        let v = eigen.eigenvectors.column(k).into_owned();
-        let lambda = eigen.eigenvalues[k];
-        if lambda > RANK_TOLERANCE * largest {
-            pinv += (v * v.transpose()) / lambda;
-        } else {
-            null.push(v);
-        }
-    }
-    let determined = |f: &Vec9| {
-        let leak: f64 = null.iter().map(|v| v.dot(f).powi(2)).sum::<f64>().sqrt();
-        leak <= DETERMINED_TOLERANCE * f.norm()
-    };
-    let e_lap = Vec9::from([0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
-    let lap_determined = determined(&e_lap);
-    let grad_determined = (0..3).all(|a| determined(&Vec9::ith(a, 1.0)));
+    let rows = DMatrix::from_fn(usable.len(), 9, |r, col| basis(offset(usable[r]) / h)[col]);
+    let weights: Vec<f64> = usable.iter().map(|&k| phi[k]).collect();
+    let fit = WeightedFit::new(&rows, &weights, RANK_TOLERANCE);
+    let e_lap = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
+    let lap_determined = fit.determines(&e_lap, DETERMINED_TOLERANCE);
+    let grad_determined = (0..3).all(|a| {
+        let mut e = [0.0; 9];
+        e[a] = 1.0;
+        fit.determines(&e, DETERMINED_TOLERANCE)
+    });
 
-    // Linear least-squares gradient weights, used by the fallbacks.
-    let p = linear.pseudo_inverses()[i];
-    let linear_grad = |j: u32, w: f64| p * (w * (c[j as usize] - c[i]));
-    for (k, (&j, &w)) in nb.iter().zip(phi).enumerate() {
-        if w <= 0.0 {
-            continue;
+    // Linear least-squares gradient weights: the fallbacks, and the projection that makes
+    // the Laplacian annihilate linear fields to rounding.
+    let mut linear = vec![DVec3::ZERO; nb.len()];
+    gradient_row(geometry, i, &mut linear);
+    if grad_determined {
+        for (r, &k) in usable.iter().enumerate() {
+            let w = fit.coefficients.column(r);
+            grad_out[k] = DVec3::new(w[0], w[1], w[2]) / h;
         }
-        let coeff = pinv * (basis((c[j as usize] - c[i]) / h) * w);
-        grad_out[k] = if grad_determined {
-            DVec3::new(coeff[0], coeff[1], coeff[2]) / h
-        } else {
-            linear_grad(j, w)
-        };
-        if lap_determined {
-            lap_out[k] = (coeff[3] + coeff[4] + coeff[5]) / (h * h);
+        // Left multiplication: keeps Σ_k G_k q(d_k) = 0 on the quadratic monomials.
+        refine_linear_exactness(grad_out, offset, &usable);
+    } else {
+        grad_out.copy_from_slice(&linear);
+    }
+    let kind = if lap_determined {
+        for (r, &k) in usable.iter().enumerate() {
+            let w = fit.coefficients.column(r);
+            lap_out[k] = (w[3] + w[4] + w[5]) / (h * h);
+        }
+        RowKind::Quadratic
+    } else {
+        // Linear-exact fallback: (1/m) Σ_j (φ_j − s·G_j)(u_j − u_i), s = Σ_k φ_k d_k, which
+        // is the projection below applied to φ/m.
+        for &k in &usable {
+            lap_out[k] = phi[k] / mass;
+        }
+        RowKind::Fallback
+    };
+    // Project out the linear part: L_k ← L_k − (Σ_l L_l d_l)·G_k with the linear weights G
+    // (Σ_k G_k d_kᵀ = I to rounding), twice, so that Σ_k L_k d_k vanishes to the rounding of
+    // the sum itself however badly conditioned the fit. Where the offsets do not span ℝ³,
+    // G_k reproduces the span and Σ_k L_k d_k lies in it.
+    for _ in 0..2 {
+        let mut s = DVec3::ZERO;
+        for &k in &usable {
+            s += lap_out[k] * offset(k);
+        }
+        for &k in &usable {
+            lap_out[k] -= s.dot(linear[k]);
         }
     }
-    if lap_determined {
-        return (RowKind::Quadratic, !grad_determined);
-    }
-    // Linear-exact fallback: (1/m) Σ_j (φ_j − s·G_j)(u_j − u_i), s = Σ_k φ_k d_k.
-    let mut s = DVec3::ZERO;
-    for (&j, &w) in nb.iter().zip(phi) {
-        s += w * (c[j as usize] - c[i]);
-    }
-    for (k, (&j, &w)) in nb.iter().zip(phi).enumerate() {
-        if w > 0.0 {
-            lap_out[k] = (w - s.dot(linear_grad(j, w))) / mass;
-        }
-    }
-    (RowKind::Fallback, !grad_determined)
+    (kind, !grad_determined)
 }
 
 impl DiscreteOperators for QuadraticFitOperators {
