@@ -147,20 +147,6 @@ pub fn close_material_tunnels(
     }
     let used = adjacency.iter().filter(|a| !a.is_empty()).count();
 
-    // Rank of the boundary map; the cycle space has dimension E − V + components, so the
-    // number of independent loops left to find is known and the search stops there.
-    let mut reducer = Reducer::default();
-    let mut boundary_rank = 0usize;
-    for chain in triangle_chains {
-        boundary_rank += usize::from(reducer.insert(chain));
-    }
-    let components = count_components(&adjacency);
-    let cycle_rank = edges.len() + components - used;
-    let mut generators_left = cycle_rank.saturating_sub(boundary_rank);
-    if generators_left == 0 {
-        return 0;
-    }
-
     // Tunnels run through the junctions, where three or more triangles share an edge: the
     // loops are rooted at the vertices of such edges and their neighbours only, which keeps
     // the search local (and leaves sheets without junctions untouched).
@@ -183,6 +169,24 @@ pub fn close_material_tunnels(
         }
     }
     let roots: Vec<u32> = (0..n as u32).filter(|&v| is_root[v as usize]).collect();
+    if roots.is_empty() {
+        return 0;
+    }
+
+    // Rank of the boundary map; the cycle space has dimension E − V + components, so the
+    // number of independent loops left to find is known and the search stops there.
+    let mut reducer = Reducer::default();
+    let mut boundary_rank = 0usize;
+    for chain in triangle_chains {
+        boundary_rank += usize::from(reducer.insert(chain));
+    }
+    let components = count_components(&adjacency);
+    let cycle_rank = edges.len() + components - used;
+    let mut generators_left = cycle_rank.saturating_sub(boundary_rank);
+    if generators_left == 0 {
+        return 0;
+    }
+
     let loops = short_loops(mesh, &adjacency, &edges, &roots, 0.5 * params.max_perimeter);
     let mut closed: Vec<Vec<u32>> = Vec::new();
     for (length, cycle, chain) in loops {
