@@ -85,6 +85,8 @@ fn skeleton_of_the_t_junction_phantom_is_one_sheet() {
         "ridge points",
         "triangles",
         "1 component,",
+        // The true sheet's: the tunnels the junction leaves are closed.
+        "Euler characteristic 1;",
         "volume cover",
         "ridge points",
     ] {
@@ -250,4 +252,6 @@ fn the_report_file_holds_the_stage_counts() {
     assert!(json["triangles"].as_u64().unwrap() > 1000);
     assert!(json["supports"].as_u64().unwrap() > 100);
     assert_eq!(json["stages_seconds"].as_array().unwrap().len(), 8);
+    assert!(json["tunnels_closed"].is_u64());
+    assert!(json["flap_triangles_collapsed"].is_u64());
 }

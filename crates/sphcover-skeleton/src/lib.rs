@@ -31,6 +31,7 @@
 
 pub mod cleaning;
 pub mod error;
+pub mod flaps;
 pub mod gaussian_filter;
 pub mod intensity_model;
 pub mod junction_holes;
@@ -43,9 +44,11 @@ pub mod ridge_points;
 pub mod rim_trimming;
 pub mod sheet_smoothing;
 pub mod symmetric_eigen;
+pub mod tunnels;
 
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
+pub use flaps::{collapse_misaligned_flaps, triangle_alignment};
 pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
 pub use junction_holes::{SheetHoleParams, fill_holes_within_sheets};
 pub use medial_correction::{centre_between_faces, fold_junction_vertices};
@@ -58,3 +61,4 @@ pub use ridge_points::{
 };
 pub use rim_trimming::{RimTrimParams, trim_rims};
 pub use sheet_smoothing::smooth_across;
+pub use tunnels::{TunnelParams, close_material_tunnels};

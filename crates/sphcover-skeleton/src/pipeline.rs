@@ -12,6 +12,7 @@ use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 
 use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 use crate::error::SkeletonError;
+use crate::flaps::collapse_misaligned_flaps;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
 use crate::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
@@ -21,6 +22,7 @@ use crate::patches::ridge_patches;
 use crate::ridge_points::{RidgeFilter, orient_eigenvectors, ridge_points, vertex_derivatives};
 use crate::rim_trimming::{RimTrimParams, trim_rims};
 use crate::sheet_smoothing::smooth_across;
+use crate::tunnels::{TunnelParams, close_material_tunnels};
 
 /// Parameters of [`extract_skeleton`]. `Default` is the one parameter set the phantom
 /// tests use; lengths given in voxels are converted with the volume's voxel size.
@@ -83,6 +85,16 @@ pub struct SkeletonParams {
     /// (`phantom_table`, seed 1): T-junction p95 away from the rim 0.41 → 0.40, 0.46 → 0.43,
     /// 0.40 → 0.36 at 0, 10, 30 % noise, no other phantom worse.
     pub junction_fold_reach_voxels: f64,
+    /// Loops of the sheet through its junctions that bound nothing but go around material
+    /// only, up to this perimeter (voxels), are closed (see [`crate::tunnels`]); 0 disables
+    /// the step.
+    pub max_tunnel_perimeter_voxels: f64,
+    /// Flaps whose triangles' normals make `|cos|` below this with their corners' across
+    /// directions are collapsed from their free edges (see [`crate::flaps`]); 0 disables it.
+    pub min_flap_alignment: f64,
+    /// Closed pockets of the sheet are opened before tunnels are closed (see
+    /// [`crate::tunnels::remove_closed_pockets`]).
+    pub remove_pockets: bool,
     /// Holes with at most this many edges…
     pub max_hole_edges: usize,
     /// …and at most this perimeter (voxels) are filled.
@@ -112,6 +124,9 @@ impl Default for SkeletonParams {
             smoothing_rounds: 0,
             junction_angle_degrees: 45.0,
             junction_fold_reach_voxels: 4.0,
+            max_tunnel_perimeter_voxels: 16.0,
+            min_flap_alignment: 0.8,
+            remove_pockets: true,
             max_hole_edges: 200,
             max_hole_perimeter_voxels: 60.0,
             seed: 0,
@@ -188,6 +203,10 @@ pub struct SkeletonStats {
     pub rim_triangles: usize,
     /// Holes filled in the sheets meeting at junctions.
     pub junction_holes: usize,
+    /// Tunnels through material closed at junctions.
+    pub tunnels: usize,
+    /// Triangles of flaps across the sheet collapsed.
+    pub flap_triangles: usize,
     /// Junction vertices folded onto a plate's tangent plane.
     pub junction_folded_vertices: usize,
     /// Vertices re-centred between the part's faces.
@@ -346,6 +365,19 @@ pub fn extract_skeleton(
         };
         junction_holes = fill_holes_within_sheets(&mut sheet, &holes, is_material);
     }
+    let mut tunnels = 0;
+    if params.max_tunnel_perimeter_voxels > 0.0 {
+        let tunnel_params = TunnelParams {
+            max_perimeter: params.max_tunnel_perimeter_voxels * voxel,
+            max_tunnels: 10_000,
+            remove_pockets: params.remove_pockets,
+        };
+        tunnels = close_material_tunnels(&mut sheet, &tunnel_params, is_material);
+    }
+    let mut flap_triangles = 0;
+    if params.min_flap_alignment > 0.0 {
+        flap_triangles = collapse_misaligned_flaps(&mut sheet, params.min_flap_alignment);
+    }
     let mut centred = 0;
     let mut folded = 0;
     if params.max_centring_shift_voxels > 0.0 {
@@ -393,6 +425,8 @@ pub fn extract_skeleton(
         cleaning,
         rim_triangles,
         junction_holes,
+        tunnels,
+        flap_triangles,
         junction_folded_vertices: folded,
         centred_vertices: centred,
         triangles: sheet.triangles.len(),
@@ -444,6 +478,8 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
         ("junction_angle_degrees", p.junction_angle_degrees),
         ("junction_fold_reach_voxels", p.junction_fold_reach_voxels),
+        ("max_tunnel_perimeter_voxels", p.max_tunnel_perimeter_voxels),
+        ("min_flap_alignment", p.min_flap_alignment),
     ] {
         if !(value.is_finite() && value >= 0.0) {
             return bad(name, value, "must be finite and non-negative");

@@ -39,18 +39,20 @@ fn noise_10_percent_meets_the_goals() {
         assert!(m.coverage >= coverage, "{name}: {m:?}");
         assert!(m.spurious <= 0.03, "{name}: {m:?}");
         assert!(m.spurious_interior <= 0.01, "{name}: {m:?}");
-        // Goal ≤ 0.3 voxel: met on six shapes (0.10–0.15); measured 0.43 at the T-junction
-        // with junction folding (0.46 without).
-        let p95 = if junction { 0.45 } else { 0.3 };
+        // Goal ≤ 0.3 voxel: met on six shapes (0.10–0.15); measured 0.46 at the T-junction
+        // (the fillet between web and base; 0.43 before the tunnels were closed, whose fans
+        // span the corner).
+        let p95 = if junction { 0.48 } else { 0.3 };
         assert!(m.distance_interior_p95 <= p95, "{name}: {m:?}");
         assert!(m.boundary_reach_mean <= 0.5, "{name}: {m:?}");
         assert_eq!(m.components, 1, "{name}: {m:?}");
         // The Euler characteristic of the true sheet, except at the T-junction (goal not
-        // reached: the junction leaves small tunnels; measured χ = −7 for 1 with the
-        // junction hole filling, −9 without it).
+        // reached: closing the tunnels through material takes χ from −7 to −1 for 1; the
+        // two generators left are longer than the perimeter bound or go around air).
         if junction {
             assert!(
-                m.euler_characteristic.is_some_and(|e| e >= -7),
+                m.euler_characteristic
+                    .is_some_and(|e| (-1..=1).contains(&e)),
                 "{name}: {m:?}"
             );
         } else {
@@ -66,11 +68,17 @@ fn noise_10_percent_meets_the_goals() {
 #[test]
 fn noise_30_percent_meets_the_goals() {
     for shape in ThinShape::ALL {
-        let (_, m) = run(shape, 0.3);
+        let (phantom, m) = run(shape, 0.3);
         let name = shape.name();
         assert!(m.coverage >= 0.97, "{name}: {m:?}");
         assert!(m.spurious <= 0.05, "{name}: {m:?}");
         assert_eq!(m.components, 1, "{name}: {m:?}");
+        // Measured: the true χ on every shape, the T-junction included (tunnels closed).
+        assert_eq!(
+            m.euler_characteristic,
+            Some(phantom.truth.euler_characteristic),
+            "{name}: {m:?}"
+        );
     }
 }
 

@@ -202,6 +202,8 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "vertices": s.vertices,
         "components": s.components,
         "euler_characteristic": s.euler_characteristic,
+        "tunnels_closed": s.tunnels,
+        "flap_triangles_collapsed": s.flap_triangles,
         "stages_seconds": s.timings.stages().iter()
             .map(|(n, t)| serde_json::json!({"stage": n, "seconds": t.as_secs_f64()}))
             .collect::<Vec<_>>(),
@@ -210,7 +212,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
 
 fn summary(s: &SkeletonStats, output: &str) -> String {
     format!(
-        "threshold {:.6} ({}), noise {:.4}, eps {:.4}; {} object voxels, {} supports (radii {:.4}..{:.4}), {} tetrahedra, {} ridge points, {} triangles ({} dropped in {} fragments, {} holes filled), {} component{}, Euler characteristic {}; {:.2} s -> {output}",
+        "threshold {:.6} ({}), noise {:.4}, eps {:.4}; {} object voxels, {} supports (radii {:.4}..{:.4}), {} tetrahedra, {} ridge points, {} triangles ({} dropped in {} fragments, {} holes and {} tunnels filled), {} component{}, Euler characteristic {}; {:.2} s -> {output}",
         s.intensity.threshold,
         if s.intensity.automatic_threshold {
             "automatic"
@@ -229,6 +231,7 @@ fn summary(s: &SkeletonStats, output: &str) -> String {
         s.cleaning.dropped_triangles,
         s.cleaning.dropped_components,
         s.cleaning.holes_filled,
+        s.tunnels,
         s.components,
         if s.components == 1 { "" } else { "s" },
         s.euler_characteristic,
