@@ -3,6 +3,7 @@
 mod args;
 mod commands;
 mod exit;
+mod interrupt;
 mod render;
 mod report;
 
@@ -31,6 +32,11 @@ fn main() -> ExitCode {
     if let Err(e) = configure_threads(cli.global.threads) {
         reporter.error(&e);
         return ExitCode::from(exit::USAGE);
+    }
+    // Before any work: from here on an interrupt removes the run's partial outputs.
+    if let Err(e) = interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
+        reporter.error(&anyhow::anyhow!("cannot install the interrupt handler: {e}"));
+        return ExitCode::from(exit::FAILURE);
     }
     let result = match &cli.command {
         Command::Info(a) => commands::info::run(a, &reporter),
