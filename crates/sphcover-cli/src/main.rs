@@ -1,6 +1,7 @@
 //! The `sphcover` command: processing of scanned geometry with spherically supported functions.
 
 mod args;
+mod byte_size;
 mod commands;
 mod exit;
 mod interrupt;
@@ -35,7 +36,9 @@ fn main() -> ExitCode {
     }
     // Before any work: from here on an interrupt removes the run's partial outputs.
     if let Err(e) = interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
-        reporter.error(&anyhow::anyhow!("cannot install the interrupt handler: {e}"));
+        reporter.error(&anyhow::anyhow!(
+            "cannot install the interrupt handler: {e}"
+        ));
         return ExitCode::from(exit::FAILURE);
     }
     let result = match &cli.command {

@@ -6,9 +6,9 @@
 
 mod support;
 
+use std::io::Read;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
-use std::io::Read;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
@@ -238,12 +238,19 @@ fn an_interrupt_stops_the_run_within_a_second_and_leaves_no_file() {
         let (status, stopped_after) = wait_at_most_10_s(&mut child);
         let stderr = stderr_of(&mut child);
         // 128 + the signal's number, as shells report a process the signal ended.
-        assert_eq!(status.code(), Some(128 + number), "SIG{name}: {status:?} {stderr}");
+        assert_eq!(
+            status.code(),
+            Some(128 + number),
+            "SIG{name}: {status:?} {stderr}"
+        );
         assert!(
             stderr.contains(&format!("interrupted by SIG{name}")),
             "{stderr}"
         );
-        assert!(stopped_after < Duration::from_secs(1), "SIG{name}: {stopped_after:?}");
+        assert!(
+            stopped_after < Duration::from_secs(1),
+            "SIG{name}: {stopped_after:?}"
+        );
         assert!(
             files_in(dir.path()).is_empty(),
             "SIG{name}: {:?}",
@@ -301,7 +308,11 @@ fn a_sigint_ignored_at_start_stays_ignored() {
     send_signal(&child, "TERM");
     let (status, _) = wait_at_most_10_s(&mut child);
     assert_eq!(status.code(), Some(128 + SIGTERM), "{status:?}");
-    assert!(files_in(dir.path()).is_empty(), "{:?}", files_in(dir.path()));
+    assert!(
+        files_in(dir.path()).is_empty(),
+        "{:?}",
+        files_in(dir.path())
+    );
 }
 
 #[test]
