@@ -28,12 +28,14 @@ pub struct ReconMemoryModel {
 }
 
 /// The model fitted to the measurements in `docs/benchmarks.md` (section *Memory*).
-/// Fitted by least squares on relative errors to eight runs (100K to 3M points, depths 7 to
-/// 10); every run is within 3.1% of it.
+/// Fitted by least squares on relative errors to nine runs (100K to 10M points, depths 7 to
+/// 10); every run is within 11% of it (10M: 10% above the prediction, 3M: 9% below). The
+/// same fit without the 10M run predicted it 17% low: the cost per point grows somewhat
+/// from 3M points on, so keep a margin above a few million points.
 pub const RECON_MEMORY_MODEL: ReconMemoryModel = ReconMemoryModel {
-    base_bytes: 124.3e6,
-    bytes_per_point: 250.0,
-    bytes_per_grid_cell: 941.0,
+    base_bytes: 119.5e6,
+    bytes_per_point: 274.5,
+    bytes_per_grid_cell: 929.2,
 };
 
 /// The coarsest grid a memory budget may choose (a step of 1/32 of the longest edge).
@@ -72,7 +74,7 @@ mod tests {
 
     /// The runs the model was fitted to (`docs/benchmarks.md`, *Memory*): points, depth,
     /// peak resident set size in KiB.
-    const MEASURED: [(usize, u32, u64); 8] = [
+    const MEASURED: [(usize, u32, u64); 9] = [
         (100_000, 7, 164_120),
         (100_000, 8, 201_000),
         (100_000, 9, 385_144),
@@ -81,16 +83,17 @@ mod tests {
         (1_000_000, 8, 435_560),
         (1_000_000, 9, 625_712),
         (3_000_000, 9, 1_064_612),
+        (10_000_000, 9, 3_388_304),
     ];
 
     #[test]
-    fn the_model_reproduces_the_measured_runs_within_5_percent() {
+    fn the_model_reproduces_the_measured_runs_within_12_percent() {
         for (points, depth, kib) in MEASURED {
             let predicted = RECON_MEMORY_MODEL.peak_bytes(points, depth) as f64;
             let measured = (kib * 1024) as f64;
             let error = predicted / measured - 1.0;
             assert!(
-                error.abs() < 0.05,
+                error.abs() < 0.12,
                 "{points} points, depth {depth}: {error:+.3}"
             );
         }
