@@ -7,6 +7,7 @@ mod exit;
 mod interrupt;
 mod render;
 mod report;
+mod skeleton_memory;
 
 use std::process::ExitCode;
 

@@ -140,3 +140,36 @@ fn the_graph_cut_method_is_outside_the_model() {
     assert!(stderr.contains("--method graphcut"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// `sphcover skeleton --max-memory`: the bundled T-junction phantom (under 10 MiB predicted)
+/// is refused under a 1 MiB budget and runs under 1 GiB.
+#[test]
+fn skeleton_refuses_a_budget_below_its_estimate_and_runs_within_one_above() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = support::fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let out = dir.path().join("sheet.ply");
+    let args = |budget: &'static str| {
+        vec![
+            "skeleton".to_owned(),
+            input.to_str().unwrap().to_owned(),
+            "-o".to_owned(),
+            out.to_str().unwrap().to_owned(),
+            "--max-memory".to_owned(),
+            budget.to_owned(),
+        ]
+    };
+    let refused: Vec<String> = args("1M");
+    let refused: Vec<&str> = refused.iter().map(String::as_str).collect();
+    let run = sphcover(&refused, LIMIT);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--max-memory 1.0 MiB"), "{stderr}");
+    assert!(stderr.contains("voxels needs about"), "{stderr}");
+    assert!(files_in(dir.path()).is_empty());
+
+    let accepted: Vec<String> = args("1G");
+    let accepted: Vec<&str> = accepted.iter().map(String::as_str).collect();
+    let run = sphcover(&accepted, LIMIT);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(out.exists());
+}
