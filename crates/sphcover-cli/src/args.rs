@@ -144,6 +144,11 @@ pub struct ReconArgs {
     /// Also write the report (counts, timings) as JSON.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Memory budget (e.g. 2G, 500M): before reconstructing, predict the peak from the
+    /// point count and depth; over budget, use the finest coarser depth that fits (without
+    /// --depth), or refuse with the estimate (exit 2).
+    #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
+    pub max_memory: Option<u64>,
     #[command(flatten)]
     pub read: InputArgs,
 }
@@ -224,6 +229,10 @@ pub struct SkeletonArgs {
     /// method).
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Memory budget (e.g. 2G, 500M): refuse up front (exit 2) with the estimate when the
+    /// predicted peak for the volume's size exceeds it (ridge method).
+    #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
+    pub max_memory: Option<u64>,
     /// Write the PLY as ascii instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,

@@ -1,10 +1,13 @@
 //! The `sphcover` command: processing of scanned geometry with spherically supported functions.
 
 mod args;
+mod byte_size;
 mod commands;
 mod exit;
+mod interrupt;
 mod render;
 mod report;
+mod skeleton_memory;
 
 use std::process::ExitCode;
 
@@ -31,6 +34,13 @@ fn main() -> ExitCode {
     if let Err(e) = configure_threads(cli.global.threads) {
         reporter.error(&e);
         return ExitCode::from(exit::USAGE);
+    }
+    // Before any work: from here on an interrupt removes the run's partial outputs.
+    if let Err(e) = interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
+        reporter.error(&anyhow::anyhow!(
+            "cannot install the interrupt handler: {e}"
+        ));
+        return ExitCode::from(exit::FAILURE);
     }
     let result = match &cli.command {
         Command::Info(a) => commands::info::run(a, &reporter),

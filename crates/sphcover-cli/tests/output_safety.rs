@@ -6,9 +6,10 @@
 
 mod support;
 
+use std::io::Read;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use sphcover_core::io::{self, ReadOptions};
@@ -23,6 +24,7 @@ const PREVIOUS: &[u8] = b"previous output, not to be lost\n";
 /// The signal a file-size limit sends (Linux); its default action ends the process.
 const SIGXFSZ: i32 = 25;
 const SIGINT: i32 = 2;
+const SIGTERM: i32 = 15;
 
 /// A scratch directory with a small oriented scan (`scan.ply`) whose reconstruction is fast.
 fn scan_dir() -> (tempfile::TempDir, PathBuf) {
@@ -152,66 +154,160 @@ fn a_run_killed_while_writing_leaves_no_file_at_the_output_path() {
     eprintln!("temporary files left by the killed run: {temporaries:?}");
 }
 
-#[test]
-fn an_interrupt_stops_the_run_within_a_second_and_leaves_no_file() {
-    if sigint_is_ignored() {
-        // A background job of a non-interactive shell inherits SIGINT ignored, and so does
-        // every process it starts: no interrupt can be delivered here.
-        eprintln!("SIGINT is ignored in this environment: interrupt test skipped");
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
+/// A reconstruction of the bunny long enough to be interrupted mid-way (normal estimation on
+/// 37,706 points and a depth-10 grid: several seconds even on a quiet machine), writing
+/// `output` in `dir`, with stderr captured.
+fn spawn_long_recon(dir: &Path, output: &str) -> Child {
+    spawn_long_recon_with(Command::new(env!("CARGO_BIN_EXE_sphcover")), dir, output)
+}
+
+fn spawn_long_recon_with(mut command: Command, dir: &Path, output: &str) -> Child {
     let input = fixture("real/bunny00.off");
-    let out = dir.path().join("mesh.ply");
-    // Long enough (normal estimation on 37,706 points, depth 10: several seconds even on a
-    // quiet machine) to be interrupted mid-way; at depth 9 without estimated normals an
-    // idle machine finished the run before the interrupt arrived.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_sphcover"))
+    command
         .args([
             "recon",
             input.to_str().unwrap(),
             "-o",
-            out.to_str().unwrap(),
+            output,
             "--depth",
             "10",
             "--estimate-normals",
         ])
+        .current_dir(dir)
         .stdin(Stdio::null())
         .stdout(Stdio::null())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(500));
-    assert!(
-        child.try_wait().unwrap().is_none(),
-        "the run ended before it could be interrupted"
-    );
+        .unwrap()
+}
+
+fn send_signal(child: &Child, signal: &str) {
     let kill = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([&format!("-{signal}"), &child.id().to_string()])
         .status()
         .unwrap();
     assert!(kill.success());
-    let sent = Instant::now();
-    let status = loop {
+}
+
+/// Waits for `child` (killing it after 10 s); its status and how long it took.
+fn wait_at_most_10_s(child: &mut Child) -> (ExitStatus, Duration) {
+    let start = Instant::now();
+    loop {
         if let Some(status) = child.try_wait().unwrap() {
-            break status;
+            return (status, start.elapsed());
         }
-        if sent.elapsed() > Duration::from_secs(10) {
+        if start.elapsed() > Duration::from_secs(10) {
             child.kill().ok();
             child.wait().ok();
-            panic!("the run ignored the interrupt for 10 s");
+            panic!("the run ignored the signal for 10 s");
         }
-        std::thread::sleep(Duration::from_millis(5));
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+fn stderr_of(child: &mut Child) -> String {
+    let mut stderr = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    stderr
+}
+
+#[test]
+fn an_interrupt_stops_the_run_within_a_second_and_leaves_no_file() {
+    // SIGTERM always; SIGINT (Ctrl-C) unless this process ignores it, since an ignored
+    // SIGINT is inherited and stays ignored (see the next test).
+    let mut signals = vec![("TERM", SIGTERM)];
+    if !sigint_is_ignored() {
+        signals.push(("INT", SIGINT));
+    } else {
+        eprintln!("SIGINT is ignored in this environment: only SIGTERM is sent");
+    }
+    for (name, number) in signals {
+        let dir = tempfile::tempdir().unwrap();
+        let mut child = spawn_long_recon(dir.path(), "mesh.ply");
+        std::thread::sleep(Duration::from_millis(500));
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before it could be interrupted"
+        );
+        send_signal(&child, name);
+        let (status, stopped_after) = wait_at_most_10_s(&mut child);
+        let stderr = stderr_of(&mut child);
+        // 128 + the signal's number, as shells report a process the signal ended.
+        assert_eq!(
+            status.code(),
+            Some(128 + number),
+            "SIG{name}: {status:?} {stderr}"
+        );
+        assert!(
+            stderr.contains(&format!("interrupted by SIG{name}")),
+            "{stderr}"
+        );
+        assert!(
+            stopped_after < Duration::from_secs(1),
+            "SIG{name}: {stopped_after:?}"
+        );
+        assert!(
+            files_in(dir.path()).is_empty(),
+            "SIG{name}: {:?}",
+            files_in(dir.path())
+        );
+    }
+}
+
+#[test]
+fn an_interrupt_while_writing_removes_the_temporary_file() {
+    // The depth-10 bunny as OBJ text takes a while to write: signal as soon as the
+    // temporary file appears, which the handler must then remove.
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = spawn_long_recon(dir.path(), "mesh.obj");
+    let seen = loop {
+        if child.try_wait().unwrap().is_some() {
+            break false;
+        }
+        if !leftover_temporaries(dir.path(), "mesh.obj").is_empty() {
+            break true;
+        }
+        std::thread::sleep(Duration::from_micros(500));
     };
-    let stopped_after = sent.elapsed();
-    // No handler is installed: SIGINT's default action ends the process at once. A
-    // handler would have to exit with 130 (128 + SIGINT), as shells report it.
+    assert!(seen, "the run ended before its write could be interrupted");
+    send_signal(&child, "TERM");
+    let (status, _) = wait_at_most_10_s(&mut child);
+    let stderr = stderr_of(&mut child);
+    assert_eq!(status.code(), Some(128 + SIGTERM), "{status:?} {stderr}");
     assert!(
-        status.signal() == Some(SIGINT) || status.code() == Some(130),
-        "{status:?}"
+        files_in(dir.path()).is_empty(),
+        "{:?} {stderr}",
+        files_in(dir.path())
     );
-    assert!(stopped_after < Duration::from_secs(1), "{stopped_after:?}");
-    assert!(!out.exists());
+    assert!(stderr.contains("removed 1 partial output"), "{stderr}");
+}
+
+#[test]
+fn a_sigint_ignored_at_start_stays_ignored() {
+    // `trap '' INT` is how a shell starts a background job without job control, and how a
+    // user asks a run to survive Ctrl-C: the handler must not take SIGINT over.
+    let dir = tempfile::tempdir().unwrap();
+    let mut command = Command::new("sh");
+    command
+        .arg("-c")
+        .arg("trap '' INT; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_sphcover"));
+    let mut child = spawn_long_recon_with(command, dir.path(), "mesh.ply");
+    std::thread::sleep(Duration::from_millis(500));
+    send_signal(&child, "INT");
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "an ignored SIGINT ended the run"
+    );
+    send_signal(&child, "TERM");
+    let (status, _) = wait_at_most_10_s(&mut child);
+    assert_eq!(status.code(), Some(128 + SIGTERM), "{status:?}");
     assert!(
         files_in(dir.path()).is_empty(),
         "{:?}",

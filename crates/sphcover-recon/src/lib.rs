@@ -42,6 +42,7 @@ pub mod diffusion;
 pub mod graph_cut;
 pub mod graphcut_reconstruction;
 pub mod maxflow;
+pub mod memory_model;
 pub mod normals;
 mod pca;
 pub mod pipeline;
@@ -64,6 +65,7 @@ pub use graphcut_reconstruction::{
     reconstruct_graphcut,
 };
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
+pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
 pub mod mesh_smoothing;
 pub mod polygonise;

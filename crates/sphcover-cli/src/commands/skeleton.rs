@@ -48,6 +48,7 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let (volume, info) = io::read_volume(&args.input)?;
     stage.finish();
     check_volume(args, &volume, &info, reporter)?;
+    crate::skeleton_memory::check_budget(args, &volume, reporter)?;
     let [nx, ny, nz] = volume.dims();
     let size = volume.voxel_size();
     reporter.detail(&format!(

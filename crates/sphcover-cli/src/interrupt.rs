@@ -1,0 +1,241 @@
+//! Interrupts: Ctrl-C (SIGINT), SIGTERM and SIGHUP end the run at once, without leaving a
+//! partial output behind.
+//!
+//! Every output goes through `sphcover_core::io::write_atomic`, which writes a hidden
+//! temporary file `.NAME.XXXXXX.tmp` beside the output and renames it over `NAME` only when
+//! complete. A process ended by a signal's default action cannot remove that temporary
+//! file, so the runner installs a handler: a thread woken by the signal (through
+//! `signal-hook`'s self-pipe, so it runs however long the current stage is) removes the
+//! temporary files of the run's outputs and exits with status 128 + the signal's number
+//! (130 for Ctrl-C, 143 for SIGTERM), as shells report a process a signal ended.
+//!
+//! A signal ignored when the run started stays ignored (`nohup` ignores SIGHUP; background
+//! jobs of a non-interactive shell ignore SIGINT), as the user who ignored it meant.
+//!
+//! The writer does not say which temporary file it made, so the outputs are registered
+//! instead ([`InProgressOutputs`], built from the command line before any work) and the
+//! handler removes the temporary files named after them that did not exist when the run
+//! started: files another run was writing at that time are left alone. (The one window
+//! left is a temporary file created between the handler's removal and the process's exit,
+//! a few microseconds.) The output itself is never touched: it is either the previous
+//! file or a complete new one.
+
+use std::collections::HashSet;
+use std::ffi::{OsStr, OsString};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use signal_hook::consts::signal::{SIGHUP, SIGINT, SIGTERM};
+use signal_hook::iterator::Signals;
+
+use crate::args::Command;
+
+/// Length of the random part of `write_atomic`'s temporary names (`tempfile`'s default).
+const RANDOM_CHARS: usize = 6;
+
+/// The outputs a run may be writing, shared between the command runner and the handler.
+#[derive(Clone, Debug, Default)]
+pub struct InProgressOutputs {
+    outputs: Arc<[PendingOutput]>,
+}
+
+/// One output and the temporary files beside it that are not this run's.
+#[derive(Debug)]
+struct PendingOutput {
+    directory: PathBuf,
+    file_name: OsString,
+    /// Temporary files named after the output that existed before the run started.
+    foreign: HashSet<OsString>,
+}
+
+impl InProgressOutputs {
+    /// The outputs of `command` (every output path on its command line), with the temporary
+    /// files already beside them noted as not this run's.
+    pub fn of(command: &Command) -> InProgressOutputs {
+        InProgressOutputs::for_paths(&output_paths(command))
+    }
+
+    /// Registers `paths` as the run's outputs.
+    pub fn for_paths(paths: &[&Path]) -> InProgressOutputs {
+        let outputs: Vec<PendingOutput> = paths
+            .iter()
+            .filter_map(|path| {
+                let file_name = path.file_name()?.to_os_string();
+                let directory = match path.parent() {
+                    Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+                    _ => PathBuf::from("."),
+                };
+                let foreign = temporaries_of(&directory, &file_name).into_iter().collect();
+                Some(PendingOutput {
+                    directory,
+                    file_name,
+                    foreign,
+                })
+            })
+            .collect();
+        InProgressOutputs {
+            outputs: outputs.into(),
+        }
+    }
+
+    /// Removes this run's temporary files; returns how many were removed.
+    pub fn remove_temporaries(&self) -> usize {
+        let mut removed = 0;
+        for output in self.outputs.iter() {
+            for name in temporaries_of(&output.directory, &output.file_name) {
+                if !output.foreign.contains(&name)
+                    && std::fs::remove_file(output.directory.join(&name)).is_ok()
+                {
+                    removed += 1;
+                }
+            }
+        }
+        removed
+    }
+}
+
+/// Installs the handler of SIGINT, SIGTERM and SIGHUP (those not ignored when the run
+/// started) for a run writing `outputs`: on the first of them it removes the run's
+/// temporary files and exits with 128 + the signal.
+pub fn install(outputs: InProgressOutputs) -> std::io::Result<()> {
+    let ignored = ignored_signals();
+    let handled: Vec<i32> = [SIGINT, SIGTERM, SIGHUP]
+        .into_iter()
+        .filter(|&signal| ignored & (1 << (signal - 1)) == 0)
+        .collect();
+    let mut signals = Signals::new(handled)?;
+    std::thread::Builder::new()
+        .name("interrupt".to_owned())
+        .spawn(move || {
+            if let Some(signal) = signals.forever().next() {
+                let removed = outputs.remove_temporaries();
+                eprintln!(
+                    "error: interrupted by {}{}",
+                    signal_name(signal),
+                    match removed {
+                        0 => String::new(),
+                        1 => "; removed 1 partial output".to_owned(),
+                        n => format!("; removed {n} partial outputs"),
+                    }
+                );
+                std::process::exit(128 + signal);
+            }
+        })?;
+    Ok(())
+}
+
+/// The mask of signals this process ignores (bit `n - 1` for signal `n`), from
+/// `/proc/self/status` (Linux); 0 (none known to be ignored) where that cannot be read.
+fn ignored_signals() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let line = status.lines().find(|l| l.starts_with("SigIgn:"))?;
+            u64::from_str_radix(line["SigIgn:".len()..].trim(), 16).ok()
+        })
+        .unwrap_or(0)
+}
+
+fn signal_name(signal: i32) -> &'static str {
+    match signal {
+        SIGINT => "SIGINT",
+        SIGTERM => "SIGTERM",
+        SIGHUP => "SIGHUP",
+        _ => "a signal",
+    }
+}
+
+/// Every output path on the command line of `command`.
+fn output_paths(command: &Command) -> Vec<&Path> {
+    let mut paths: Vec<&Path> = Vec::new();
+    match command {
+        Command::Info(_) => {}
+        Command::Recon(a) => {
+            paths.push(&a.output);
+            paths.extend(
+                [&a.points_out, &a.cover_out, &a.report]
+                    .into_iter()
+                    .flatten()
+                    .map(PathBuf::as_path),
+            );
+        }
+        Command::Skeleton(a) => {
+            paths.push(&a.output);
+            paths.extend(a.report.as_deref());
+        }
+        Command::Cover(a) => paths.push(&a.output),
+        Command::Tetra(a) => paths.push(&a.output),
+        Command::Render(a) => paths.push(&a.output),
+    }
+    paths
+}
+
+/// Names of the files in `directory` that look like `write_atomic`'s temporary files for
+/// `file_name`: `.{file_name}.` + six letters or digits + `.tmp`.
+fn temporaries_of(directory: &Path, file_name: &OsStr) -> Vec<OsString> {
+    let Ok(entries) = std::fs::read_dir(directory) else {
+        return Vec::new();
+    };
+    let mut prefix = OsString::from(".");
+    prefix.push(file_name);
+    prefix.push(".");
+    let prefix = prefix.as_encoded_bytes().to_vec();
+    entries
+        .filter_map(Result::ok)
+        .map(|entry| entry.file_name())
+        .filter(|name| {
+            let bytes = name.as_encoded_bytes();
+            bytes.len() == prefix.len() + RANDOM_CHARS + ".tmp".len()
+                && bytes.starts_with(&prefix)
+                && bytes.ends_with(b".tmp")
+                && bytes[prefix.len()..prefix.len() + RANDOM_CHARS]
+                    .iter()
+                    .all(u8::is_ascii_alphanumeric)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_runs_own_temporaries_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("mesh.ply");
+        // Another run's temporary file, there before this run started.
+        std::fs::write(dir.path().join(".mesh.ply.AAAAAA.tmp"), b"").unwrap();
+        let outputs = InProgressOutputs::for_paths(&[&out]);
+        for name in [
+            ".mesh.ply.b3xY9z.tmp", // this run's
+            ".mesh.ply.b3xY9.tmp",  // too short to be a temporary file
+            ".mesh.plyX.b3xY9z.tmp",
+            ".other.ply.b3xY9z.tmp",
+            "mesh.ply",
+        ] {
+            std::fs::write(dir.path().join(name), b"").unwrap();
+        }
+        assert_eq!(outputs.remove_temporaries(), 1);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        left.sort();
+        assert_eq!(
+            left,
+            [
+                ".mesh.ply.AAAAAA.tmp",
+                ".mesh.ply.b3xY9.tmp",
+                ".mesh.plyX.b3xY9z.tmp",
+                ".other.ply.b3xY9z.tmp",
+                "mesh.ply"
+            ]
+        );
+    }
+
+    #[test]
+    fn an_output_in_the_working_directory_has_a_directory() {
+        let outputs = InProgressOutputs::for_paths(&[Path::new("mesh.ply")]);
+        assert_eq!(outputs.outputs[0].directory, Path::new("."));
+    }
+}

@@ -1,0 +1,175 @@
+//! `sphcover recon --max-memory`: the predicted peak is checked before the reconstruction; a
+//! budget too small for any depth is refused up front (exit 2, the estimate in the message,
+//! nothing written), one that a coarser grid fits gets that grid and says so.
+
+mod support;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use sphcover_recon::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL};
+use support::{fibonacci_sphere, files_in, sphcover, text, write_points_ply};
+
+const LIMIT: Duration = Duration::from_secs(120);
+/// Points of the test scan; its default depth is 6 (the coarsest default).
+const POINTS: usize = 600;
+
+fn scan_dir() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("scan.ply");
+    let points = fibonacci_sphere(POINTS);
+    write_points_ply(&scan, &points, Some(&points));
+    (dir, scan)
+}
+
+fn recon(scan: &std::path::Path, extra: &[&str]) -> (std::process::Output, PathBuf, PathBuf) {
+    let dir = scan.parent().unwrap();
+    let out = dir.join("mesh.ply");
+    let report = dir.join("report.json");
+    let mut args = vec![
+        "recon",
+        scan.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    (sphcover(&args, LIMIT), out, report)
+}
+
+fn report(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn a_tiny_budget_is_refused_up_front_with_the_estimate() {
+    let (dir, scan) = scan_dir();
+    let (run, out, _) = recon(&scan, &["--max-memory", "10M"]);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--max-memory 10.0 MiB"), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "reconstructing {POINTS} points at depth 6 needs about"
+        )),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("even depth {COARSEST_BUDGET_DEPTH} needs about")),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    assert_eq!(files_in(dir.path()), ["scan.ply"]);
+}
+
+#[test]
+fn a_budget_between_two_depths_chooses_the_coarser_and_says_so() {
+    let (_dir, scan) = scan_dir();
+    let model = RECON_MEMORY_MODEL;
+    let budget = (model.peak_bytes(POINTS, 6) + model.peak_bytes(POINTS, 5)) / 2;
+    let (run, out, report_path) = recon(&scan, &["--max-memory", &budget.to_string()]);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("depth 6 would need about"), "{stderr}");
+    assert!(stderr.contains("using depth 5"), "{stderr}");
+    assert!(out.exists());
+    let report = report(&report_path);
+    assert_eq!(report["depth"], 5);
+    assert_eq!(report["memory"]["depth_lowered_from"], 6);
+    assert_eq!(report["memory"]["budget_bytes"], budget);
+    assert_eq!(
+        report["memory"]["estimated_peak_bytes"],
+        model.peak_bytes(POINTS, 5)
+    );
+}
+
+#[test]
+fn an_explicit_depth_over_budget_is_refused_with_the_depth_that_fits() {
+    let (dir, scan) = scan_dir();
+    let model = RECON_MEMORY_MODEL;
+    let budget = (model.peak_bytes(POINTS, 8) + model.peak_bytes(POINTS, 7)) / 2;
+    let (run, out, _) = recon(
+        &scan,
+        &["--depth", "8", "--max-memory", &budget.to_string()],
+    );
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--depth 7 would fit"), "{stderr}");
+    assert!(!out.exists());
+    assert_eq!(files_in(dir.path()), ["scan.ply"]);
+}
+
+#[test]
+fn a_generous_budget_changes_nothing() {
+    let (_dir, scan) = scan_dir();
+    let (run, out, report_path) = recon(&scan, &[]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let plain = std::fs::read(&out).unwrap();
+    assert_eq!(report(&report_path)["memory"], serde_json::Value::Null);
+    let (run, out, report_path) = recon(&scan, &["--max-memory", "64G"]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert_eq!(std::fs::read(&out).unwrap(), plain);
+    let report = report(&report_path);
+    assert_eq!(
+        report["memory"]["depth_lowered_from"],
+        serde_json::Value::Null
+    );
+    assert_eq!(report["depth"], 6);
+}
+
+#[test]
+fn a_malformed_budget_is_bad_usage() {
+    let (dir, scan) = scan_dir();
+    for size in ["2X", "G", "lots"] {
+        let (run, out, _) = recon(&scan, &["--max-memory", size]);
+        let stderr = text(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{size}: {stderr}");
+        assert!(stderr.contains("--max-memory"), "{size}: {stderr}");
+        assert!(!out.exists());
+    }
+    assert_eq!(files_in(dir.path()), ["scan.ply"]);
+}
+
+#[test]
+fn the_graph_cut_method_is_outside_the_model() {
+    let (_dir, scan) = scan_dir();
+    let (run, out, _) = recon(&scan, &["--method", "graphcut", "--max-memory", "64G"]);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--method graphcut"), "{stderr}");
+    assert!(!out.exists());
+}
+
+/// `sphcover skeleton --max-memory`: the bundled T-junction phantom (under 10 MiB predicted)
+/// is refused under a 1 MiB budget and runs under 1 GiB.
+#[test]
+fn skeleton_refuses_a_budget_below_its_estimate_and_runs_within_one_above() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = support::fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let out = dir.path().join("sheet.ply");
+    let args = |budget: &'static str| {
+        vec![
+            "skeleton".to_owned(),
+            input.to_str().unwrap().to_owned(),
+            "-o".to_owned(),
+            out.to_str().unwrap().to_owned(),
+            "--max-memory".to_owned(),
+            budget.to_owned(),
+        ]
+    };
+    let refused: Vec<String> = args("1M");
+    let refused: Vec<&str> = refused.iter().map(String::as_str).collect();
+    let run = sphcover(&refused, LIMIT);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--max-memory 1.0 MiB"), "{stderr}");
+    assert!(stderr.contains("voxels needs about"), "{stderr}");
+    assert!(files_in(dir.path()).is_empty());
+
+    let accepted: Vec<String> = args("1G");
+    let accepted: Vec<&str> = accepted.iter().map(String::as_str).collect();
+    let run = sphcover(&accepted, LIMIT);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(out.exists());
+}
