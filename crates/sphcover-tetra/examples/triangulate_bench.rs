@@ -30,6 +30,31 @@ fn cpu_seconds() -> Option<f64> {
     Some((utime + stime) / 100.0)
 }
 
+/// FNV-1a over the vertex indices: a fingerprint to compare the output of two versions.
+fn checksum(tets: impl Iterator<Item = [u32; 4]>) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for t in tets {
+        for v in t {
+            h = (h ^ v as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// The tetrahedra as sorted vertex quadruples, sorted: independent of slot order.
+fn canonical_tets(tets: &[[u32; 4]]) -> Vec<[u32; 4]> {
+    let mut all: Vec<[u32; 4]> = tets
+        .iter()
+        .map(|t| {
+            let mut s = *t;
+            s.sort_unstable();
+            s
+        })
+        .collect();
+    all.sort_unstable();
+    all
+}
+
 fn main() {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
@@ -72,6 +97,11 @@ fn main() {
         c2 - c0,
         c1 - c0,
         c2 - c1
+    );
+    println!(
+        "dual tets checksum: {:016x} in slot order, {:016x} as a sorted set",
+        checksum(dc.tets.iter().copied()),
+        checksum(canonical_tets(&dc.tets).into_iter())
     );
     drop(tri);
     let t3 = Instant::now();

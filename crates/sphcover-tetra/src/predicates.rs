@@ -49,6 +49,16 @@ pub const MAX_WEIGHT: f64 = 1e40;
 /// Exact sign of `det[b − a; c − a; d − a]` (−1, 0 or 1).
 #[inline]
 pub fn orient3d(a: &Point, b: &Point, c: &Point, d: &Point) -> i32 {
+    match orient3d_filter(a, b, c, d) {
+        Some(s) => s,
+        None => orient3d_exact(a, b, c, d),
+    }
+}
+
+/// The floating-point stage of [`orient3d`]: the sign when the static error bound certifies
+/// it.
+#[inline]
+pub(crate) fn orient3d_filter(a: &Point, b: &Point, c: &Point, d: &Point) -> Option<i32> {
     let ba_x = b[0] - a[0];
     let ba_y = b[1] - a[1];
     let ba_z = b[2] - a[2];
@@ -70,12 +80,12 @@ pub fn orient3d(a: &Point, b: &Point, c: &Point, d: &Point) -> i32 {
         + ba_z.abs() * (m5.abs() + m6.abs());
     let bound = ORIENT3D_BOUND * permanent + UNDERFLOW_SLACK;
     if det > bound {
-        return 1;
+        return Some(1);
     }
     if det < -bound {
-        return -1;
+        return Some(-1);
     }
-    orient3d_exact(a, b, c, d)
+    None
 }
 
 #[cold]
@@ -279,6 +289,55 @@ pub(crate) fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) 
         return s;
     }
     LiftedDet { p, w, q, wq }.eval::<Expansion>().sign()
+}
+
+/// Exact sign of the lifted determinant for equal weights (then it is the plain in-sphere
+/// determinant) when the five centres lie on a grid of unit `1 / inv_unit` (a power of two)
+/// and every difference `p_i − q` is below `2^9` units; `None` otherwise.
+///
+/// Why plain `f64` arithmetic is exact here: on such a grid the differences and their
+/// scaling are exact, so every value below is an integer, and each stays below `2^53`:
+/// `‖a_i‖² < 3·2^18`, the 2×2 minors below `2^19`, the 3×3 cofactors below `3·2^28`, the
+/// final sum below `36·2^46`. Octree and voxel covers are full of exactly co-spherical cells
+/// of one size: this settles those ties without the float filter or the wider exact stages.
+#[inline]
+pub(crate) fn equal_weight_grid_sign(p: [&Point; 4], q: &Point, inv_unit: f64) -> Option<i32> {
+    let a: [[f64; 3]; 4] = std::array::from_fn(|i| {
+        [
+            (p[i][0] - q[0]) * inv_unit,
+            (p[i][1] - q[1]) * inv_unit,
+            (p[i][2] - q[2]) * inv_unit,
+        ]
+    });
+    // `<` is false for NaN too.
+    let mut small = true;
+    for row in &a {
+        for d in row {
+            small &= d.abs() < 512.0;
+        }
+    }
+    if !small {
+        return None;
+    }
+    let sq = |i: usize| a[i][0] * a[i][0] + a[i][1] * a[i][1] + a[i][2] * a[i][2];
+    let m = |i: usize, j: usize| a[i][0] * a[j][1] - a[j][0] * a[i][1];
+    let (m01, m02, m03, m12, m13, m23) = (m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3));
+    let z = |i: usize| a[i][2];
+    // The signed cofactors of the lifted column, as in `lifted_sign_fixed`.
+    let c = [
+        -(z(1) * m23 - z(2) * m13 + z(3) * m12),
+        z(0) * m23 - z(2) * m03 + z(3) * m02,
+        -(z(0) * m13 - z(1) * m03 + z(3) * m01),
+        z(0) * m12 - z(1) * m02 + z(2) * m01,
+    ];
+    let x = sq(0) * c[0] + sq(1) * c[1] + sq(2) * c[2] + sq(3) * c[3];
+    Some(if x > 0.0 {
+        1
+    } else if x < 0.0 {
+        -1
+    } else {
+        0
+    })
 }
 
 /// The `i128` stage, for coordinate differences that are exact multiples `n·2^e` with
@@ -729,6 +788,27 @@ mod tests {
         assert!(power_test([&o, &x, &y, &z], w, &[5.0, 5.0, 5.0], 1000.0) < 0);
         // Co-spherical: the corner (1,1,1) of the unit cube.
         assert_eq!(power_test([&o, &x, &y, &z], w, &[1.0, 1.0, 1.0], 0.0), 0);
+    }
+
+    #[test]
+    fn equal_weight_grid_sign_is_the_exact_power_test() {
+        // Points on a grid of unit 1/8 (spans up to 600 units: both sides of the 2^9 limit),
+        // equal weights: the fast path, when it answers, agrees with the staged predicate.
+        let mut rng = crate::spatial_sort::SplitMix64::new(3);
+        let mut answered = 0;
+        for _ in 0..20_000 {
+            let span = [4u64, 40, 600][rng.below(3) as usize];
+            let mut pt = || std::array::from_fn(|_| (rng.below(span) as f64 - 7.0) * 0.125);
+            let (a, b, c, d, q): (Point, Point, Point, Point, Point) =
+                (pt(), pt(), pt(), pt(), pt());
+            let w = 0.3;
+            let expected = power_test([&a, &b, &c, &d], [w; 4], &q, w);
+            if let Some(s) = equal_weight_grid_sign([&a, &b, &c, &d], &q, 8.0) {
+                assert_eq!(s, expected, "{a:?} {b:?} {c:?} {d:?} {q:?}");
+                answered += 1;
+            }
+        }
+        assert!(answered > 10_000);
     }
 
     #[test]
