@@ -305,7 +305,7 @@ pub(crate) fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) 
 /// `δ_i = (w_i − w_q)·inv_unit²`, exact) is summed exactly as error-free products. Octree and
 /// voxel covers are full of exactly co-spherical cells: this settles those ties without the
 /// wider `i128` and expansion stages.
-#[inline]
+#[inline(always)]
 pub(crate) fn grid_lifted_sign(
     p: [&Point; 4],
     w: [f64; 4],
@@ -354,7 +354,19 @@ pub(crate) fn grid_lifted_sign(
     if w.iter().all(|&wi| wi == wq) {
         return Some(sign(x));
     }
-    // sign(x − Σ δ_i·c_i), every term exact.
+    grid_lifted_sign_weighted(x, c, w, wq, inv_unit)
+}
+
+/// The weighted end of [`grid_lifted_sign`]: `sign(x − Σ δ_i·c_i)`, every term exact (kept
+/// out of line: the equal-weight case above is the hot one).
+#[inline(never)]
+fn grid_lifted_sign_weighted(
+    x: f64,
+    c: [f64; 4],
+    w: [f64; 4],
+    wq: f64,
+    inv_unit: f64,
+) -> Option<i32> {
     let scale = inv_unit * inv_unit;
     if !scale.is_normal() {
         return None;
