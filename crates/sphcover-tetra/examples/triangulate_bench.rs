@@ -3,7 +3,8 @@
 //! `cargo run --release -p sphcover-tetra --example triangulate_bench -- N [shrink]` builds the
 //! smallest octree cover with at least `N` supports, triangulates it (radius shrink
 //! `shrink`, default 0.75), filters the dual complex, builds the `TetMesh`, and prints the
-//! times, the counts, the process CPU time and the peak resident memory (VmHWM).
+//! times, the counts, the process CPU time, the peak resident memory (VmHWM) after the filter
+//! and at the end, and checksums of the dual complex's tetrahedra (to compare versions).
 
 #[path = "common/octree_torus.rs"]
 mod octree_torus;
@@ -98,6 +99,13 @@ fn main() {
         c1 - c0,
         c2 - c1
     );
+    if let Some(peak) = peak_memory_bytes() {
+        println!(
+            "peak memory after the filter {:.1} MB ({:.0} bytes per sphere above the cover itself)",
+            peak as f64 / 1e6,
+            (peak - base_memory) as f64 / centers.len() as f64
+        );
+    }
     println!(
         "dual tets checksum: {:016x} in slot order, {:016x} as a sorted set",
         checksum(dc.tets.iter().copied()),
@@ -116,7 +124,7 @@ fn main() {
     println!("tet mesh CPU: {:.2} s", cpu_seconds().unwrap_or(0.0) - c2);
     if let Some(peak) = peak_memory_bytes() {
         println!(
-            "peak memory {:.1} MB ({:.0} bytes per sphere above the cover itself)",
+            "peak memory with the tet mesh {:.1} MB ({:.0} bytes per sphere above the cover itself)",
             peak as f64 / 1e6,
             (peak - base_memory) as f64 / centers.len() as f64
         );
