@@ -3,7 +3,8 @@
 //! `cargo run --release -p sphcover-tetra --example triangulate_bench -- N [shrink]` builds the
 //! smallest octree cover with at least `N` supports, triangulates it (radius shrink
 //! `shrink`, default 0.75), filters the dual complex, builds the `TetMesh`, and prints the
-//! times, the counts, the process CPU time and the peak resident memory (VmHWM).
+//! times, the counts, the process CPU time, the peak resident memory (VmHWM) after the filter
+//! and at the end, and checksums of the dual complex's tetrahedra (to compare versions).
 
 #[path = "common/octree_torus.rs"]
 mod octree_torus;
@@ -28,6 +29,31 @@ fn cpu_seconds() -> Option<f64> {
     let utime: f64 = fields.get(11)?.parse().ok()?;
     let stime: f64 = fields.get(12)?.parse().ok()?;
     Some((utime + stime) / 100.0)
+}
+
+/// FNV-1a over the vertex indices: a fingerprint to compare the output of two versions.
+fn checksum(tets: impl Iterator<Item = [u32; 4]>) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for t in tets {
+        for v in t {
+            h = (h ^ v as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// The tetrahedra as sorted vertex quadruples, sorted: independent of slot order.
+fn canonical_tets(tets: &[[u32; 4]]) -> Vec<[u32; 4]> {
+    let mut all: Vec<[u32; 4]> = tets
+        .iter()
+        .map(|t| {
+            let mut s = *t;
+            s.sort_unstable();
+            s
+        })
+        .collect();
+    all.sort_unstable();
+    all
 }
 
 fn main() {
@@ -73,6 +99,18 @@ fn main() {
         c1 - c0,
         c2 - c1
     );
+    if let Some(peak) = peak_memory_bytes() {
+        println!(
+            "peak memory after the filter {:.1} MB ({:.0} bytes per sphere above the cover itself)",
+            peak as f64 / 1e6,
+            (peak - base_memory) as f64 / centers.len() as f64
+        );
+    }
+    println!(
+        "dual tets checksum: {:016x} in slot order, {:016x} as a sorted set",
+        checksum(dc.tets.iter().copied()),
+        checksum(canonical_tets(&dc.tets).into_iter())
+    );
     drop(tri);
     let t3 = Instant::now();
     let mesh = TetMesh::from_dual_complex(&dc);
@@ -86,7 +124,7 @@ fn main() {
     println!("tet mesh CPU: {:.2} s", cpu_seconds().unwrap_or(0.0) - c2);
     if let Some(peak) = peak_memory_bytes() {
         println!(
-            "peak memory {:.1} MB ({:.0} bytes per sphere above the cover itself)",
+            "peak memory with the tet mesh {:.1} MB ({:.0} bytes per sphere above the cover itself)",
             peak as f64 / 1e6,
             (peak - base_memory) as f64 / centers.len() as f64
         );

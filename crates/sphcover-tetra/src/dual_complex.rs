@@ -108,13 +108,14 @@ pub fn dual_complex(
 /// The dual complex of an existing triangulation: its finite tetrahedra whose orthocentre has
 /// non-positive power with respect to the triangulation's own weights.
 pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
-    let slots = tri.tet_slots();
+    let slots = tri.num_slots();
 
     // Decide each slot independently (deterministic whatever the thread count).
-    let keep: Vec<bool> = slots
-        .par_iter()
+    let keep: Vec<bool> = (0..slots as u32)
+        .into_par_iter()
         .with_min_len(4096)
-        .map(|cell| {
+        .map(|t| {
+            let cell = tri.tet(t);
             if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
                 return false;
             }
@@ -123,19 +124,18 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
             orthocentre_power_sign([&p[0], &p[1], &p[2], &p[3]], w) <= 0
         })
         .collect();
-    let mut index = vec![NO_TET; slots.len()];
+    let mut index = vec![NO_TET; slots];
     let mut tets = Vec::new();
     for (t, &k) in keep.iter().enumerate() {
         if k {
             index[t] = tets.len() as u32;
-            tets.push(slots[t]);
+            tets.push(tri.tet(t as u32));
         }
     }
-    let nb = tri.neighbor_slots();
-    let neighbors: Vec<[u32; 4]> = (0..slots.len())
-        .filter(|&t| keep[t])
+    let neighbors: Vec<[u32; 4]> = (0..slots as u32)
+        .filter(|&t| keep[t as usize])
         .map(|t| {
-            nb[t].map(|n| {
+            tri.neighbors(t).map(|n| {
                 if keep[n as usize] {
                     index[n as usize]
                 } else {

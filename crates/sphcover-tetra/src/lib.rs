@@ -45,15 +45,16 @@
 //!   lexicographic symbolic perturbation for ties.
 //! * [`spatial_sort`]: the insertion order.
 //! * [`regular`]: [`RegularTriangulation`], incremental Bowyer–Watson with a remembering
-//!   stochastic walk, an infinite vertex, hidden (redundant) points; struct-of-arrays storage
-//!   (`[u32; 4]` vertices and neighbours per tetrahedron, a free list).
+//!   stochastic walk, an infinite vertex, hidden (redundant) points; `u32` handles, per
+//!   tetrahedron one 32-byte block of its 4 vertices and 4 neighbours, a free list.
 //! * [`dual_complex`](mod@dual_complex): the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
 //!   `σ_t` of thesis §3.5.2.
 //! * [`tet_mesh`]: [`TetMesh`], plain arrays and CSR offsets.
 //! * [`marching`]: marching tetrahedra on a [`TetMesh`].
 //!
 //! Determinism: the same input and seed give the same output, whatever the thread count
-//! (insertion is sequential; only the per-tetrahedron filter runs in parallel, item by item).
+//! (insertion is sequential; the sorts of distinct keys, the renumbering and the
+//! per-tetrahedron filter run in parallel, item by item).
 #![deny(missing_docs)]
 
 pub mod dual_complex;

@@ -4,7 +4,9 @@
 //! is staged: a floating-point evaluation with a static error bound (Shewchuk-style, from the
 //! permanent of the polynomial), then, for inputs whose coordinate differences are exact small
 //! multiples of a common power of two (grids, octrees: where exact ties live), an `i128`
-//! evaluation, then expansion arithmetic ([`crate::expansion`]).
+//! evaluation, then expansion arithmetic ([`crate::expansion`]). The triangulation adds an
+//! exact plain-`f64` stage for power tests on a grid of small extent (`grid_lifted_sign`):
+//! before the filter for equal weights, where most tests are exact ties, after it otherwise.
 //!
 //! Conventions:
 //! * [`orient3d`]`(a, b, c, d)` is the sign of `det[b − a; c − a; d − a]`: positive when `d` lies
@@ -49,6 +51,16 @@ pub const MAX_WEIGHT: f64 = 1e40;
 /// Exact sign of `det[b − a; c − a; d − a]` (−1, 0 or 1).
 #[inline]
 pub fn orient3d(a: &Point, b: &Point, c: &Point, d: &Point) -> i32 {
+    match orient3d_filter(a, b, c, d) {
+        Some(s) => s,
+        None => orient3d_exact(a, b, c, d),
+    }
+}
+
+/// The floating-point stage of [`orient3d`]: the sign when the static error bound certifies
+/// it.
+#[inline]
+pub(crate) fn orient3d_filter(a: &Point, b: &Point, c: &Point, d: &Point) -> Option<i32> {
     let ba_x = b[0] - a[0];
     let ba_y = b[1] - a[1];
     let ba_z = b[2] - a[2];
@@ -70,12 +82,12 @@ pub fn orient3d(a: &Point, b: &Point, c: &Point, d: &Point) -> i32 {
         + ba_z.abs() * (m5.abs() + m6.abs());
     let bound = ORIENT3D_BOUND * permanent + UNDERFLOW_SLACK;
     if det > bound {
-        return 1;
+        return Some(1);
     }
     if det < -bound {
-        return -1;
+        return Some(-1);
     }
-    orient3d_exact(a, b, c, d)
+    None
 }
 
 #[cold]
@@ -279,6 +291,103 @@ pub(crate) fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) 
         return s;
     }
     LiftedDet { p, w, q, wq }.eval::<Expansion>().sign()
+}
+
+/// Exact sign of the lifted determinant when the five centres lie on a grid of unit
+/// `1 / inv_unit` (a power of two) and every difference `p_i − q` is below `2^9` units;
+/// `None` otherwise (or when a weight difference is not exact in `f64`, or far out of
+/// range). Equal weights make it the plain in-sphere determinant.
+///
+/// Why plain `f64` arithmetic is exact here: on such a grid the differences and their
+/// scaling are exact, so every value of the in-sphere part is an integer, and each stays
+/// below `2^53`: `‖a_i‖² < 3·2^18`, the 2×2 minors below `2^19`, the 3×3 cofactors `c_i`
+/// below `3·2^28`, `x = Σ ‖a_i‖²·c_i` below `36·2^46`. The weight part `Σ δ_i·c_i` (with
+/// `δ_i = (w_i − w_q)·inv_unit²`, exact) is summed exactly as error-free products. Octree and
+/// voxel covers are full of exactly co-spherical cells: this settles those ties without the
+/// wider `i128` and expansion stages.
+#[inline(always)]
+pub(crate) fn grid_lifted_sign(
+    p: [&Point; 4],
+    w: [f64; 4],
+    q: &Point,
+    wq: f64,
+    inv_unit: f64,
+) -> Option<i32> {
+    let a: [[f64; 3]; 4] = std::array::from_fn(|i| {
+        [
+            (p[i][0] - q[0]) * inv_unit,
+            (p[i][1] - q[1]) * inv_unit,
+            (p[i][2] - q[2]) * inv_unit,
+        ]
+    });
+    // `<` is false for NaN too.
+    let mut small = true;
+    for row in &a {
+        for d in row {
+            small &= d.abs() < 512.0;
+        }
+    }
+    if !small {
+        return None;
+    }
+    let sq = |i: usize| a[i][0] * a[i][0] + a[i][1] * a[i][1] + a[i][2] * a[i][2];
+    let m = |i: usize, j: usize| a[i][0] * a[j][1] - a[j][0] * a[i][1];
+    let (m01, m02, m03, m12, m13, m23) = (m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3));
+    let z = |i: usize| a[i][2];
+    // The signed cofactors of the lifted column, as in `lifted_sign_fixed`.
+    let c = [
+        -(z(1) * m23 - z(2) * m13 + z(3) * m12),
+        z(0) * m23 - z(2) * m03 + z(3) * m02,
+        -(z(0) * m13 - z(1) * m03 + z(3) * m01),
+        z(0) * m12 - z(1) * m02 + z(2) * m01,
+    ];
+    let x = sq(0) * c[0] + sq(1) * c[1] + sq(2) * c[2] + sq(3) * c[3];
+    let sign = |v: f64| {
+        if v > 0.0 {
+            1
+        } else if v < 0.0 {
+            -1
+        } else {
+            0
+        }
+    };
+    if w.iter().all(|&wi| wi == wq) {
+        return Some(sign(x));
+    }
+    grid_lifted_sign_weighted(x, c, w, wq, inv_unit)
+}
+
+/// The weighted end of [`grid_lifted_sign`]: `sign(x − Σ δ_i·c_i)`, every term exact (kept
+/// out of line: the equal-weight case above is the hot one).
+#[inline(never)]
+fn grid_lifted_sign_weighted(
+    x: f64,
+    c: [f64; 4],
+    w: [f64; 4],
+    wq: f64,
+    inv_unit: f64,
+) -> Option<i32> {
+    let scale = inv_unit * inv_unit;
+    if !scale.is_normal() {
+        return None;
+    }
+    let mut terms = [0.0f64; 9];
+    terms[0] = x;
+    for i in 0..4 {
+        let dw = w[i] - wq;
+        if !exact_diff(w[i], wq, dw) {
+            return None;
+        }
+        let delta = dw * scale;
+        // Far from under- and overflow, so that the scaling and the products are exact.
+        if dw != 0.0 && !(delta.abs() > 1e-250 && delta.abs() < 1e250) {
+            return None;
+        }
+        let (hi, lo) = two_product(delta, c[i]);
+        terms[1 + 2 * i] = -hi;
+        terms[2 + 2 * i] = -lo;
+    }
+    Some(exact_sign_of_sum(&terms))
 }
 
 /// The `i128` stage, for coordinate differences that are exact multiples `n·2^e` with
@@ -729,6 +838,41 @@ mod tests {
         assert!(power_test([&o, &x, &y, &z], w, &[5.0, 5.0, 5.0], 1000.0) < 0);
         // Co-spherical: the corner (1,1,1) of the unit cube.
         assert_eq!(power_test([&o, &x, &y, &z], w, &[1.0, 1.0, 1.0], 0.0), 0);
+    }
+
+    #[test]
+    fn grid_lifted_sign_is_the_exact_power_test() {
+        // Points on a grid of unit 1/8 (spans up to 600 units: both sides of the 2^9 limit),
+        // weights equal or of octree levels (w, 4w, 16w) or zero: the grid stage, when it
+        // answers, agrees with the staged predicate, ties included.
+        let mut rng = crate::spatial_sort::SplitMix64::new(3);
+        let (mut answered, mut ties) = (0, 0);
+        for round in 0..40_000 {
+            let span = [4u64, 40, 600][rng.below(3) as usize];
+            let mut pt = || std::array::from_fn(|_| (rng.below(span) as f64 - 7.0) * 0.125);
+            let (a, b, c, d, q): (Point, Point, Point, Point, Point) =
+                (pt(), pt(), pt(), pt(), pt());
+            let base = 0.3 * 0.75f64.sqrt();
+            let levels = [base, 4.0 * base, 16.0 * base, 0.0];
+            let mut weight = || {
+                if round % 2 == 0 {
+                    base
+                } else {
+                    levels[rng.below(4) as usize]
+                }
+            };
+            let (w, wq) = ([weight(), weight(), weight(), weight()], weight());
+            let expected = power_test([&a, &b, &c, &d], w, &q, wq);
+            if let Some(s) = grid_lifted_sign([&a, &b, &c, &d], w, &q, wq, 8.0) {
+                assert_eq!(s, expected, "{a:?} {b:?} {c:?} {d:?} {q:?} {w:?} {wq}");
+                answered += 1;
+                ties += (s == 0) as u32;
+            }
+        }
+        assert!(
+            answered > 20_000 && ties > 100,
+            "{answered} answered, {ties} ties"
+        );
     }
 
     #[test]

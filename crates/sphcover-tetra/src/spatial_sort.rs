@@ -5,6 +5,8 @@
 //! Hilbert order inside a round makes consecutive points close, so the walk from the
 //! previous insertion is short and memory accesses stay local.
 
+use rayon::prelude::*;
+
 use crate::predicates::Point;
 
 /// A small, fast, seeded generator (SplitMix64); the insertion order and the walk only need
@@ -100,18 +102,23 @@ pub fn hilbert_sort(points: &[Point], indices: &mut [u32]) {
     } else {
         0.0
     };
+    // Keys and sort in parallel: the (key, index) pairs are distinct, so the sorted order is
+    // the same whatever the thread count.
     let mut keyed: Vec<(u64, u32)> = indices
-        .iter()
+        .par_iter()
+        .with_min_len(4096)
         .map(|&i| {
             let p = points[i as usize];
             let q: [u32; 3] = std::array::from_fn(|k| ((p[k] - lo[k]) * scale) as u32);
             (hilbert_index(q), i)
         })
         .collect();
-    keyed.sort_unstable();
-    for (slot, (_, i)) in indices.iter_mut().zip(keyed) {
-        *slot = i;
-    }
+    keyed.par_sort_unstable();
+    indices
+        .par_iter_mut()
+        .with_min_len(4096)
+        .zip(keyed.par_iter())
+        .for_each(|(slot, &(_, i))| *slot = i);
 }
 
 /// The BRIO order of `indices`: shuffled with `seed`, split into rounds of doubling size
