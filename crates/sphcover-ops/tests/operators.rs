@@ -147,10 +147,20 @@ proptest! {
                         }
                     }
                     if ops.gradient().is_full_rank(i) {
+                        // The fit sees differences `u_j − u_i`, each rounded relative to |u|,
+                        // over distances `d`: its rounding error is relative to |a| plus
+                        // |u| / d, amplified by the fit's conditioning.
                         let cond = ops.gradient().condition(i);
-                        prop_assert!((grad[i] - a).length()
-                            <= 1e-12f64.max(1e-15 * cond) * a.length(),
-                            "support {i}: grad {} vs {a} (cond {cond:e})", grad[i]);
+                        let (mut u_max, mut d_min) = (u[i].abs(), f64::INFINITY);
+                        for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+                            if phi > 0.0 {
+                                u_max = u_max.max(u[j as usize].abs());
+                                d_min = d_min.min((centers[j as usize] - centers[i]).length());
+                            }
+                        }
+                        let scale = a.length() + u_max / d_min;
+                        prop_assert!((grad[i] - a).length() <= 1e-12f64.max(1e-15 * cond) * scale,
+                            "support {i}: grad {} vs {a} (cond {cond:e}, scale {scale:e})", grad[i]);
                     }
                 }
                 // The isolated support gets zero operators.
