@@ -1,20 +1,26 @@
 //! Builds the volume cover of a NIfTI file and prints its statistics.
 //!
 //! `cargo run --release -p sphcover-core --example volume_cover -- FILE.nii.gz THRESHOLD [linear]`
-//! (THRESHOLD in the file's units; `linear` builds the bounding-box linear variant).
+//! (THRESHOLD in the file's units; `linear` builds the bounding-box linear variant;
+//! `scattered` gives the voxel centres and values to the scattered-sample builder instead).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use sphcover_core::io::read_nifti;
-use sphcover_core::{Threshold, VolumeCoverParams, VolumeCoverVariant, build_volume_cover};
+use sphcover_core::{
+    DVec3, Threshold, VolumeCoverParams, VolumeCoverVariant, build_scattered_cover,
+    build_volume_cover,
+};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let usage = "usage: volume_cover FILE.nii[.gz] THRESHOLD [linear]";
+    let usage = "usage: volume_cover FILE.nii[.gz] THRESHOLD [linear|scattered]";
     let path = PathBuf::from(args.next().ok_or(usage)?);
     let threshold: f64 = args.next().ok_or(usage)?.parse()?;
-    let linear = args.next().as_deref() == Some("linear");
+    let mode = args.next();
+    let linear = mode.as_deref() == Some("linear");
+    let scattered = mode.as_deref() == Some("scattered");
 
     let start = Instant::now();
     let (volume, info) = read_nifti(&path)?;
@@ -40,7 +46,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..VolumeCoverParams::default()
     };
     let start = Instant::now();
-    let (cover, stats) = build_volume_cover(&volume, &params)?;
+    let (cover, stats) = if scattered {
+        // Non-finite voxels are no samples, as for the grid builder.
+        let (points, values): (Vec<DVec3>, Vec<f64>) = (0..volume.len())
+            .filter(|&i| volume.value(i).is_finite())
+            .map(|i| (volume.voxel_center(volume.ijk(i)), volume.value(i)))
+            .unzip();
+        build_scattered_cover(&points, &values, &params)?
+    } else {
+        build_volume_cover(&volume, &params)?
+    };
     let total = start.elapsed();
     println!("value range        {:?}", stats.value_range);
     println!("object voxels      {}", stats.object_points);

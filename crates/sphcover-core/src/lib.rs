@@ -43,5 +43,5 @@ pub use surface_cover::{
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
     Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
-    build_volume_cover,
+    build_scattered_cover, build_volume_cover,
 };

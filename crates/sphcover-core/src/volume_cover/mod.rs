@@ -69,6 +69,9 @@
 
 mod distance_transform;
 mod fit;
+mod scattered;
+
+pub use scattered::build_scattered_cover;
 
 use std::time::{Duration, Instant};
 
@@ -172,6 +175,9 @@ pub struct VolumeCoverStats {
     pub r_max: f64,
     /// Maximum thickness from the distance transform, when it was computed (world units).
     pub thickness: Option<f64>,
+    /// Scattered samples only ([`build_scattered_cover`]): the spacing `h`, `√3 ×` the
+    /// median nearest-neighbour distance (the voxel diagonal of a cubic grid); 0 for volumes.
+    pub sample_spacing: f64,
     /// Smallest, mean and largest support radius.
     pub radius_min: f64,
     /// See `radius_min`.
@@ -231,6 +237,32 @@ pub enum VolumeCoverError {
         /// Number of voxels.
         voxels: usize,
     },
+    /// Scattered samples: not as many values as positions.
+    #[error("{positions} sample positions but {values} values")]
+    SampleCountMismatch {
+        /// Number of positions.
+        positions: usize,
+        /// Number of values.
+        values: usize,
+    },
+    /// Scattered samples: fewer than two.
+    #[error("{count} sample(s): a cover needs at least two")]
+    TooFewSamples {
+        /// Number of samples.
+        count: usize,
+    },
+    /// Scattered samples: a position or a value is not finite.
+    #[error("sample {index} has a non-finite {what}")]
+    NonFiniteSample {
+        /// Index of the first such sample.
+        index: usize,
+        /// `"position"` or `"value"`.
+        what: &'static str,
+    },
+    /// Scattered samples: more than half of them coincide with another sample, so no
+    /// sample spacing can be estimated.
+    #[error("most samples coincide with another one: no sample spacing")]
+    CoincidentSamples,
     /// The cover could not be assembled (a non-finite fit: not expected).
     #[error(transparent)]
     Cover(#[from] CoverError),
@@ -313,11 +345,23 @@ pub fn build_volume_cover(
         VolumeCoverVariant::ObjectQuadratic => grid.cover::<QUADRATIC>(params, &mut stats),
         VolumeCoverVariant::BoundingBoxLinear => grid.cover::<LINEAR>(params, &mut stats),
     };
-    stats.supports = supports.len();
     let centers: Vec<DVec3> = supports
         .iter()
         .map(|s| volume.voxel_center(volume.ijk(s.center as usize)))
         .collect();
+    let cover = supports_to_cover(&supports, centers, params, &mut stats)?;
+    stats.time_cover = start.elapsed();
+    Ok((cover, stats))
+}
+
+/// Assembles the cover of the accepted supports (centres given) and fills the statistics.
+fn supports_to_cover(
+    supports: &[Support],
+    centers: Vec<DVec3>,
+    params: &VolumeCoverParams,
+    stats: &mut VolumeCoverStats,
+) -> Result<Cover, VolumeCoverError> {
+    stats.supports = supports.len();
     let radii: Vec<f64> = supports.iter().map(|s| s.radius).collect();
     stats.radius_min = radii.iter().copied().fold(f64::INFINITY, f64::min);
     stats.radius_max = radii.iter().copied().fold(0.0, f64::max);
@@ -332,9 +376,7 @@ pub fn build_volume_cover(
             LocalFunctions::from_linear(supports.iter().map(|s| s.linear()))
         }
     };
-    let cover = Cover::new(centers, radii, funcs, params.kernel)?;
-    stats.time_cover = start.elapsed();
-    Ok((cover, stats))
+    Ok(Cover::new(centers, radii, funcs, params.kernel)?)
 }
 
 fn check_params(p: &VolumeCoverParams) -> Result<(), VolumeCoverError> {
