@@ -67,6 +67,9 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
     let params = SurfaceCoverParams {
         eps: args.eps.unwrap_or(SurfaceCoverParams::default().eps),
         seed: args.seed,
+        // Sparse scans with ε below their sampling: octants whose children cannot be fitted
+        // on their own points stay unrefined, and their error is reported.
+        sampling_stop: true,
         ..SurfaceCoverParams::default()
     };
     let bar = reporter.progress(None, "building the surface cover");
@@ -94,13 +97,15 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
         ));
     }
     reporter.summary(&format!(
-        "{} points ({} used): {} supports ({} before expansion), {} over ε = {} (largest error {:.3e}), {:.3} s -> {}",
+        "{} points ({} used): {} supports ({} before expansion), {} over ε = {} ({:.1} %; {} octants left unrefined for the sampling density; largest error {:.3e}), {:.3} s -> {}",
         stats.input_points,
         stats.used_points,
         stats.supports_after_expansion,
         stats.supports_before_expansion,
         stats.supports_over_eps,
         params.eps,
+        100.0 * stats.supports_over_eps as f64 / stats.supports_after_expansion.max(1) as f64,
+        stats.sampling_limited_octants,
         stats.max_error,
         t.total.as_secs_f64(),
         args.output.display()

@@ -113,6 +113,18 @@ pub enum VolumeCoverVariant {
     BoundingBoxLinear,
 }
 
+/// The order in which uncovered candidates become centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CentreOrder {
+    /// Uniformly random among the uncovered (thesis §3.4.2), drawn from the seed.
+    #[default]
+    Random,
+    /// Deepest first: by decreasing distance to the nearest background sample (the distance
+    /// transform that gives `r_max`), ties in the seeded random order. Object variant only
+    /// (the linear variant has no background); see the module docs for the measurements.
+    DeepestFirst,
+}
+
 /// Parameters of [`build_volume_cover`]. `Default` gives the thesis defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VolumeCoverParams {
@@ -137,6 +149,8 @@ pub struct VolumeCoverParams {
     pub kernel: Kernel,
     /// Seed of the order in which candidates become centres.
     pub seed: u64,
+    /// Which uncovered candidate becomes the next centre.
+    pub centre_order: CentreOrder,
 }
 
 impl Default for VolumeCoverParams {
@@ -151,6 +165,7 @@ impl Default for VolumeCoverParams {
             variant: VolumeCoverVariant::default(),
             kernel: Kernel::TruncatedGaussian,
             seed: 0,
+            centre_order: CentreOrder::default(),
         }
     }
 }
@@ -307,10 +322,13 @@ pub fn build_volume_cover(
     let diagonal = volume.voxel_diagonal();
     let r_min = params.r_min.unwrap_or(diagonal);
     let start = Instant::now();
+    let deepest =
+        params.centre_order == CentreOrder::DeepestFirst && params.variant == VolumeCoverVariant::ObjectQuadratic;
+    let depth = (params.r_max.is_none() || deepest).then(|| depth_to_background(volume, &object));
     let (r_max, thickness) = match params.r_max {
         Some(r) => (r, None),
         None => {
-            let t = max_thickness(volume, &object);
+            let t = max_thickness(depth.as_deref().expect("computed without r_max"), &object);
             let cap = params.max_radius_voxels * diagonal;
             let r = if t.is_finite() {
                 t
@@ -341,9 +359,10 @@ pub fn build_volume_cover(
         time_distance_transform,
         ..VolumeCoverStats::default()
     };
+    let depth = if deepest { depth.as_deref() } else { None };
     let supports = match params.variant {
-        VolumeCoverVariant::ObjectQuadratic => grid.cover::<QUADRATIC>(params, &mut stats),
-        VolumeCoverVariant::BoundingBoxLinear => grid.cover::<LINEAR>(params, &mut stats),
+        VolumeCoverVariant::ObjectQuadratic => grid.cover::<QUADRATIC>(params, depth, &mut stats),
+        VolumeCoverVariant::BoundingBoxLinear => grid.cover::<LINEAR>(params, None, &mut stats),
     };
     let centers: Vec<DVec3> = supports
         .iter()
@@ -413,15 +432,19 @@ fn check_params(p: &VolumeCoverParams) -> Result<(), VolumeCoverError> {
     }
 }
 
-/// Twice the largest distance from an object voxel to a background voxel centre; `+∞` with
-/// no background voxel.
-fn max_thickness(volume: &Volume, object: &[bool]) -> f64 {
+/// Squared distance from every voxel centre to the nearest background voxel centre.
+fn depth_to_background(volume: &Volume, object: &[bool]) -> Vec<f64> {
     let size = volume.voxel_size();
-    let d2 = distance_transform::squared_distance_to_background(
+    distance_transform::squared_distance_to_background(
         volume.dims(),
         [size.x, size.y, size.z],
         |i| !object[i],
-    );
+    )
+}
+
+/// Twice the largest distance from an object voxel to a background voxel centre (`d2` from
+/// [`depth_to_background`]); `+∞` with no background voxel.
+fn max_thickness(d2: &[f64], object: &[bool]) -> f64 {
     let max = d2
         .par_iter()
         .zip(object)
@@ -805,9 +828,11 @@ impl<'a> Grid<'a> {
     }
 
     /// The covering loop; returns the accepted supports in order.
+    /// `depth`: when given, candidates go deepest first (ties in the seeded order).
     fn cover<const N: usize>(
         &self,
         params: &VolumeCoverParams,
+        depth: Option<&[f64]>,
         stats: &mut VolumeCoverStats,
     ) -> Vec<Support> {
         let n = self.volume.len();
@@ -818,6 +843,9 @@ impl<'a> Grid<'a> {
         };
         stats.candidates = order.len();
         shuffle(&mut order, params.seed);
+        if let Some(d) = depth {
+            order.sort_by(|&a, &b| d[b as usize].total_cmp(&d[a as usize]));
+        }
         let mut covered = vec![false; n];
         let mut supports = Vec::new();
         let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
