@@ -61,11 +61,19 @@ fn scattered_samples_give_a_volume_cover_read_back_and_independent_of_threads() 
             out.to_str().unwrap(),
         ]);
         assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
-        assert!(text(&run.stderr).contains("0 over ε"), "{}", text(&run.stderr));
+        assert!(
+            text(&run.stderr).contains("0 over ε"),
+            "{}",
+            text(&run.stderr)
+        );
     }
     assert!(std::fs::read(&outs[0]).unwrap() == std::fs::read(&outs[1]).unwrap());
     let (cover, _) = sphcover_core::io::read_cover(&outs[0]).unwrap();
-    assert!(cover.len() > 1 && cover.len() < 12 * 12 * 12 / 4, "{}", cover.len());
+    assert!(
+        cover.len() > 1 && cover.len() < 12 * 12 * 12 / 4,
+        "{}",
+        cover.len()
+    );
 }
 
 #[test]
@@ -91,7 +99,11 @@ fn scattered_samples_bad_input_is_reported() {
     assert!(text(&run.stderr).contains("no scalar vertex property named `intensity`"));
     let run = cover(&input, "density", &["--threshold", "5000"]);
     assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
-    assert!(text(&run.stderr).contains("selects no voxel"), "{}", text(&run.stderr));
+    assert!(
+        text(&run.stderr).contains("selects no voxel"),
+        "{}",
+        text(&run.stderr)
+    );
     let constant = dir.path().join("constant.ply");
     std::fs::write(
         &constant,
@@ -101,7 +113,11 @@ fn scattered_samples_bad_input_is_reported() {
     .unwrap();
     let run = cover(&constant, "density", &[]);
     assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
-    assert!(text(&run.stderr).contains("constant"), "{}", text(&run.stderr));
+    assert!(
+        text(&run.stderr).contains("constant"),
+        "{}",
+        text(&run.stderr)
+    );
     let nan = dir.path().join("nan.ply");
     write_samples(&nan, Some(17));
     let run = cover(&nan, "density", &[]);

@@ -40,7 +40,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let dims = [40, 40, 24];
         let values = volume_common::thin_plate(dims, thickness, 20.0, 0.8);
         println!("plate phantom: {thickness} voxels thick, {dims:?} voxels of 0.1");
-        Volume::axis_aligned(dims, VoxelValues::F64(values), DVec3::splat(0.1), DVec3::ZERO)?
+        Volume::axis_aligned(
+            dims,
+            VoxelValues::F64(values),
+            DVec3::splat(0.1),
+            DVec3::ZERO,
+        )?
     } else {
         let start = Instant::now();
         let (volume, info) = read_nifti(&path)?;

@@ -24,7 +24,12 @@ fn assert_all_inside(cover: &Cover, points: &[DVec3], object: &[bool]) {
 
 /// Largest RMS residual of a support over the samples within its radius, recomputed from
 /// the samples and the cover alone.
-fn max_support_rms(points: &[DVec3], values: &[f64], cover: &Cover, stats: &VolumeCoverStats) -> f64 {
+fn max_support_rms(
+    points: &[DVec3],
+    values: &[f64],
+    cover: &Cover,
+    stats: &VolumeCoverStats,
+) -> f64 {
     let (lo, hi) = stats.value_range;
     let mut worst: f64 = 0.0;
     for i in 0..cover.len() {
@@ -69,7 +74,11 @@ fn voxel_centres_as_scattered_samples_cover_like_the_grid() {
     assert_all_inside(&cover, &points, &object);
     let rms = max_support_rms(&points, &values, &cover, &stats);
     assert!(rms <= params.tolerance, "max RMS {rms}");
-    assert!((rms - stats.max_rms).abs() < 1e-9, "{rms} vs {}", stats.max_rms);
+    assert!(
+        (rms - stats.max_rms).abs() < 1e-9,
+        "{rms} vs {}",
+        stats.max_rms
+    );
     assert_eq!(stats.above_tolerance, 0);
     // As compact as the grid cover, within a quarter (the covering rules differ).
     let (n, g) = (cover.len() as f64, grid_cover.len() as f64);
@@ -125,7 +134,12 @@ fn jittered_samples_of_an_analytic_field_are_covered_within_tolerance() {
     // The cover's function follows the field near the boundary (value 0.5 at d = R).
     let f = sphcover_core::PuEvaluator::new(&cover, 1.0).unwrap();
     let centre = DVec3::splat(0.25 * 19.0);
-    for dir in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::new(1.0, 1.0, 1.0).normalize()] {
+    for dir in [
+        DVec3::X,
+        DVec3::Y,
+        DVec3::Z,
+        DVec3::new(1.0, 1.0, 1.0).normalize(),
+    ] {
         let x = centre + dir * 3.0;
         if let Some(v) = f.value(x) {
             assert!((v - 0.5).abs() < 0.15, "f = {v} at the level set");
@@ -190,15 +204,25 @@ fn bad_input_gives_typed_errors() {
     values[10] = f64::NAN;
     assert_eq!(
         err(&points, &values),
-        VolumeCoverError::NonFiniteSample { index: 10, what: "value" }
+        VolumeCoverError::NonFiniteSample {
+            index: 10,
+            what: "value"
+        }
     );
     values[10] = f64::INFINITY;
-    assert!(err(&points, &values).to_string().contains("non-finite value"));
+    assert!(
+        err(&points, &values)
+            .to_string()
+            .contains("non-finite value")
+    );
     values[10] = 1.0;
     points[3].y = f64::NAN;
     assert_eq!(
         err(&points, &values),
-        VolumeCoverError::NonFiniteSample { index: 3, what: "position" }
+        VolumeCoverError::NonFiniteSample {
+            index: 3,
+            what: "position"
+        }
     );
     points[3].y = 0.0;
     let high = VolumeCoverParams {

@@ -260,9 +260,11 @@ impl Octree<'_> {
                 for (g, slot) in undone.iter_mut().enumerate() {
                     let group = &fitted[8 * g..8 * g + 8];
                     let sparse = parents[g].2 < SPLIT_FACTOR * self.params.n_min;
-                    let limited =
-                        |l: &Option<Leaf>| l.as_ref().is_some_and(|l| l.empty || l.grown);
-                    let over = group.iter().flatten().any(|l| !l.empty && l.fit.error > eps);
+                    let limited = |l: &Option<Leaf>| l.as_ref().is_some_and(|l| l.empty || l.grown);
+                    let over = group
+                        .iter()
+                        .flatten()
+                        .any(|l| !l.empty && l.fit.error > eps);
                     *slot = over && (sparse || group.iter().all(limited));
                 }
             }

@@ -52,6 +52,19 @@
 //! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, so such plates get
 //! about one support per 8 object voxels; an 8-voxel plate at `ε = 10 %` gets one per 40.
 //!
+//! # Centre order (a departure from the thesis, optional)
+//!
+//! The thesis picks a random uncovered candidate. A random candidate near a plate's face
+//! gets a small ball (a quadratic follows the face's ramp only so far); one on the plate's
+//! mid-surface gets a larger one and its ball is symmetric about the profile.
+//! [`CentreOrder::DeepestFirst`] takes candidates by decreasing distance to the background
+//! (the distance transform of `r_max`), ties in the seeded order. Measured at ε = 0.05 with
+//! the tests' tilted plate phantom (40 × 40 × 24 voxels, PSF 0.8 voxel), object voxels per
+//! support, random → deepest first: 4-voxel plate 7.7 → 11.3, 6-voxel 14.9 → 21.7, 8-voxel
+//! 14.5 → 15.6; the T-junction phantom 6.4 → 8.4; every RMS ≤ ε, no object voxel uncovered.
+//! It stays opt-in (the default keeps the thesis' random order, which the skeleton
+//! pipeline's figures were measured with).
+//!
 //! # Radii
 //!
 //! `r_max` defaults to the object's maximum thickness, twice the largest distance from an
@@ -322,8 +335,8 @@ pub fn build_volume_cover(
     let diagonal = volume.voxel_diagonal();
     let r_min = params.r_min.unwrap_or(diagonal);
     let start = Instant::now();
-    let deepest =
-        params.centre_order == CentreOrder::DeepestFirst && params.variant == VolumeCoverVariant::ObjectQuadratic;
+    let deepest = params.centre_order == CentreOrder::DeepestFirst
+        && params.variant == VolumeCoverVariant::ObjectQuadratic;
     let depth = (params.r_max.is_none() || deepest).then(|| depth_to_background(volume, &object));
     let (r_max, thickness) = match params.r_max {
         Some(r) => (r, None),

@@ -35,8 +35,8 @@ use rayon::prelude::*;
 
 use super::fit::{LINEAR, NormalEquations, QUADRATIC};
 use super::{
-    Support, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
-    VolumeCoverVariant, check_params, shuffle, supports_to_cover,
+    Support, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
+    check_params, shuffle, supports_to_cover,
 };
 use crate::cover::Cover;
 use crate::point_index::PointIndex;
@@ -304,16 +304,18 @@ impl<'s, 'a> Neighbourhood<'s, 'a> {
         let scratch = &mut self.scratch;
         let slot_order = self.samples.index.order();
         let positions = self.samples.positions;
-        self.samples
-            .index
-            .for_each_slot_within(center, (limit * (1.0 + 1e-6)).sqrt() * h, |slot, _| {
+        self.samples.index.for_each_slot_within(
+            center,
+            (limit * (1.0 + 1e-6)).sqrt() * h,
+            |slot, _| {
                 let i = slot_order[slot];
                 let fd2 = ((positions[i as usize] - center) / h).length_squared();
                 let below = if last { fd2 <= limit } else { fd2 < limit };
                 if fd2 >= previous && below {
                     scratch.push((fd2, i));
                 }
-            });
+            },
+        );
         self.scratch
             .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         self.entries.extend_from_slice(&self.scratch);
@@ -353,7 +355,11 @@ impl Samples<'_> {
             Some((next, _)) => 0.5 * (here + next.sqrt() * self.unit),
             None => self.r_max,
         };
-        let r = if s >= first_shell { r.max(self.r_min) } else { r };
+        let r = if s >= first_shell {
+            r.max(self.r_min)
+        } else {
+            r
+        };
         r.min(self.r_max).max(here)
     }
 
