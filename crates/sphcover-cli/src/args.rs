@@ -176,6 +176,12 @@ pub struct CoverArgs {
     /// quadratics over the object.
     #[arg(long)]
     pub linear: bool,
+    /// Scattered samples with values: the points of a PLY INPUT are volume samples off any
+    /// grid, and NAME is the scalar vertex property holding their values (e.g. `intensity`).
+    /// Builds a volume cover (quadratic fits, RMS tolerance, --threshold) instead of a surface
+    /// cover; no normals needed.
+    #[arg(long, value_name = "NAME")]
+    pub value_property: Option<String>,
     /// Seed of the random choices (expansion order, centre choice).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

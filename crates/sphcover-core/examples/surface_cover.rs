@@ -51,6 +51,8 @@ fn main() -> ExitCode {
     );
     let params = SurfaceCoverParams {
         eps,
+        // As `sphcover cover` does; NO_SAMPLING_STOP=1 gives the library default.
+        sampling_stop: std::env::var_os("NO_SAMPLING_STOP").is_none(),
         ..SurfaceCoverParams::default()
     };
     let threads = rayon::current_num_threads();

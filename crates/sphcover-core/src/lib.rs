@@ -42,6 +42,6 @@ pub use surface_cover::{
 };
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
-    Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
-    build_volume_cover,
+    CentreOrder, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
+    VolumeCoverVariant, build_scattered_cover, build_volume_cover,
 };

@@ -258,3 +258,77 @@ fn without_expansion_the_cover_is_the_octree() {
     );
     assert_eq!(stats.grown_supports, 0);
 }
+
+/// `n` points of a Fibonacci lattice on the sphere of radius 0.45, with outward normals.
+fn fibonacci_sphere_of(n: usize) -> (Vec<DVec3>, Vec<DVec3>) {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let normals: Vec<DVec3> = (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let s = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            DVec3::new(s * a.cos(), s * a.sin(), z)
+        })
+        .collect();
+    (normals.iter().map(|&u| 0.45 * u).collect(), normals)
+}
+
+#[test]
+fn sampling_stop_keeps_a_sparse_scan_below_its_point_count_and_reports_the_error() {
+    let (points, normals) = fibonacci_sphere_of(2000);
+    let base = SurfaceCoverParams {
+        eps: 2.5e-3,
+        ..SurfaceCoverParams::default()
+    };
+    let (plain, plain_stats) = build_surface_cover(&points, &normals, &base).unwrap();
+    let stop = SurfaceCoverParams {
+        sampling_stop: true,
+        ..base.clone()
+    };
+    let (cover, stats) = build_surface_cover(&points, &normals, &stop).unwrap();
+    // ε is below what 2,000 points support: without the rule the cover outnumbers them.
+    assert!(plain.len() > points.len(), "{} supports", plain.len());
+    assert!(cover.len() < points.len(), "{} supports", cover.len());
+    assert!(stats.sampling_limited_octants > 0);
+    assert_eq!(plain_stats.sampling_limited_octants, 0);
+    // The error of the unrefined octants is reported: recount it from the cover.
+    let over = (0..cover.len())
+        .filter(|&i| {
+            let (c, r) = (cover.centers()[i], cover.radii()[i]);
+            let g = cover.func(i).unwrap();
+            points
+                .iter()
+                .any(|p| p.distance(c) < r && g.value(*p - c).abs() > stop.eps * (1.0 + 1e-9))
+        })
+        .count();
+    assert_eq!(over, stats.supports_over_eps);
+    assert!(stats.supports_over_eps > 0);
+    // Every sample still lies inside a support.
+    for p in &points {
+        assert!(
+            cover
+                .centers()
+                .iter()
+                .zip(cover.radii())
+                .any(|(c, &r)| p.distance(*c) < r)
+        );
+    }
+}
+
+#[test]
+fn sampling_stop_changes_nothing_where_the_sampling_supports_eps() {
+    let (points, normals) = fibonacci_sphere_of(2000);
+    let base = SurfaceCoverParams {
+        eps: 1e-2,
+        ..SurfaceCoverParams::default()
+    };
+    let stop = SurfaceCoverParams {
+        sampling_stop: true,
+        ..base.clone()
+    };
+    let (plain, _) = build_surface_cover(&points, &normals, &base).unwrap();
+    let (cover, stats) = build_surface_cover(&points, &normals, &stop).unwrap();
+    assert_eq!(stats.sampling_limited_octants, 0);
+    assert_eq!(stats.supports_over_eps, 0);
+    assert_eq!(plain, cover);
+}

@@ -326,3 +326,35 @@ fn thickness_comes_from_the_distance_transform() {
     assert!((0.4..=0.4 + 0.1 * 3f64.sqrt()).contains(&t), "{t}");
     assert_eq!(stats.r_max, t);
 }
+
+#[test]
+fn deepest_first_centres_cover_the_plate_with_fewer_supports() {
+    let volume = test_phantom();
+    let random = hu_params();
+    let deepest = VolumeCoverParams {
+        centre_order: sphcover_core::CentreOrder::DeepestFirst,
+        ..hu_params()
+    };
+    let (random_cover, _) = build_volume_cover(&volume, &random).unwrap();
+    let (cover, stats) = build_volume_cover(&volume, &deepest).unwrap();
+    assert_all_inside(
+        &cover,
+        (0..volume.len())
+            .filter(|&i| volume.value(i) > 500.0)
+            .map(|i| volume.voxel_center(volume.ijk(i))),
+    );
+    assert!(max_support_rms(&volume, &cover, &stats) <= deepest.tolerance);
+    // Measured: 7.8 object voxels per support in random order, 11.3 deepest first.
+    assert!(
+        cover.len() * 5 < random_cover.len() * 4,
+        "{} deepest-first supports vs {} in random order",
+        cover.len(),
+        random_cover.len()
+    );
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap()
+        .install(|| build_volume_cover(&volume, &deepest).unwrap().0);
+    assert_eq!(cover, two);
+}

@@ -6,7 +6,7 @@ use std::path::Path;
 use sphcover_core::io::{self, CoverFileMeta, PlyEncoding, WriteOptions};
 use sphcover_core::{
     Cover, Normalisation, SurfaceCoverParams, Threshold, VolumeCoverParams, VolumeCoverVariant,
-    build_surface_cover_from_cloud, build_volume_cover,
+    build_scattered_cover, build_surface_cover_from_cloud, build_volume_cover,
 };
 
 use crate::args::CoverArgs;
@@ -20,12 +20,14 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
     {
         return Err(BadInput(format!("--eps {eps} must be a positive number")).into());
     }
-    let (cover, meta) = if io::is_volume_path(&args.input) {
+    let (cover, meta) = if let Some(property) = &args.value_property {
+        scattered_cover(args, property, reporter)?
+    } else if io::is_volume_path(&args.input) {
         volume_cover(args, reporter)?
     } else {
         if args.threshold.is_some() || args.linear {
             return Err(BadInput(
-                "--threshold and --linear apply to volumes (.nii, .nii.gz) only".to_owned(),
+                "--threshold and --linear apply to volumes (.nii, .nii.gz, .inr) and to scattered samples (--value-property) only".to_owned(),
             )
             .into());
         }
@@ -55,7 +57,7 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
             "{}: the points have no normals: the surface cover needs outward normals (estimating them from unoriented points is part of `sphcover recon`){}",
             args.input.display(),
             if cloud.values.is_some() {
-                "; covers of scattered samples with values (volume data off a grid) are not supported yet"
+                "; for a volume cover of scattered samples with values, name their property with --value-property"
             } else {
                 ""
             }
@@ -65,6 +67,9 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
     let params = SurfaceCoverParams {
         eps: args.eps.unwrap_or(SurfaceCoverParams::default().eps),
         seed: args.seed,
+        // Sparse scans with ε below their sampling: octants whose children cannot be fitted
+        // on their own points stay unrefined, and their error is reported.
+        sampling_stop: true,
         ..SurfaceCoverParams::default()
     };
     let bar = reporter.progress(None, "building the surface cover");
@@ -92,13 +97,15 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
         ));
     }
     reporter.summary(&format!(
-        "{} points ({} used): {} supports ({} before expansion), {} over ε = {} (largest error {:.3e}), {:.3} s -> {}",
+        "{} points ({} used): {} supports ({} before expansion), {} over ε = {} ({:.1} %; {} octants left unrefined for the sampling density; largest error {:.3e}), {:.3} s -> {}",
         stats.input_points,
         stats.used_points,
         stats.supports_after_expansion,
         stats.supports_before_expansion,
         stats.supports_over_eps,
         params.eps,
+        100.0 * stats.supports_over_eps as f64 / stats.supports_after_expansion.max(1) as f64,
+        stats.sampling_limited_octants,
         stats.max_error,
         t.total.as_secs_f64(),
         args.output.display()
@@ -160,6 +167,85 @@ fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover,
             &args.input,
             &format!(
                 "volume cover tolerance={} variant={:?} seed={}",
+                params.tolerance, params.variant, params.seed
+            ),
+        )],
+        ..CoverFileMeta::default()
+    };
+    Ok((cover, meta))
+}
+
+fn scattered_cover(
+    args: &CoverArgs,
+    property: &str,
+    reporter: &Reporter,
+) -> anyhow::Result<(Cover, CoverFileMeta)> {
+    if io::is_volume_path(&args.input) {
+        return Err(BadInput(format!(
+            "{}: --value-property names a vertex property of a PLY point file; a volume carries its values on the grid",
+            args.input.display()
+        ))
+        .into());
+    }
+    let stage = reporter.stage("read samples");
+    let (geometry, values) =
+        io::read_geometry_with_vertex_property(&args.input, property, &args.read.read_options())?;
+    stage.finish();
+    let Some(values) = values else {
+        return Err(BadInput(format!(
+            "{}: no scalar vertex property named `{property}` (only PLY files declare named properties)",
+            args.input.display()
+        ))
+        .into());
+    };
+    let defaults = VolumeCoverParams::default();
+    let params = VolumeCoverParams {
+        threshold: args.threshold.map_or(defaults.threshold, Threshold::Raw),
+        tolerance: args.eps.unwrap_or(defaults.tolerance),
+        variant: if args.linear {
+            VolumeCoverVariant::BoundingBoxLinear
+        } else {
+            VolumeCoverVariant::ObjectQuadratic
+        },
+        seed: args.seed,
+        ..defaults
+    };
+    let bar = reporter.progress(None, "building the volume cover of scattered samples");
+    let (cover, stats) = build_scattered_cover(&geometry.points.positions, &values, &params)
+        .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
+    bar.finish_and_clear();
+    reporter.detail(&format!(
+        "  thickness (nearest background) {:>9.3} s\n  cover                    {:>9.3} s",
+        stats.time_distance_transform.as_secs_f64(),
+        stats.time_cover.as_secs_f64()
+    ));
+    reporter.detail(&format!(
+        "  sample spacing {:.4}; radii {:.4} .. {:.4} (mean {:.4}); r_min {:.4}, r_max {:.4}; {} fits",
+        stats.sample_spacing,
+        stats.radius_min,
+        stats.radius_max,
+        stats.radius_mean,
+        stats.r_min,
+        stats.r_max,
+        stats.fits
+    ));
+    reporter.summary(&format!(
+        "{} object samples of {} candidates: {} supports ({:.1} samples per support), largest RMS error {:.4} ({} over ε = {}) -> {}",
+        stats.object_points,
+        stats.candidates,
+        stats.supports,
+        stats.object_points as f64 / stats.supports.max(1) as f64,
+        stats.max_rms,
+        stats.above_tolerance,
+        params.tolerance,
+        args.output.display()
+    ));
+    let meta = CoverFileMeta {
+        normalisation: Normalisation::IDENTITY,
+        notes: vec![notes(
+            &args.input,
+            &format!(
+                "scattered-sample cover property={property} tolerance={} variant={:?} seed={}",
                 params.tolerance, params.variant, params.seed
             ),
         )],

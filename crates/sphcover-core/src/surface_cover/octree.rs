@@ -21,6 +21,18 @@
 //! got 47,081 supports (9 per point) and a sphere intersection graph of mean degree 265;
 //! with 1, 15,370 supports and degree 84, and the same reconstruction.
 //!
+//! The same holds one level up, where the octant's own ball still holds `n_min` points but
+//! its children's balls (half the radius: about a quarter of the points on a surface) do
+//! not. On sparse scans with ε below what the sampling supports, every child then grows to
+//! its `n_min` nearest points and still misses ε, and the subdivision multiplies supports
+//! for nothing (the 2,000-point sphere at ε = 2.5e-3 got 5,793 supports, 4,681 over ε; the
+//! 5,210-point kitten 15,370, 11,295 over). So a subdivision whose non-empty children are
+//! all grown and over ε is undone: the octant stays a leaf with its own fit, whose error is
+//! reported (the supports over ε, and [`SurfaceCoverStats::sampling_limited_octants`]),
+//! not refined. Where grown children do reach ε (the same sphere at ε = 1e-2) the
+//! subdivision stays. The rule applies with [`SurfaceCoverParams::sampling_stop`] (off by
+//! default, on in `sphcover cover`).
+//!
 //! When the plane fitted to its nearest points misses them by more than ε, an empty octant
 //! keeps the plane but not the grown radius: its support stays the octant's own ball, which
 //! touches no sample, so the poor fit cannot spoil `f` on the data while the ball still
@@ -57,6 +69,11 @@ pub(crate) const REACH: f64 = 1.0625;
 /// own radius (see the module docs).
 pub(crate) const REFINABLE_GROWTH: f64 = 1.0;
 
+/// A subdivision is undone, when a child misses ε, if the octant's own ball held fewer than
+/// this factor times `n_min` points: its children's balls (half the radius) then hold about
+/// a quarter as many on a surface, fewer than `n_min` (see the module docs).
+pub(crate) const SPLIT_FACTOR: usize = 4;
+
 /// One octree leaf: its support and fit.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Leaf {
@@ -72,6 +89,8 @@ pub(crate) struct Leaf {
     pub empty: bool,
     /// Subdividing the octant can fit the data better (see the module docs).
     pub refinable: bool,
+    /// Points in the octant's own ball.
+    pub own_points: usize,
 }
 
 /// The root cube and its subdivision.
@@ -216,48 +235,94 @@ pub(crate) fn build(
 
 impl Octree<'_> {
     /// Fits the cells of `frontier` and subdivides those whose error exceeds ε, wave by wave,
-    /// until no cell is left; returns the cells that became leaves.
+    /// until no cell is left; returns the cells that became leaves. A subdivision whose
+    /// children are all sampling-limited and over ε is undone (see the module docs).
     fn refine(
         &mut self,
         mut frontier: Vec<(u8, u64)>,
         stats: &mut SurfaceCoverStats,
     ) -> Vec<(u8, u64)> {
         let mut new_leaves = Vec::new();
+        // The parent of each run of 8 cells of the frontier, when it came from a subdivision
+        // in this call (the first frontier has none).
+        let mut parents: Vec<(u8, u64, usize)> = Vec::new();
         while !frontier.is_empty() {
             let fitted: Vec<Option<Leaf>> = frontier
                 .par_iter()
                 .map_init(Candidates::default, |cand, &(level, key)| {
-                    self.fit_cell(cand, level, key)
+                    self.fit_cell(cand, level, key, false)
                 })
                 .collect();
             stats.fits += frontier.len() as u64;
+            let eps = self.params.eps;
+            let mut undone = vec![false; parents.len()];
+            if self.params.sampling_stop {
+                for (g, slot) in undone.iter_mut().enumerate() {
+                    let group = &fitted[8 * g..8 * g + 8];
+                    let sparse = parents[g].2 < SPLIT_FACTOR * self.params.n_min;
+                    let limited = |l: &Option<Leaf>| l.as_ref().is_some_and(|l| l.empty || l.grown);
+                    let over = group
+                        .iter()
+                        .flatten()
+                        .any(|l| !l.empty && l.fit.error > eps);
+                    *slot = over && (sparse || group.iter().all(limited));
+                }
+            }
+            let restored: Vec<Option<Leaf>> = parents
+                .par_iter()
+                .zip(&undone)
+                .map_init(Candidates::default, |cand, (&(level, key, _), &u)| {
+                    if u {
+                        self.fit_cell(cand, level, key, true)
+                    } else {
+                        None
+                    }
+                })
+                .collect();
+            for ((&(level, key, _), leaf), &u) in parents.iter().zip(restored).zip(&undone) {
+                if let (true, Some(leaf)) = (u, leaf) {
+                    self.internal[level as usize].remove(&key);
+                    self.leaves[level as usize].insert(key, leaf);
+                    new_leaves.push((level, key));
+                    stats.sampling_limited_octants += 1;
+                }
+            }
             let mut next = Vec::new();
-            for (&(level, key), leaf) in frontier.iter().zip(fitted) {
+            let mut next_parents = Vec::new();
+            for (idx, (&(level, key), leaf)) in frontier.iter().zip(fitted).enumerate() {
                 stats.octants_per_level[level as usize] += 1;
+                if undone.get(idx / 8).copied().unwrap_or(false) {
+                    continue;
+                }
                 let Some(leaf) = leaf else { continue };
-                if leaf.fit.error > self.params.eps
+                if leaf.fit.error > eps
                     && u32::from(level) < self.params.max_depth
                     && leaf.refinable
                 {
                     self.internal[level as usize].insert(key);
                     next.extend(children(key).map(|c| (level + 1, c)));
+                    next_parents.push((level, key, leaf.own_points));
                 } else {
                     self.leaves[level as usize].insert(key, leaf);
                     new_leaves.push((level, key));
                 }
             }
             frontier = next;
+            parents = next_parents;
         }
         new_leaves
     }
 
     /// The support of a cell. `None` only when no point is indexed at all.
-    fn fit_cell(&self, cand: &mut Candidates, level: u8, key: u64) -> Option<Leaf> {
+    /// `exact`: compute the exact error even where the cell would be refined (a cell whose
+    /// subdivision was undone).
+    fn fit_cell(&self, cand: &mut Candidates, level: u8, key: u64, exact: bool) -> Option<Leaf> {
         let (center, natural) = self.geometry.cell(level, key);
         let samples = self.samples;
         cand.gather(samples, center, natural);
         let mut radius = natural;
-        let empty = cand.len() == 0;
+        let own_points = cand.len();
+        let empty = own_points == 0;
         let mut grown = false;
         if cand.len() < self.params.n_min {
             let mut nearest = Vec::with_capacity(self.params.n_min);
@@ -269,7 +334,7 @@ impl Octree<'_> {
             grown = radius > natural;
             cand.gather(samples, center, radius);
         }
-        let limit = if u32::from(level) < self.params.max_depth && !empty {
+        let limit = if u32::from(level) < self.params.max_depth && !empty && !exact {
             self.params.eps
         } else {
             // No refinement will follow: keep the exact error.
@@ -293,6 +358,7 @@ impl Octree<'_> {
             grown,
             empty,
             refinable,
+            own_points,
         })
     }
 
