@@ -12,7 +12,33 @@
 //!
 //! A tool that fails or is missing gets a row that says so; the run goes on. The
 //! per-function criterion benchmarks live next to each crate (`cargo bench -p
-//! sphcover-core`). This library holds what both binaries share.
+//! sphcover-core`). This library holds what both binaries share: peer command templates,
+//! measured runs and markdown tables.
+//!
+//! ```
+//! use std::path::Path;
+//! use std::time::Duration;
+//! use sphcover_benches::command_template::CommandTemplate;
+//! use sphcover_benches::markdown_table::{MarkdownTable, fixed};
+//! use sphcover_benches::measured_run::{RunOutcome, run_measured};
+//!
+//! // A peer as `--peer` takes it: {in} and {out} become the scan and the output mesh.
+//! let peer = CommandTemplate::parse("poisson=PoissonRecon --in {in} --out {out} --depth 10")?;
+//! let argv = peer.expand(Path::new("scan.ply"), Path::new("mesh.ply"));
+//! assert_eq!(argv[..5], ["PoissonRecon", "--in", "scan.ply", "--out", "mesh.ply"]);
+//!
+//! // A tool that is not installed gives a row that says so, and the run goes on (under GNU
+//! // time, when present, it is time's "command not found").
+//! let argv = ["no-such-peer-binary".to_string()];
+//! let run = run_measured(&argv, Path::new("."), Duration::from_secs(5));
+//! assert!(!run.succeeded());
+//! assert!(matches!(run.outcome, RunOutcome::NotStarted(_) | RunOutcome::Failed { .. }));
+//!
+//! let mut table = MarkdownTable::new(["tool", "wall s"]);
+//! table.push(vec![peer.name.clone(), fixed(None, 2)]);
+//! assert_eq!(table.render().lines().nth(2), Some("| poisson | –      |"));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 
 pub mod command_template;

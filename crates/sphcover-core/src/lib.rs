@@ -5,6 +5,38 @@
 //! implicit function `f` (thesis eq. 3.1). This crate holds that model, its analytic
 //! evaluation, the sphere intersection graph (thesis Appendix B), spatial queries over balls,
 //! point and mesh types, and the scan file formats.
+//!
+//! ```
+//! use sphcover_core::{DVec3, PuEvaluator, SphereIntersectionGraph, SurfaceCoverParams};
+//! use sphcover_core::build_surface_cover;
+//!
+//! // 1,000 oriented points on a sphere of radius 0.4 (a Fibonacci lattice).
+//! let n = 1000;
+//! let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+//! let normals: Vec<DVec3> = (0..n)
+//!     .map(|i| {
+//!         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+//!         let s = (1.0 - z * z).sqrt();
+//!         DVec3::new(s * (golden * i as f64).cos(), s * (golden * i as f64).sin(), z)
+//!     })
+//!     .collect();
+//! let points: Vec<DVec3> = normals.iter().map(|&u| 0.4 * u).collect();
+//!
+//! // The cover of thesis §3.4.1: balls whose local quadratics fit the points to ε.
+//! let params = SurfaceCoverParams { eps: 1e-2, ..SurfaceCoverParams::default() };
+//! let (cover, _stats) = build_surface_cover(&points, &normals, &params)?;
+//!
+//! // Their blend f: positive inside, negative outside, zero on the surface.
+//! let f = PuEvaluator::new(&cover, 1.0)?;
+//! assert!(f.value(DVec3::ZERO).unwrap() > 0.0);
+//! assert!(f.value(DVec3::new(0.0, 0.0, 0.5)).unwrap() < 0.0);
+//! assert!(f.value(points[0]).unwrap().abs() <= 2.0 * params.eps);
+//!
+//! // Which supports overlap (thesis Appendix B): every support meets another.
+//! let graph = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 1.0)?;
+//! assert!((0..cover.len()).all(|i| graph.degree(i) > 0));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 
 pub mod ball_index;
