@@ -40,6 +40,8 @@
 //!        ─► cleaning (weld, undo pinches, fill holes over material, drop fragments)
 //!        ─► rim trimming (medial-axis test) ─► cleaning again
 //!        ─► holes of the sheets meeting at junctions
+//!        ─► closed pockets opened, tunnels through material closed (Z2 loops), flaps
+//!           standing across the sheet collapsed
 //!        ─► re-centring between the faces, folding junction fillets onto the plates
 //!        ─► optional smoothing across the sheet
 //!        ─► TriMesh in world units
