@@ -150,13 +150,21 @@ struct Scratch {
     stamp: u32,
     stack: Vec<u32>,
     cavity: Vec<u32>,
-    boundary: Vec<(u32, u8)>,
-    new_tets: Vec<u32>,
+    boundary: Vec<BoundaryFace>,
     rng: SplitMix64,
     /// Per vertex: the insertion stamp of the last cavity boundary it was on.
     vmark: Vec<u32>,
     /// Per vertex (insertion numbering): hidden on arrival or swallowed later.
     hidden: Vec<bool>,
+}
+
+/// A face of the conflict zone's boundary: face `face` of the zone's cell `old`, and the new
+/// cell built on it from the inserted point (once built).
+#[derive(Clone, Copy, Debug)]
+struct BoundaryFace {
+    old: u32,
+    face: u8,
+    new: u32,
 }
 
 const UNTESTED: u8 = 0;
@@ -239,7 +247,6 @@ impl RegularTriangulation {
             stack: Vec::new(),
             cavity: Vec::new(),
             boundary: Vec::new(),
-            new_tets: Vec::new(),
             rng: SplitMix64::new(params.seed ^ 0xa5a5_5a5a_dead_beef),
             vmark: vec![0; distinct],
             hidden: vec![false; distinct],
@@ -401,85 +408,92 @@ impl RegularTriangulation {
                     s.stack.push(n);
                 } else {
                     s.mark[n as usize] = outside;
-                    s.boundary.push((t, i));
+                    s.boundary.push(BoundaryFace {
+                        old: t,
+                        face: i,
+                        new: NO_TET,
+                    });
                 }
             }
         }
         self.stats.conflict_tets += s.cavity.len() as u64;
-        s.new_tets.clear();
+        // Every new cell's slot, reused or appended, gets a mark entry.
+        let needed = self.cells.len() + s.boundary.len();
+        if s.mark.len() < needed {
+            s.mark.resize(needed, UNTESTED);
+        }
         // Cone from v over the zone's boundary. The old cell keeps, in the slot of the
         // boundary face, the handle of the new cell built on that face: the second pass
         // finds the new cells' mutual neighbours through it.
-        for &(t, i) in &s.boundary {
+        for f in s.boundary.iter_mut() {
+            let (t, i) = (f.old, f.face as usize);
             let mut cell = self.cells[t as usize].v;
-            cell[i as usize] = v;
-            let outer = self.cells[t as usize].n[i as usize];
+            cell[i] = v;
+            let outer = self.cells[t as usize].n[i];
             let nt = self.alloc(cell);
-            if s.mark.len() < self.cells.len() {
-                s.mark.resize(self.cells.len(), UNTESTED);
-            }
             s.mark[nt as usize] = UNTESTED;
             // The search is over: clear the tested-outside mark for the next insertion.
             s.mark[outer as usize] = UNTESTED;
-            self.cells[nt as usize].n[i as usize] = outer;
+            self.cells[nt as usize].n[i] = outer;
             let back = self.cells[outer as usize]
                 .n
                 .iter()
                 .position(|&x| x == t)
                 .expect("adjacency is symmetric");
             self.cells[outer as usize].n[back] = nt;
-            self.cells[t as usize].n[i as usize] = nt;
+            self.cells[t as usize].n[i] = nt;
             // The boundary facet's vertices stay; `v` is new.
             for &u in &cell {
                 if u != INFINITE_VERTEX && u != v {
                     s.vmark[u as usize] = s.stamp;
                 }
             }
-            s.new_tets.push(nt);
+            f.new = nt;
         }
         // Each face of a new cell through v contains an edge ab of the zone's boundary; the
         // neighbour across it is the new cell on the next boundary face around ab, reached by
         // turning about ab through the zone's cells (which are intact until freed below).
-        for (&(t, i), &nt) in s.boundary.iter().zip(&s.new_tets) {
-            let cell = self.cells[t as usize].v;
+        // The walk tracks the positions of a, b and of the face crossed in the current cell,
+        // and a new cell has its old cell's vertex positions (v in place of the face's apex),
+        // so no vertex search is needed on arrival.
+        for f in &s.boundary {
+            let (t, i, nt) = (f.old, f.face as usize, f.new);
             for k in 0..4usize {
-                if k == i as usize || self.cells[nt as usize].n[k] != NO_TET {
+                if k == i || self.cells[nt as usize].n[k] != NO_TET {
                     continue;
                 }
-                let (x, y) = other_two(i as usize, k);
-                let (a, b) = (cell[x], cell[y]);
-                let mut cur = t;
-                let mut opp = k;
+                let (x, y) = other_two(i, k);
+                let (a, b) = {
+                    let cell = &self.cells[t as usize].v;
+                    (cell[x], cell[y])
+                };
+                let (mut cur, mut opp, mut pa, mut pb) = (t, k, x, y);
                 loop {
                     let next = self.cells[cur as usize].n[opp];
+                    // The fourth position of `cur`, besides a, b and the crossed face's apex.
+                    let third = 6 - opp - pa - pb;
                     if s.mark[next as usize] != IN_CONFLICT {
-                        // `next` is the new cell on the boundary face (cur, opp); link both
-                        // sides (the face of `next` through v, a, b is opposite its vertex
-                        // outside {v, a, b}).
+                        // `next` is the new cell on the boundary face (cur, opp): v at `opp`,
+                        // a and b at `pa`, `pb`; its face through v, a, b is opposite `third`.
                         self.cells[nt as usize].n[k] = next;
-                        let other = self.cells[next as usize]
-                            .v
-                            .iter()
-                            .position(|&u| u != v && u != a && u != b)
-                            .expect("a tetrahedron has four distinct vertices");
-                        self.cells[next as usize].n[other] = nt;
+                        self.cells[next as usize].n[third] = nt;
                         break;
                     }
                     // Crossed the face {a, b, w}; continue through the face of `next`
                     // opposite w.
-                    let c = &self.cells[cur as usize].v;
-                    let skip = c[opp];
-                    let w = c
-                        .iter()
-                        .copied()
-                        .find(|&u| u != a && u != b && u != skip)
-                        .expect("a tetrahedron has four distinct vertices");
-                    opp = self.cells[next as usize]
-                        .v
-                        .iter()
-                        .position(|&u| u == w)
-                        .expect("neighbours share the crossed face");
-                    cur = next;
+                    let w = self.cells[cur as usize].v[third];
+                    let nv = self.cells[next as usize].v;
+                    let (mut qa, mut qb, mut qw) = (0, 0, 0);
+                    for (j, &u) in nv.iter().enumerate() {
+                        if u == a {
+                            qa = j;
+                        } else if u == b {
+                            qb = j;
+                        } else if u == w {
+                            qw = j;
+                        }
+                    }
+                    (cur, opp, pa, pb) = (next, qw, qa, qb);
                 }
             }
         }
@@ -490,14 +504,12 @@ impl RegularTriangulation {
                     s.hidden[u as usize] = true;
                 }
             }
-        }
-        for &t in &s.cavity {
             self.cells[t as usize].v = [DEAD; 4];
             s.mark[t as usize] = UNTESTED;
             self.free.push(t);
         }
 
-        s.new_tets[0]
+        s.boundary[0].new
     }
 
     /// Remembering stochastic walk to a tetrahedron containing point `v` (closed), or to an
