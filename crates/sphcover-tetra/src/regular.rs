@@ -47,7 +47,7 @@ use rayon::prelude::*;
 use crate::error::TetraError;
 use crate::predicates::{
     MAX_COORDINATE, MAX_WEIGHT, Point, collinear, grid_lifted_sign, lifted_sign_fixed, orient3d,
-    orient3d_filter, power_test_exact, power_test_filter,
+    orient3d_filter, orient3d_grid, power_test_exact, power_test_filter,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -126,6 +126,9 @@ pub struct RegularTriangulation {
     grid: Option<(i32, Vec<[i32; 3]>)>,
     /// While building on such a grid, `2^-e` (one over the grid unit); otherwise 0.
     grid_inverse_unit: f64,
+    /// While building on such a grid with `|e| ≤ 300`, `2^16` grid units, the range of the
+    /// exact grid orientation ([`orient3d_grid`]); otherwise 0.
+    grid_orient_limit: f64,
     /// Lexicographic rank of each point's centre (ties share a rank; only distinct centres
     /// are inserted), the order of the symbolic perturbation.
     rank: Vec<u32>,
@@ -224,6 +227,7 @@ impl RegularTriangulation {
             status: Vec::new(),
             grid: None,
             grid_inverse_unit: 0.0,
+            grid_orient_limit: 0.0,
             stats: TriangulationStats {
                 points: n,
                 ..Default::default()
@@ -233,6 +237,13 @@ impl RegularTriangulation {
         tri.grid_inverse_unit = match &tri.grid {
             // 2^-e is a normal f64 for e in -1022..=1022.
             Some((e, _)) if (-1022..=1022).contains(e) => f64::from_bits(((1023 - e) as u64) << 52),
+            _ => 0.0,
+        };
+        tri.grid_orient_limit = match &tri.grid {
+            // 2^(e+16), a normal f64 in this range.
+            Some((e, _)) if (-300..=300).contains(e) => {
+                f64::from_bits(((1023 + 16 + e) as u64) << 52)
+            }
             _ => 0.0,
         };
         let first =
@@ -278,6 +289,7 @@ impl RegularTriangulation {
         }
         tri.grid = None;
         tri.grid_inverse_unit = 0.0;
+        tri.grid_orient_limit = 0.0;
         tri.pw = points
             .iter()
             .zip(weights)
@@ -643,7 +655,16 @@ impl RegularTriangulation {
         );
         match orient3d_filter(pa, pb, pc, pd) {
             Some(s) => s,
-            None => self.orient_exact(ids),
+            None => {
+                // Near-zero orientations, mostly exact zeros on grids: plain f64 settles them
+                // when the grid is fine enough, before the out-of-line exact stages.
+                if self.grid_orient_limit != 0.0 {
+                    if let Some(s) = orient3d_grid(pa, pb, pc, pd, self.grid_orient_limit) {
+                        return s;
+                    }
+                }
+                self.orient_exact(ids)
+            }
         }
     }
 
