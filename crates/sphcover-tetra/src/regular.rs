@@ -402,25 +402,31 @@ impl RegularTriangulation {
         }
         s.stamp += 1;
         let (conflict, outside) = (IN_CONFLICT, OUTSIDE);
-        s.stack.clear();
-        s.cavity.clear();
-        s.boundary.clear();
-        s.stack.push(start);
-        s.mark[start as usize] = conflict;
-        while let Some(t) = s.stack.pop() {
-            s.cavity.push(t);
-            for i in 0..4u8 {
-                let n = self.cells[t as usize].n[i as usize];
-                let m = s.mark[n as usize];
+        // The search's vectors as locals (their lengths can then live in registers across the
+        // out-of-line predicate calls); put back below.
+        let mut stack = std::mem::take(&mut s.stack);
+        let mut cavity = std::mem::take(&mut s.cavity);
+        let mut boundary = std::mem::take(&mut s.boundary);
+        let mark = &mut s.mark;
+        stack.clear();
+        cavity.clear();
+        boundary.clear();
+        stack.push(start);
+        mark[start as usize] = conflict;
+        while let Some(t) = stack.pop() {
+            cavity.push(t);
+            let neighbours = self.cells[t as usize].n;
+            for (i, n) in (0..4u8).zip(neighbours) {
+                let m = mark[n as usize];
                 if m == conflict {
                     continue;
                 }
                 if m != outside && self.in_conflict(n, v) {
-                    s.mark[n as usize] = conflict;
-                    s.stack.push(n);
+                    mark[n as usize] = conflict;
+                    stack.push(n);
                 } else {
-                    s.mark[n as usize] = outside;
-                    s.boundary.push(BoundaryFace {
+                    mark[n as usize] = outside;
+                    boundary.push(BoundaryFace {
                         old: t,
                         face: i,
                         new: NO_TET,
@@ -428,6 +434,9 @@ impl RegularTriangulation {
                 }
             }
         }
+        s.stack = stack;
+        s.cavity = cavity;
+        s.boundary = boundary;
         self.stats.conflict_tets += s.cavity.len() as u64;
         // Every new cell's slot, reused or appended, gets a mark entry.
         let needed = self.cells.len() + s.boundary.len();
@@ -442,8 +451,9 @@ impl RegularTriangulation {
             let mut cell = self.cells[t as usize].v;
             cell[i] = v;
             let outer = self.cells[t as usize].n[i];
+            // A reused slot's mark was cleared when it was freed, an appended one is fresh:
+            // `nt` is already UNTESTED.
             let nt = self.alloc(cell);
-            s.mark[nt as usize] = UNTESTED;
             // The search is over: clear the tested-outside mark for the next insertion.
             s.mark[outer as usize] = UNTESTED;
             self.cells[nt as usize].n[i] = outer;
@@ -518,8 +528,8 @@ impl RegularTriangulation {
             }
             self.cells[t as usize].v = [DEAD; 4];
             s.mark[t as usize] = UNTESTED;
-            self.free.push(t);
         }
+        self.free.extend_from_slice(&s.cavity);
 
         s.boundary[0].new
     }
