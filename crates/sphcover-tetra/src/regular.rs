@@ -29,9 +29,10 @@
 //! for every cell they visit: one cache line instead of two), and a free list of slots. The
 //! input-sized arrays (points, ranks, marks) stay separate. While building, vertices are numbered in
 //! insertion order (cells near the new point then touch nearby memory) and mapped back to
-//! input indices at the end. The cone over the conflict zone is stitched without hashing: the
-//! neighbour of a new cell across a face through the new point is found by turning about the
-//! face's boundary edge through the (still intact) old cells. On inputs whose centres lie on
+//! input indices at the end. The cone over the conflict zone is stitched in two passes: each new
+//! cell takes its outside neighbour from the old cell it replaces, and the new cells are
+//! paired with each other through a small per-insertion table keyed by their boundary edge
+//! (open addressing, stamped instead of cleared; no allocation in the steady state). On inputs whose centres lie on
 //! one dyadic grid (voxel grids, octrees), integer coordinates are precomputed so that exact
 //! tie-breaking, frequent there, skips the per-call bit analysis, and power tests whose five
 //! weights are equal go straight to an exact small-integer evaluation (on the octree
@@ -154,6 +155,9 @@ struct Scratch {
     stack: Vec<u32>,
     cavity: Vec<u32>,
     boundary: Vec<BoundaryFace>,
+    /// Open-addressing table pairing the new cells' faces through the inserted point by
+    /// their boundary edge; a power of two long, entries valid for the current stamp only.
+    edge_table: Vec<EdgeSlot>,
     rng: SplitMix64,
     /// Per vertex: the insertion stamp of the last cavity boundary it was on.
     vmark: Vec<u32>,
@@ -168,6 +172,16 @@ struct BoundaryFace {
     old: u32,
     face: u8,
     new: u32,
+}
+
+/// An entry of [`Scratch::edge_table`]: the edge (its two vertices, smaller one high) and the
+/// new cell face through it waiting for its partner.
+#[derive(Clone, Copy, Debug, Default)]
+struct EdgeSlot {
+    key: u64,
+    cell: u32,
+    face: u32,
+    stamp: u32,
 }
 
 const UNTESTED: u8 = 0;
@@ -258,6 +272,7 @@ impl RegularTriangulation {
             stack: Vec::new(),
             cavity: Vec::new(),
             boundary: Vec::new(),
+            edge_table: Vec::new(),
             rng: SplitMix64::new(params.seed ^ 0xa5a5_5a5a_dead_beef),
             vmark: vec![0; distinct],
             hidden: vec![false; distinct],
@@ -446,17 +461,33 @@ impl RegularTriangulation {
         // Cone from v over the zone's boundary. The old cell keeps, in the slot of the
         // boundary face, the handle of the new cell built on that face: the second pass
         // finds the new cells' mutual neighbours through it.
-        for f in s.boundary.iter_mut() {
+        // New cells take the free slots in the order `pop` would (last freed first), then
+        // append; a reused slot's mark was cleared when it was freed and an appended one is
+        // fresh, so every new cell is UNTESTED.
+        let stamp = s.stamp;
+        let (mark, vmark) = (&mut s.mark, &mut s.vmark);
+        let free_len = self.free.len();
+        let reused = free_len.min(s.boundary.len());
+        for (j, f) in s.boundary.iter_mut().enumerate() {
             let (t, i) = (f.old, f.face as usize);
-            let mut cell = self.cells[t as usize].v;
-            cell[i] = v;
-            let outer = self.cells[t as usize].n[i];
-            // A reused slot's mark was cleared when it was freed, an appended one is fresh:
-            // `nt` is already UNTESTED.
-            let nt = self.alloc(cell);
+            let old = self.cells[t as usize];
+            let mut fresh = Cell {
+                v: old.v,
+                n: [NO_TET; 4],
+            };
+            fresh.v[i] = v;
+            let outer = old.n[i];
+            fresh.n[i] = outer;
+            let nt = if j < reused {
+                let nt = self.free[free_len - 1 - j];
+                self.cells[nt as usize] = fresh;
+                nt
+            } else {
+                self.cells.push(fresh);
+                (self.cells.len() - 1) as u32
+            };
             // The search is over: clear the tested-outside mark for the next insertion.
-            s.mark[outer as usize] = UNTESTED;
-            self.cells[nt as usize].n[i] = outer;
+            mark[outer as usize] = UNTESTED;
             let back = self.cells[outer as usize]
                 .n
                 .iter()
@@ -465,57 +496,58 @@ impl RegularTriangulation {
             self.cells[outer as usize].n[back] = nt;
             self.cells[t as usize].n[i] = nt;
             // The boundary facet's vertices stay; `v` is new.
-            for &u in &cell {
-                if u != INFINITE_VERTEX && u != v {
-                    s.vmark[u as usize] = s.stamp;
+            for (k, &u) in old.v.iter().enumerate() {
+                if k != i && u != INFINITE_VERTEX {
+                    vmark[u as usize] = stamp;
                 }
             }
             f.new = nt;
         }
-        // Each face of a new cell through v contains an edge ab of the zone's boundary; the
-        // neighbour across it is the new cell on the next boundary face around ab, reached by
-        // turning about ab through the zone's cells (which are intact until freed below).
-        // The walk tracks the positions of a, b and of the face crossed in the current cell,
-        // and a new cell has its old cell's vertex positions (v in place of the face's apex),
-        // so no vertex search is needed on arrival.
+        self.free.truncate(free_len - reused);
+        // Each face of a new cell through v contains an edge ab of the zone's boundary (a
+        // closed surface: every edge is on exactly two boundary faces), and the neighbour
+        // across it is the new cell on the other face through ab. They are paired by a
+        // small open-addressing table keyed by the edge, stamped per insertion (no clearing).
+        let edges = 3 * s.boundary.len() / 2;
+        if s.edge_table.len() < 4 * edges {
+            let size = (4 * edges).next_power_of_two();
+            s.edge_table.clear();
+            s.edge_table.resize(size, EdgeSlot::default());
+        }
+        let mask = s.edge_table.len() - 1;
+        let shift = 64 - s.edge_table.len().trailing_zeros();
         for f in &s.boundary {
-            let (t, i, nt) = (f.old, f.face as usize, f.new);
+            let (i, nt) = (f.face as usize, f.new);
+            let cell = self.cells[nt as usize].v;
             for k in 0..4usize {
-                if k == i || self.cells[nt as usize].n[k] != NO_TET {
+                if k == i {
                     continue;
                 }
                 let (x, y) = other_two(i, k);
-                let (a, b) = {
-                    let cell = &self.cells[t as usize].v;
-                    (cell[x], cell[y])
+                let (a, b) = (cell[x], cell[y]);
+                let key = if a < b {
+                    ((a as u64) << 32) | b as u64
+                } else {
+                    ((b as u64) << 32) | a as u64
                 };
-                let (mut cur, mut opp, mut pa, mut pb) = (t, k, x, y);
+                let mut h = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> shift) as usize;
                 loop {
-                    let next = self.cells[cur as usize].n[opp];
-                    // The fourth position of `cur`, besides a, b and the crossed face's apex.
-                    let third = 6 - opp - pa - pb;
-                    if s.mark[next as usize] != IN_CONFLICT {
-                        // `next` is the new cell on the boundary face (cur, opp): v at `opp`,
-                        // a and b at `pa`, `pb`; its face through v, a, b is opposite `third`.
-                        self.cells[nt as usize].n[k] = next;
-                        self.cells[next as usize].n[third] = nt;
+                    let slot = &mut s.edge_table[h];
+                    if slot.stamp != stamp {
+                        *slot = EdgeSlot {
+                            key,
+                            cell: nt,
+                            face: k as u32,
+                            stamp,
+                        };
                         break;
                     }
-                    // Crossed the face {a, b, w}; continue through the face of `next`
-                    // opposite w.
-                    let w = self.cells[cur as usize].v[third];
-                    let nv = self.cells[next as usize].v;
-                    let (mut qa, mut qb, mut qw) = (0, 0, 0);
-                    for (j, &u) in nv.iter().enumerate() {
-                        if u == a {
-                            qa = j;
-                        } else if u == b {
-                            qb = j;
-                        } else if u == w {
-                            qw = j;
-                        }
+                    if slot.key == key {
+                        self.cells[nt as usize].n[k] = slot.cell;
+                        self.cells[slot.cell as usize].n[slot.face as usize] = nt;
+                        break;
                     }
-                    (cur, opp, pa, pb) = (next, qw, qa, qb);
+                    h = (h + 1) & mask;
                 }
             }
         }
