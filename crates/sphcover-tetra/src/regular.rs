@@ -29,9 +29,10 @@
 //! for every cell they visit: one cache line instead of two), and a free list of slots. The
 //! input-sized arrays (points, ranks, marks) stay separate. While building, vertices are numbered in
 //! insertion order (cells near the new point then touch nearby memory) and mapped back to
-//! input indices at the end. The cone over the conflict zone is stitched without hashing: the
-//! neighbour of a new cell across a face through the new point is found by turning about the
-//! face's boundary edge through the (still intact) old cells. On inputs whose centres lie on
+//! input indices at the end. The cone over the conflict zone is stitched in two passes: each new
+//! cell takes its outside neighbour from the old cell it replaces, and the new cells are
+//! paired with each other through a small per-insertion table keyed by their boundary edge
+//! (open addressing, stamped instead of cleared; no allocation in the steady state). On inputs whose centres lie on
 //! one dyadic grid (voxel grids, octrees), integer coordinates are precomputed so that exact
 //! tie-breaking, frequent there, skips the per-call bit analysis, and power tests whose five
 //! weights are equal go straight to an exact small-integer evaluation (on the octree
@@ -47,7 +48,7 @@ use rayon::prelude::*;
 use crate::error::TetraError;
 use crate::predicates::{
     MAX_COORDINATE, MAX_WEIGHT, Point, collinear, grid_lifted_sign, lifted_sign_fixed, orient3d,
-    orient3d_filter, power_test_exact, power_test_filter,
+    orient3d_filter, orient3d_grid, power_test_exact, power_test_filter,
 };
 use crate::spatial_sort::{SplitMix64, brio_order};
 
@@ -126,6 +127,9 @@ pub struct RegularTriangulation {
     grid: Option<(i32, Vec<[i32; 3]>)>,
     /// While building on such a grid, `2^-e` (one over the grid unit); otherwise 0.
     grid_inverse_unit: f64,
+    /// While building on such a grid with `|e| ≤ 300`, `2^16` grid units, the range of the
+    /// exact grid orientation ([`orient3d_grid`]); otherwise 0.
+    grid_orient_limit: f64,
     /// Lexicographic rank of each point's centre (ties share a rank; only distinct centres
     /// are inserted), the order of the symbolic perturbation.
     rank: Vec<u32>,
@@ -150,13 +154,34 @@ struct Scratch {
     stamp: u32,
     stack: Vec<u32>,
     cavity: Vec<u32>,
-    boundary: Vec<(u32, u8)>,
-    new_tets: Vec<u32>,
+    boundary: Vec<BoundaryFace>,
+    /// Open-addressing table pairing the new cells' faces through the inserted point by
+    /// their boundary edge; a power of two long, entries valid for the current stamp only.
+    edge_table: Vec<EdgeSlot>,
     rng: SplitMix64,
     /// Per vertex: the insertion stamp of the last cavity boundary it was on.
     vmark: Vec<u32>,
     /// Per vertex (insertion numbering): hidden on arrival or swallowed later.
     hidden: Vec<bool>,
+}
+
+/// A face of the conflict zone's boundary: face `face` of the zone's cell `old`, and the new
+/// cell built on it from the inserted point (once built).
+#[derive(Clone, Copy, Debug)]
+struct BoundaryFace {
+    old: u32,
+    face: u8,
+    new: u32,
+}
+
+/// An entry of [`Scratch::edge_table`]: the edge (its two vertices, smaller one high) and the
+/// new cell face through it waiting for its partner.
+#[derive(Clone, Copy, Debug, Default)]
+struct EdgeSlot {
+    key: u64,
+    cell: u32,
+    face: u32,
+    stamp: u32,
 }
 
 const UNTESTED: u8 = 0;
@@ -216,6 +241,7 @@ impl RegularTriangulation {
             status: Vec::new(),
             grid: None,
             grid_inverse_unit: 0.0,
+            grid_orient_limit: 0.0,
             stats: TriangulationStats {
                 points: n,
                 ..Default::default()
@@ -225,6 +251,13 @@ impl RegularTriangulation {
         tri.grid_inverse_unit = match &tri.grid {
             // 2^-e is a normal f64 for e in -1022..=1022.
             Some((e, _)) if (-1022..=1022).contains(e) => f64::from_bits(((1023 - e) as u64) << 52),
+            _ => 0.0,
+        };
+        tri.grid_orient_limit = match &tri.grid {
+            // 2^(e+16), a normal f64 in this range.
+            Some((e, _)) if (-300..=300).contains(e) => {
+                f64::from_bits(((1023 + 16 + e) as u64) << 52)
+            }
             _ => 0.0,
         };
         let first =
@@ -239,7 +272,7 @@ impl RegularTriangulation {
             stack: Vec::new(),
             cavity: Vec::new(),
             boundary: Vec::new(),
-            new_tets: Vec::new(),
+            edge_table: Vec::new(),
             rng: SplitMix64::new(params.seed ^ 0xa5a5_5a5a_dead_beef),
             vmark: vec![0; distinct],
             hidden: vec![false; distinct],
@@ -271,6 +304,7 @@ impl RegularTriangulation {
         }
         tri.grid = None;
         tri.grid_inverse_unit = 0.0;
+        tri.grid_orient_limit = 0.0;
         tri.pw = points
             .iter()
             .zip(weights)
@@ -383,103 +417,137 @@ impl RegularTriangulation {
         }
         s.stamp += 1;
         let (conflict, outside) = (IN_CONFLICT, OUTSIDE);
-        s.stack.clear();
-        s.cavity.clear();
-        s.boundary.clear();
-        s.stack.push(start);
-        s.mark[start as usize] = conflict;
-        while let Some(t) = s.stack.pop() {
-            s.cavity.push(t);
-            for i in 0..4u8 {
-                let n = self.cells[t as usize].n[i as usize];
-                let m = s.mark[n as usize];
+        // The search's vectors as locals (their lengths can then live in registers across the
+        // out-of-line predicate calls); put back below.
+        let mut stack = std::mem::take(&mut s.stack);
+        let mut cavity = std::mem::take(&mut s.cavity);
+        let mut boundary = std::mem::take(&mut s.boundary);
+        let mark = &mut s.mark;
+        stack.clear();
+        cavity.clear();
+        boundary.clear();
+        stack.push(start);
+        mark[start as usize] = conflict;
+        while let Some(t) = stack.pop() {
+            cavity.push(t);
+            let neighbours = self.cells[t as usize].n;
+            for (i, n) in (0..4u8).zip(neighbours) {
+                let m = mark[n as usize];
                 if m == conflict {
                     continue;
                 }
                 if m != outside && self.in_conflict(n, v) {
-                    s.mark[n as usize] = conflict;
-                    s.stack.push(n);
+                    mark[n as usize] = conflict;
+                    stack.push(n);
                 } else {
-                    s.mark[n as usize] = outside;
-                    s.boundary.push((t, i));
+                    mark[n as usize] = outside;
+                    boundary.push(BoundaryFace {
+                        old: t,
+                        face: i,
+                        new: NO_TET,
+                    });
                 }
             }
         }
+        s.stack = stack;
+        s.cavity = cavity;
+        s.boundary = boundary;
         self.stats.conflict_tets += s.cavity.len() as u64;
-        s.new_tets.clear();
+        // Every new cell's slot, reused or appended, gets a mark entry.
+        let needed = self.cells.len() + s.boundary.len();
+        if s.mark.len() < needed {
+            s.mark.resize(needed, UNTESTED);
+        }
         // Cone from v over the zone's boundary. The old cell keeps, in the slot of the
         // boundary face, the handle of the new cell built on that face: the second pass
         // finds the new cells' mutual neighbours through it.
-        for &(t, i) in &s.boundary {
-            let mut cell = self.cells[t as usize].v;
-            cell[i as usize] = v;
-            let outer = self.cells[t as usize].n[i as usize];
-            let nt = self.alloc(cell);
-            if s.mark.len() < self.cells.len() {
-                s.mark.resize(self.cells.len(), UNTESTED);
-            }
-            s.mark[nt as usize] = UNTESTED;
+        // New cells take the free slots in the order `pop` would (last freed first), then
+        // append; a reused slot's mark was cleared when it was freed and an appended one is
+        // fresh, so every new cell is UNTESTED.
+        let stamp = s.stamp;
+        let (mark, vmark) = (&mut s.mark, &mut s.vmark);
+        let free_len = self.free.len();
+        let reused = free_len.min(s.boundary.len());
+        for (j, f) in s.boundary.iter_mut().enumerate() {
+            let (t, i) = (f.old, f.face as usize);
+            let old = self.cells[t as usize];
+            let mut fresh = Cell {
+                v: old.v,
+                n: [NO_TET; 4],
+            };
+            fresh.v[i] = v;
+            let outer = old.n[i];
+            fresh.n[i] = outer;
+            let nt = if j < reused {
+                let nt = self.free[free_len - 1 - j];
+                self.cells[nt as usize] = fresh;
+                nt
+            } else {
+                self.cells.push(fresh);
+                (self.cells.len() - 1) as u32
+            };
             // The search is over: clear the tested-outside mark for the next insertion.
-            s.mark[outer as usize] = UNTESTED;
-            self.cells[nt as usize].n[i as usize] = outer;
+            mark[outer as usize] = UNTESTED;
             let back = self.cells[outer as usize]
                 .n
                 .iter()
                 .position(|&x| x == t)
                 .expect("adjacency is symmetric");
             self.cells[outer as usize].n[back] = nt;
-            self.cells[t as usize].n[i as usize] = nt;
+            self.cells[t as usize].n[i] = nt;
             // The boundary facet's vertices stay; `v` is new.
-            for &u in &cell {
-                if u != INFINITE_VERTEX && u != v {
-                    s.vmark[u as usize] = s.stamp;
+            for (k, &u) in old.v.iter().enumerate() {
+                if k != i && u != INFINITE_VERTEX {
+                    vmark[u as usize] = stamp;
                 }
             }
-            s.new_tets.push(nt);
+            f.new = nt;
         }
-        // Each face of a new cell through v contains an edge ab of the zone's boundary; the
-        // neighbour across it is the new cell on the next boundary face around ab, reached by
-        // turning about ab through the zone's cells (which are intact until freed below).
-        for (&(t, i), &nt) in s.boundary.iter().zip(&s.new_tets) {
-            let cell = self.cells[t as usize].v;
+        self.free.truncate(free_len - reused);
+        // Each face of a new cell through v contains an edge ab of the zone's boundary (a
+        // closed surface: every edge is on exactly two boundary faces), and the neighbour
+        // across it is the new cell on the other face through ab. They are paired by a
+        // small open-addressing table keyed by the edge, stamped per insertion (no clearing).
+        let edges = 3 * s.boundary.len() / 2;
+        if s.edge_table.len() < 4 * edges {
+            let size = (4 * edges).next_power_of_two();
+            s.edge_table.clear();
+            s.edge_table.resize(size, EdgeSlot::default());
+        }
+        let mask = s.edge_table.len() - 1;
+        let shift = 64 - s.edge_table.len().trailing_zeros();
+        for f in &s.boundary {
+            let (i, nt) = (f.face as usize, f.new);
+            let cell = self.cells[nt as usize].v;
             for k in 0..4usize {
-                if k == i as usize || self.cells[nt as usize].n[k] != NO_TET {
+                if k == i {
                     continue;
                 }
-                let (x, y) = other_two(i as usize, k);
+                let (x, y) = other_two(i, k);
                 let (a, b) = (cell[x], cell[y]);
-                let mut cur = t;
-                let mut opp = k;
+                let key = if a < b {
+                    ((a as u64) << 32) | b as u64
+                } else {
+                    ((b as u64) << 32) | a as u64
+                };
+                let mut h = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> shift) as usize;
                 loop {
-                    let next = self.cells[cur as usize].n[opp];
-                    if s.mark[next as usize] != IN_CONFLICT {
-                        // `next` is the new cell on the boundary face (cur, opp); link both
-                        // sides (the face of `next` through v, a, b is opposite its vertex
-                        // outside {v, a, b}).
-                        self.cells[nt as usize].n[k] = next;
-                        let other = self.cells[next as usize]
-                            .v
-                            .iter()
-                            .position(|&u| u != v && u != a && u != b)
-                            .expect("a tetrahedron has four distinct vertices");
-                        self.cells[next as usize].n[other] = nt;
+                    let slot = &mut s.edge_table[h];
+                    if slot.stamp != stamp {
+                        *slot = EdgeSlot {
+                            key,
+                            cell: nt,
+                            face: k as u32,
+                            stamp,
+                        };
                         break;
                     }
-                    // Crossed the face {a, b, w}; continue through the face of `next`
-                    // opposite w.
-                    let c = &self.cells[cur as usize].v;
-                    let skip = c[opp];
-                    let w = c
-                        .iter()
-                        .copied()
-                        .find(|&u| u != a && u != b && u != skip)
-                        .expect("a tetrahedron has four distinct vertices");
-                    opp = self.cells[next as usize]
-                        .v
-                        .iter()
-                        .position(|&u| u == w)
-                        .expect("neighbours share the crossed face");
-                    cur = next;
+                    if slot.key == key {
+                        self.cells[nt as usize].n[k] = slot.cell;
+                        self.cells[slot.cell as usize].n[slot.face as usize] = nt;
+                        break;
+                    }
+                    h = (h + 1) & mask;
                 }
             }
         }
@@ -490,14 +558,12 @@ impl RegularTriangulation {
                     s.hidden[u as usize] = true;
                 }
             }
-        }
-        for &t in &s.cavity {
             self.cells[t as usize].v = [DEAD; 4];
             s.mark[t as usize] = UNTESTED;
-            self.free.push(t);
         }
+        self.free.extend_from_slice(&s.cavity);
 
-        s.new_tets[0]
+        s.boundary[0].new
     }
 
     /// Remembering stochastic walk to a tetrahedron containing point `v` (closed), or to an
@@ -631,7 +697,16 @@ impl RegularTriangulation {
         );
         match orient3d_filter(pa, pb, pc, pd) {
             Some(s) => s,
-            None => self.orient_exact(ids),
+            None => {
+                // Near-zero orientations, mostly exact zeros on grids: plain f64 settles them
+                // when the grid is fine enough, before the out-of-line exact stages.
+                if self.grid_orient_limit != 0.0 {
+                    if let Some(s) = orient3d_grid(pa, pb, pc, pd, self.grid_orient_limit) {
+                        return s;
+                    }
+                }
+                self.orient_exact(ids)
+            }
         }
     }
 
