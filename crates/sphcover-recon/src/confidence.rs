@@ -52,6 +52,14 @@ pub enum ConfidenceError {
         /// Length given.
         found: usize,
     },
+    /// The point index given was not built over the samples given.
+    #[error("point index over {found} points given for {expected} samples")]
+    IndexMismatch {
+        /// Number of samples.
+        expected: usize,
+        /// Points the index was built over.
+        found: usize,
+    },
     /// A scanner confidence is NaN or outside `[0, 1]`.
     #[error("scanner confidence of sample {index} is {value}, not in [0, 1]")]
     InvalidScannerConfidence {
@@ -124,6 +132,11 @@ pub fn support_confidence(
     samples: &[DVec3],
 ) -> Result<(Vec<f64>, usize), ConfidenceError> {
     let index = PointIndex::new(samples)?;
+    Ok(support_confidence_in(cover, &index))
+}
+
+/// As [`support_confidence`], over the samples of `index`.
+fn support_confidence_in(cover: &Cover, index: &PointIndex) -> (Vec<f64>, usize) {
     let tau: Vec<(f64, bool)> = cover
         .centers()
         .par_iter()
@@ -136,7 +149,7 @@ pub fn support_confidence(
         })
         .collect();
     let degenerate = tau.iter().filter(|t| t.1).count();
-    Ok((tau.into_iter().map(|t| t.0).collect(), degenerate))
+    (tau.into_iter().map(|t| t.0).collect(), degenerate)
 }
 
 /// `(τ, degenerate)` of the support `(c, r)` holding `points`.
@@ -189,6 +202,27 @@ pub fn sample_confidence_with(
     params: &ConfidenceParams,
     distrusted: impl Fn(usize) -> bool,
 ) -> Result<SampleConfidence, ConfidenceError> {
+    let index = PointIndex::new(samples)?;
+    sample_confidence_indexed(cover, samples, &index, scanner, params, distrusted)
+}
+
+/// As [`sample_confidence_with`], with `index` a point index over `samples` (built by
+/// [`PointIndex::new`] from exactly these samples), so a caller that has one already saves
+/// building it again. The result is the same.
+pub fn sample_confidence_indexed(
+    cover: &Cover,
+    samples: &[DVec3],
+    index: &PointIndex,
+    scanner: Option<&[f64]>,
+    params: &ConfidenceParams,
+    distrusted: impl Fn(usize) -> bool,
+) -> Result<SampleConfidence, ConfidenceError> {
+    if index.input_len() != samples.len() {
+        return Err(ConfidenceError::IndexMismatch {
+            expected: samples.len(),
+            found: index.input_len(),
+        });
+    }
     let t = params.outlier_threshold;
     if !(t.is_finite() && t >= 0.0) {
         return Err(ConfidenceError::InvalidThreshold(t));
@@ -214,7 +248,7 @@ pub fn sample_confidence_with(
         ..Default::default()
     };
     let start = Instant::now();
-    let (mut tau, degenerate) = support_confidence(cover, samples)?;
+    let (mut tau, degenerate) = support_confidence_in(cover, index);
     for (i, t) in tau.iter_mut().enumerate() {
         if distrusted(i) {
             *t = 0.0;
@@ -384,6 +418,27 @@ mod tests {
         let (a, b) = (on(1), on(2));
         assert_eq!(a.confidence, b.confidence);
         assert_eq!(a.support_confidence, b.support_confidence);
+
+        // A caller's index over the same samples gives the same bits; one over other
+        // samples is refused.
+        let index = PointIndex::new(&samples).unwrap();
+        let params = ConfidenceParams::default();
+        let with = sample_confidence_with(&cover, &samples, None, &params, |i| i % 3 == 0).unwrap();
+        let indexed =
+            sample_confidence_indexed(&cover, &samples, &index, None, &params, |i| i % 3 == 0)
+                .unwrap();
+        assert_eq!(with.confidence, indexed.confidence);
+        assert_eq!(with.support_confidence, indexed.support_confidence);
+        assert_eq!(with.outliers, indexed.outliers);
+        let short = PointIndex::new(&samples[1..]).unwrap();
+        assert_eq!(
+            sample_confidence_indexed(&cover, &samples, &short, None, &params, |_| false)
+                .unwrap_err(),
+            ConfidenceError::IndexMismatch {
+                expected: samples.len(),
+                found: samples.len() - 1
+            }
+        );
 
         // A scanner confidence replaces σ.
         let scanner: Vec<f64> = (0..samples.len())

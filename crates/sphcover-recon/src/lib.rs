@@ -50,7 +50,7 @@ pub mod scan_statistics;
 
 pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
-    sample_confidence, sample_confidence_with, support_confidence,
+    sample_confidence, sample_confidence_indexed, sample_confidence_with, support_confidence,
 };
 pub use diffusion::{
     DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,

@@ -33,7 +33,7 @@ use thiserror::Error;
 
 use crate::confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
-    sample_confidence, sample_confidence_with,
+    sample_confidence, sample_confidence_indexed,
 };
 use crate::diffusion::{DiffusionError, DiffusionParams, DiffusionStats, FittingTerms, diffuse};
 use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut_sig};
@@ -438,9 +438,10 @@ pub fn reconstruct(
                 zero_functions(&mut cover, &zeroed)?;
             }
             clock.start("confidence");
-            let conf = sample_confidence_with(
+            let conf = sample_confidence_indexed(
                 &cover,
                 &points,
+                &index,
                 scanner.as_deref(),
                 &params.confidence,
                 |i| zeroed[i],

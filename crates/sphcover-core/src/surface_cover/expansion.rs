@@ -128,6 +128,27 @@ pub(crate) fn eliminate(
 ) -> Result<(Vec<bool>, Vec<f64>), PointIndexError> {
     let n = centers.len();
     let index = PointIndex::new(centers)?;
+    // The range queries do not depend on the pass, so they run first, in parallel: a support
+    // `k` can only ever be deleted by `i` when `‖c_k − c_i‖ + r_k ≤ r_i` holds for its
+    // initial radius (its radius at deletion time is the initial or the larger grown one), so
+    // each visited support keeps those candidates, with their distance, and the sequential
+    // pass re-checks them against the radius of the moment (bitwise the same test).
+    let candidates: Vec<Vec<(u32, f64)>> = (0..n)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|i| {
+            let mut near = Vec::new();
+            let ri = grown[i].radius;
+            let ci = centers[i];
+            index.for_each_within(ci, ri, |k, ck| {
+                let d = ck.distance(ci);
+                if k as usize != i && d + initial[k as usize] <= ri {
+                    near.push((k, d));
+                }
+            });
+            near
+        })
+        .collect();
     let order = shuffled(n, seed);
     let mut radius = initial.to_vec();
     let mut alive = vec![true; n];
@@ -138,13 +159,12 @@ pub(crate) fn eliminate(
         }
         let ri = grown[i].radius;
         radius[i] = ri;
-        let ci = centers[i];
-        index.for_each_within(ci, ri, |k, ck| {
+        for &(k, d) in &candidates[i] {
             let k = k as usize;
-            if k != i && alive[k] && ck.distance(ci) + radius[k] <= ri {
+            if alive[k] && d + radius[k] <= ri {
                 alive[k] = false;
             }
-        });
+        }
     }
     Ok((alive, radius))
 }
@@ -159,4 +179,58 @@ pub(crate) fn shuffled(n: usize, seed: u64) -> Vec<u32> {
         order.swap(i, j);
     }
     order
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Fig. 3.7 one support at a time, every pair tested: the oracle of [`eliminate`].
+    fn eliminate_brute_force(
+        centers: &[DVec3],
+        initial: &[f64],
+        grown: &[Grown],
+        seed: u64,
+    ) -> (Vec<bool>, Vec<f64>) {
+        let mut radius = initial.to_vec();
+        let mut alive = vec![true; centers.len()];
+        for i in shuffled(centers.len(), seed) {
+            let i = i as usize;
+            if !alive[i] {
+                continue;
+            }
+            let ri = grown[i].radius;
+            radius[i] = ri;
+            for k in 0..centers.len() {
+                let inside = (centers[k] - centers[i]).length_squared() < ri * ri;
+                if k != i && alive[k] && inside && centers[k].distance(centers[i]) + radius[k] <= ri
+                {
+                    alive[k] = false;
+                }
+            }
+        }
+        (alive, radius)
+    }
+
+    proptest! {
+        #[test]
+        fn elimination_matches_the_one_at_a_time_pass(
+            balls in prop::collection::vec(
+                ((-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0), 0.01f64..0.3, 1.0f64..4.0),
+                1..120,
+            ),
+            seed in any::<u64>(),
+        ) {
+            let centers: Vec<DVec3> = balls.iter().map(|&((x, y, z), _, _)| DVec3::new(x, y, z)).collect();
+            let initial: Vec<f64> = balls.iter().map(|&(_, r, _)| r).collect();
+            let fit = Fit { normal: DVec3::Z, centroid: DVec3::ZERO, error: 0.0 };
+            let grown: Vec<Grown> = balls
+                .iter()
+                .map(|&(_, r, g)| Grown { radius: r * g, fit, fits: 0 })
+                .collect();
+            let fast = eliminate(&centers, &initial, &grown, seed).unwrap();
+            prop_assert_eq!(fast, eliminate_brute_force(&centers, &initial, &grown, seed));
+        }
+    }
 }
