@@ -5,8 +5,8 @@ use std::path::Path;
 
 use sphcover_core::io::{self, CoverFileMeta, PlyEncoding, WriteOptions};
 use sphcover_core::{
-    Cover, Normalisation, SurfaceCoverParams, Threshold, VolumeCoverParams, VolumeCoverVariant,
-    build_scattered_cover, build_surface_cover_from_cloud, build_volume_cover,
+    Cover, Normalisation, SurfaceCoverParams, Threshold, VolumeCoverParams, VolumeCoverStats,
+    VolumeCoverVariant, build_scattered_cover, build_surface_cover_from_cloud, build_volume_cover,
 };
 
 use crate::args::CoverArgs;
@@ -125,18 +125,7 @@ fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover,
     let stage = reporter.stage("read volume");
     let (volume, _info) = io::read_volume(&args.input)?;
     stage.finish();
-    let defaults = VolumeCoverParams::default();
-    let params = VolumeCoverParams {
-        threshold: args.threshold.map_or(defaults.threshold, Threshold::Raw),
-        tolerance: args.eps.unwrap_or(defaults.tolerance),
-        variant: if args.linear {
-            VolumeCoverVariant::BoundingBoxLinear
-        } else {
-            VolumeCoverVariant::ObjectQuadratic
-        },
-        seed: args.seed,
-        ..defaults
-    };
+    let params = volume_params(args);
     let bar = reporter.progress(None, "building the volume cover");
     let (cover, stats) = build_volume_cover(&volume, &params)
         .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
@@ -150,28 +139,7 @@ fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover,
         "  radii {:.4} .. {:.4} (mean {:.4}); r_min {:.4}, r_max {:.4}; {} fits",
         stats.radius_min, stats.radius_max, stats.radius_mean, stats.r_min, stats.r_max, stats.fits
     ));
-    reporter.summary(&format!(
-        "{} object points of {} candidates: {} supports ({:.1} points per support), largest RMS error {:.4} ({} over ε = {}) -> {}",
-        stats.object_points,
-        stats.candidates,
-        stats.supports,
-        stats.object_points as f64 / stats.supports.max(1) as f64,
-        stats.max_rms,
-        stats.above_tolerance,
-        params.tolerance,
-        args.output.display()
-    ));
-    let meta = CoverFileMeta {
-        normalisation: Normalisation::IDENTITY,
-        notes: vec![notes(
-            &args.input,
-            &format!(
-                "volume cover tolerance={} variant={:?} seed={}",
-                params.tolerance, params.variant, params.seed
-            ),
-        )],
-        ..CoverFileMeta::default()
-    };
+    let meta = summarise_volume_cover(args, reporter, &params, &stats, "points", "volume cover");
     Ok((cover, meta))
 }
 
@@ -198,18 +166,7 @@ fn scattered_cover(
         ))
         .into());
     };
-    let defaults = VolumeCoverParams::default();
-    let params = VolumeCoverParams {
-        threshold: args.threshold.map_or(defaults.threshold, Threshold::Raw),
-        tolerance: args.eps.unwrap_or(defaults.tolerance),
-        variant: if args.linear {
-            VolumeCoverVariant::BoundingBoxLinear
-        } else {
-            VolumeCoverVariant::ObjectQuadratic
-        },
-        seed: args.seed,
-        ..defaults
-    };
+    let params = volume_params(args);
     let bar = reporter.progress(None, "building the volume cover of scattered samples");
     let (cover, stats) = build_scattered_cover(&geometry.points.positions, &values, &params)
         .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
@@ -229,8 +186,45 @@ fn scattered_cover(
         stats.r_max,
         stats.fits
     ));
+    let meta = summarise_volume_cover(
+        args,
+        reporter,
+        &params,
+        &stats,
+        "samples",
+        &format!("scattered-sample cover property={property}"),
+    );
+    Ok((cover, meta))
+}
+
+/// The volume builders' parameters from the command line (library defaults otherwise).
+fn volume_params(args: &CoverArgs) -> VolumeCoverParams {
+    let defaults = VolumeCoverParams::default();
+    VolumeCoverParams {
+        threshold: args.threshold.map_or(defaults.threshold, Threshold::Raw),
+        tolerance: args.eps.unwrap_or(defaults.tolerance),
+        variant: if args.linear {
+            VolumeCoverVariant::BoundingBoxLinear
+        } else {
+            VolumeCoverVariant::ObjectQuadratic
+        },
+        seed: args.seed,
+        ..defaults
+    }
+}
+
+/// Prints the summary line of a volume cover (of voxels or of scattered `samples`) and
+/// returns its file metadata, whose note starts with `description`.
+fn summarise_volume_cover(
+    args: &CoverArgs,
+    reporter: &Reporter,
+    params: &VolumeCoverParams,
+    stats: &VolumeCoverStats,
+    samples: &str,
+    description: &str,
+) -> CoverFileMeta {
     reporter.summary(&format!(
-        "{} object samples of {} candidates: {} supports ({:.1} samples per support), largest RMS error {:.4} ({} over ε = {}) -> {}",
+        "{} object {samples} of {} candidates: {} supports ({:.1} {samples} per support), largest RMS error {:.4} ({} over ε = {}) -> {}",
         stats.object_points,
         stats.candidates,
         stats.supports,
@@ -240,18 +234,17 @@ fn scattered_cover(
         params.tolerance,
         args.output.display()
     ));
-    let meta = CoverFileMeta {
+    CoverFileMeta {
         normalisation: Normalisation::IDENTITY,
         notes: vec![notes(
             &args.input,
             &format!(
-                "scattered-sample cover property={property} tolerance={} variant={:?} seed={}",
+                "{description} tolerance={} variant={:?} seed={}",
                 params.tolerance, params.variant, params.seed
             ),
         )],
         ..CoverFileMeta::default()
-    };
-    Ok((cover, meta))
+    }
 }
 
 /// A provenance note: which file and which parameters made the cover.
