@@ -125,13 +125,7 @@ pub(crate) fn orient3d_grid(a: &Point, b: &Point, c: &Point, d: &Point, limit: f
     }
     let det = ba_x * (cay * daz - caz * day) - ba_y * (cax * daz - caz * dax)
         + ba_z * (cax * day - cay * dax);
-    Some(if det > 0.0 {
-        1
-    } else if det < 0.0 {
-        -1
-    } else {
-        0
-    })
+    Some(sign_of(det))
 }
 
 #[cold]
@@ -337,6 +331,12 @@ pub(crate) fn power_test_exact(p: [&Point; 4], w: [f64; 4], q: &Point, wq: f64) 
     LiftedDet { p, w, q, wq }.eval::<Expansion>().sign()
 }
 
+/// The sign of an exactly computed `f64` (0 for ±0).
+#[inline(always)]
+fn sign_of(v: f64) -> i32 {
+    (v > 0.0) as i32 - (v < 0.0) as i32
+}
+
 /// Exact sign of the lifted determinant when the five centres lie on a grid of unit
 /// `1 / inv_unit` (a power of two) and every difference `p_i − q` is below `2^9` units;
 /// `None` otherwise (or when a weight difference is not exact in `f64`, or far out of
@@ -386,17 +386,8 @@ pub(crate) fn grid_lifted_sign(
         z(0) * m12 - z(1) * m02 + z(2) * m01,
     ];
     let x = sq(0) * c[0] + sq(1) * c[1] + sq(2) * c[2] + sq(3) * c[3];
-    let sign = |v: f64| {
-        if v > 0.0 {
-            1
-        } else if v < 0.0 {
-            -1
-        } else {
-            0
-        }
-    };
     if w.iter().all(|&wi| wi == wq) {
-        return Some(sign(x));
+        return Some(sign_of(x));
     }
     grid_lifted_sign_weighted(x, c, w, wq, inv_unit)
 }

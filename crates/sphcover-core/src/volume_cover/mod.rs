@@ -338,26 +338,13 @@ pub fn build_volume_cover(
     let deepest = params.centre_order == CentreOrder::DeepestFirst
         && params.variant == VolumeCoverVariant::ObjectQuadratic;
     let depth = (params.r_max.is_none() || deepest).then(|| depth_to_background(volume, &object));
-    let (r_max, thickness) = match params.r_max {
-        Some(r) => (r, None),
-        None => {
-            let t = max_thickness(depth.as_deref().expect("computed without r_max"), &object);
-            let cap = params.max_radius_voxels * diagonal;
-            let r = if t.is_finite() {
-                t
-            } else {
-                0.5 * grid_diagonal(volume)
-            };
-            (r.min(cap).max(r_min), t.is_finite().then_some(t))
-        }
-    };
-    if r_max < r_min {
-        return Err(VolumeCoverError::InvalidParameter {
-            name: "r_max",
-            value: r_max,
-            reason: "must be at least r_min",
-        });
-    }
+    let (r_max, thickness) = radius_cap(
+        params,
+        r_min,
+        diagonal,
+        || max_thickness(depth.as_deref().expect("computed without r_max"), &object),
+        || grid_diagonal(volume),
+    )?;
     let time_distance_transform = start.elapsed();
 
     let start = Instant::now();
@@ -465,6 +452,35 @@ fn max_thickness(d2: &[f64], object: &[bool]) -> f64 {
         .map(|(&d, _)| d)
         .reduce(|| 0.0, f64::max);
     2.0 * max.sqrt()
+}
+
+/// `r_max` and the object thickness it came from: the given `r_max`, or else the largest
+/// thickness (half the sample extent `diagonal` when no background sample bounds the object),
+/// capped at `max_radius_voxels` sample spacings and raised to `r_min`. Both builders use it.
+fn radius_cap(
+    params: &VolumeCoverParams,
+    r_min: f64,
+    spacing: f64,
+    thickness: impl FnOnce() -> f64,
+    diagonal: impl FnOnce() -> f64,
+) -> Result<(f64, Option<f64>), VolumeCoverError> {
+    let (r_max, thickness) = match params.r_max {
+        Some(r) => (r, None),
+        None => {
+            let t = thickness();
+            let r = if t.is_finite() { t } else { 0.5 * diagonal() };
+            let cap = params.max_radius_voxels * spacing;
+            (r.min(cap).max(r_min), t.is_finite().then_some(t))
+        }
+    };
+    if r_max < r_min {
+        return Err(VolumeCoverError::InvalidParameter {
+            name: "r_max",
+            value: r_max,
+            reason: "must be at least r_min",
+        });
+    }
+    Ok((r_max, thickness))
 }
 
 fn grid_diagonal(volume: &Volume) -> f64 {

@@ -36,7 +36,7 @@ use rayon::prelude::*;
 use super::fit::{LINEAR, NormalEquations, QUADRATIC};
 use super::{
     Support, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
-    check_params, shuffle, supports_to_cover,
+    check_params, radius_cap, shuffle, supports_to_cover,
 };
 use crate::cover::Cover;
 use crate::point_index::PointIndex;
@@ -130,26 +130,13 @@ pub fn build_scattered_cover(
     let index = PointIndex::new(positions).expect("count checked above");
     let spacing = sample_spacing(&index, positions)?;
     let r_min = params.r_min.unwrap_or(spacing);
-    let (r_max, thickness) = match params.r_max {
-        Some(r) => (r, None),
-        None => {
-            let t = max_thickness(positions, &object);
-            let cap = params.max_radius_voxels * spacing;
-            let r = if t.is_finite() {
-                t
-            } else {
-                0.5 * bounding_diagonal(positions)
-            };
-            (r.min(cap).max(r_min), t.is_finite().then_some(t))
-        }
-    };
-    if r_max < r_min {
-        return Err(VolumeCoverError::InvalidParameter {
-            name: "r_max",
-            value: r_max,
-            reason: "must be at least r_min",
-        });
-    }
+    let (r_max, thickness) = radius_cap(
+        params,
+        r_min,
+        spacing,
+        || max_thickness(positions, &object),
+        || bounding_diagonal(positions),
+    )?;
     let time_distance_transform = start.elapsed();
 
     let start = Instant::now();
