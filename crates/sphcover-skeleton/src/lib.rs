@@ -63,6 +63,7 @@
 pub mod cleaning;
 pub mod error;
 pub mod flaps;
+pub mod from_samples;
 pub mod gaussian_filter;
 pub mod intensity_model;
 pub mod junction_holes;
@@ -80,7 +81,10 @@ pub mod tunnels;
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
 pub use flaps::{collapse_misaligned_flaps, triangle_alignment};
-pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
+pub use from_samples::extract_skeleton_from_samples;
+pub use intensity_model::{
+    IntensityModel, estimate_intensity_model, estimate_sample_intensity_model, otsu_threshold,
+};
 pub use junction_holes::{SheetHoleParams, fill_holes_within_sheets};
 pub use medial_correction::{centre_between_faces, fold_junction_vertices};
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
