@@ -56,6 +56,8 @@
 //! without it.
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
+//! [`extract_skeleton_from_samples`] runs the same stages on scattered samples with values
+//! (no grid), which image-based methods cannot take.
 //! [`nms_skeleton`] is the image-based baseline the thesis compares against (Gaussian
 //! smoothing and non-maximum suppression along the Hessian's smallest eigenvector).
 #![deny(missing_docs)]
