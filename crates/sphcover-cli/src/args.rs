@@ -206,7 +206,8 @@ pub enum SkeletonMethod {
 #[derive(Debug, Args)]
 pub struct SkeletonArgs {
     /// A CT volume (`.nii`, `.nii.gz`, `.inr`, `.inr.gz`) of a thin part, brighter than the
-    /// background, with near-cubic voxels (at most 2:1) on axis-aligned axes.
+    /// background, with near-cubic voxels (at most 2:1) on axis-aligned axes; or, with
+    /// `--value-property`, a PLY file of scattered samples with values.
     #[arg(value_name = "CT")]
     pub input: PathBuf,
     /// Output: the sheet as a triangle mesh (PLY, OBJ, OFF, STL) in world coordinates; with
@@ -228,6 +229,12 @@ pub struct SkeletonArgs {
     /// How to find the sheet.
     #[arg(long, value_enum, default_value_t = SkeletonMethod::Ridge)]
     pub method: SkeletonMethod,
+    /// Scattered samples with values: the points of a PLY INPUT are samples off any grid
+    /// (e.g. a resampled or irregular CT), and NAME is the scalar vertex property holding
+    /// their values. Lengths in voxels become multiples of the median distance between
+    /// nearest samples.
+    #[arg(long, value_name = "NAME")]
+    pub value_property: Option<String>,
     /// Seed of the random choices (cover centres, triangulation order).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

@@ -69,6 +69,45 @@ pub fn estimate_intensity_model(
     threshold: Option<f64>,
 ) -> Result<IntensityModel, SkeletonError> {
     let (lo, hi) = volume.value_range().ok_or(SkeletonError::NoFiniteValue)?;
+    let automatic = || {
+        let smooth = smoothed_values(volume, OTSU_SMOOTHING, lo);
+        midpoint_threshold(&smooth, lo, hi)
+    };
+    model_from_values(
+        (0..volume.len()).map(|i| volume.value(i)),
+        (lo, hi),
+        threshold,
+        automatic,
+    )
+}
+
+/// Estimates the [`IntensityModel`] of scattered samples' `values`, with the caller's
+/// threshold or [`midpoint_threshold`] of the `smooth`ed values (the samples' counterpart of
+/// the volume's smoothing by [`OTSU_SMOOTHING`] voxels).
+pub fn estimate_sample_intensity_model(
+    values: &[f64],
+    smooth: &[f64],
+    threshold: Option<f64>,
+) -> Result<IntensityModel, SkeletonError> {
+    let (lo, hi) = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold(None, |range: Option<(f64, f64)>, &v| {
+            Some(range.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+        })
+        .ok_or(SkeletonError::NoFiniteValue)?;
+    let automatic = || midpoint_threshold(smooth, lo, hi);
+    model_from_values(values.iter().copied(), (lo, hi), threshold, automatic)
+}
+
+/// The class levels and the noise of `values` split at the caller's threshold, or at
+/// `automatic()` when none is given.
+fn model_from_values(
+    values: impl Iterator<Item = f64>,
+    (lo, hi): (f64, f64),
+    threshold: Option<f64>,
+    automatic: impl FnOnce() -> f64,
+) -> Result<IntensityModel, SkeletonError> {
     if lo == hi {
         return Err(SkeletonError::ConstantVolume { value: lo });
     }
@@ -81,18 +120,11 @@ pub fn estimate_intensity_model(
             });
         }
         Some(t) => (t, false),
-        None => {
-            let smooth = smoothed_values(volume, OTSU_SMOOTHING, lo);
-            (midpoint_threshold(&smooth, lo, hi), true)
-        }
+        None => (automatic(), true),
     };
     let mut background = Vec::new();
     let mut object = Vec::new();
-    for idx in 0..volume.len() {
-        let v = volume.value(idx);
-        if !v.is_finite() {
-            continue;
-        }
+    for v in values.filter(|v| v.is_finite()) {
         if v > threshold {
             object.push(v);
         } else {

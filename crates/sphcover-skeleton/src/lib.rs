@@ -56,6 +56,8 @@
 //! without it.
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
+//! [`extract_skeleton_from_samples`] runs the same stages on scattered samples with values
+//! (no grid), which image-based methods cannot take.
 //! [`nms_skeleton`] is the image-based baseline the thesis compares against (Gaussian
 //! smoothing and non-maximum suppression along the Hessian's smallest eigenvector).
 #![deny(missing_docs)]
@@ -63,6 +65,7 @@
 pub mod cleaning;
 pub mod error;
 pub mod flaps;
+pub mod from_samples;
 pub mod gaussian_filter;
 pub mod intensity_model;
 pub mod junction_holes;
@@ -80,7 +83,10 @@ pub mod tunnels;
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use error::SkeletonError;
 pub use flaps::{collapse_misaligned_flaps, triangle_alignment};
-pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};
+pub use from_samples::extract_skeleton_from_samples;
+pub use intensity_model::{
+    IntensityModel, estimate_intensity_model, estimate_sample_intensity_model, otsu_threshold,
+};
 pub use junction_holes::{SheetHoleParams, fill_holes_within_sheets};
 pub use medial_correction::{centre_between_faces, fold_junction_vertices};
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};

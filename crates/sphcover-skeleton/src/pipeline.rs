@@ -5,8 +5,8 @@ use std::time::{Duration, Instant};
 
 use sphcover_core::mesh_topology::MeshTopology;
 use sphcover_core::{
-    DVec3, Kernel, PuEvaluator, Threshold, TriMesh, Volume, VolumeCoverParams, VolumeCoverStats,
-    build_volume_cover,
+    Cover, DVec3, Kernel, PuEvaluator, Threshold, TriMesh, Volume, VolumeCoverParams,
+    VolumeCoverStats, build_volume_cover,
 };
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 
@@ -261,7 +261,28 @@ pub fn extract_skeleton(
     timings.object_mask = start.elapsed();
 
     let start = Instant::now();
-    let cover_params = VolumeCoverParams {
+    let cover_params = intensity_cover_params(params, &intensity, tolerance);
+    let (cover, cover_stats) = build_volume_cover(volume, &cover_params)?;
+    timings.cover = start.elapsed();
+    let front = CoverStage {
+        intensity,
+        tolerance,
+        object_mask: mask,
+        cover: cover_stats,
+        voxel: voxel_length(volume),
+        timings,
+    };
+    sheet_from_cover(cover, front, params)
+}
+
+/// The intensity cover's parameters: the model's threshold, the tolerance ε, and the
+/// caller's radii, kernel and seed.
+pub(crate) fn intensity_cover_params(
+    params: &SkeletonParams,
+    intensity: &IntensityModel,
+    tolerance: f64,
+) -> VolumeCoverParams {
+    VolumeCoverParams {
         threshold: Threshold::Raw(intensity.threshold),
         tolerance,
         r_min: params.r_min,
@@ -269,10 +290,35 @@ pub fn extract_skeleton(
         kernel: params.kernel,
         seed: params.seed,
         ..VolumeCoverParams::default()
-    };
-    let (cover, cover_stats) = build_volume_cover(volume, &cover_params)?;
-    timings.cover = start.elapsed();
+    }
+}
 
+/// What the stages up to the cover produced, for [`sheet_from_cover`].
+pub(crate) struct CoverStage {
+    pub intensity: IntensityModel,
+    pub tolerance: f64,
+    pub object_mask: ObjectMaskStats,
+    pub cover: VolumeCoverStats,
+    /// The length unit of the voxel-based parameters (world units).
+    pub voxel: f64,
+    pub timings: SkeletonTimings,
+}
+
+/// The stages after the intensity cover, common to volumes and scattered samples:
+/// tetrahedral mesh, ridge points, patches and cleaning.
+pub(crate) fn sheet_from_cover(
+    cover: Cover,
+    front: CoverStage,
+    params: &SkeletonParams,
+) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
+    let CoverStage {
+        intensity,
+        tolerance,
+        object_mask: mask,
+        cover: cover_stats,
+        voxel,
+        mut timings,
+    } = front;
     let start = Instant::now();
     let complex = dual_complex(
         cover.centers(),
@@ -327,7 +373,6 @@ pub fn extract_skeleton(
     timings.patches = start.elapsed();
 
     let start = Instant::now();
-    let voxel = voxel_length(volume);
     let cleaning_params = CleaningParams {
         min_component_fraction: params.min_component_fraction,
         min_component_area: params.min_component_area_voxels * voxel * voxel,
@@ -445,7 +490,7 @@ pub fn voxel_length(volume: &Volume) -> f64 {
     (s.x * s.y * s.z).cbrt()
 }
 
-fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
+pub(crate) fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
     let bad = |name, value, reason| {
         Err(SkeletonError::InvalidParameter {
             name,

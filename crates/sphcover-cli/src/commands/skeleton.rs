@@ -1,10 +1,12 @@
-//! `sphcover skeleton`: the skeletal sheet of a thin part from a CT volume (thesis §6), or
-//! the non-maximum-suppression baseline for comparison.
+//! `sphcover skeleton`: the skeletal sheet of a thin part from a CT volume (thesis §6) or
+//! from scattered samples with values, or the non-maximum-suppression baseline for
+//! comparison.
 
-use sphcover_core::io::{self, PlyEncoding, VolumeInfo, WriteOptions};
-use sphcover_core::{PointCloud, Volume};
+use sphcover_core::io::{self, PlyEncoding, ReadOptions, VolumeInfo, WriteOptions};
+use sphcover_core::{PointCloud, TriMesh, Volume};
 use sphcover_skeleton::{
-    NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton, nms_skeleton,
+    NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton,
+    extract_skeleton_from_samples, nms_skeleton,
 };
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
@@ -22,27 +24,21 @@ const AXIS_TOLERANCE: f64 = 1e-6;
 
 /// Runs `sphcover skeleton`.
 pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    if !io::is_volume_path(&args.input) {
-        return Err(BadInput(format!(
-            "{}: expected a CT volume (.nii, .nii.gz, .inr, .inr.gz); scattered samples with values are not supported yet",
-            args.input.display()
-        ))
-        .into());
-    }
     if let Some(s) = args.sigma
         && !(s.is_finite() && s > 0.0)
     {
         return Err(BadInput(format!("--sigma {s} must be a positive number")).into());
     }
-    let options = WriteOptions {
-        ply_encoding: if args.ascii {
-            PlyEncoding::Ascii
-        } else {
-            PlyEncoding::BinaryLittleEndian
-        },
-        inputs: vec![args.input.clone()],
-        ..WriteOptions::default()
-    };
+    if let Some(property) = &args.value_property {
+        return run_on_samples(args, property, reporter);
+    }
+    if !io::is_volume_path(&args.input) {
+        return Err(BadInput(format!(
+            "{}: expected a CT volume (.nii, .nii.gz, .inr, .inr.gz); for scattered samples with values (PLY), name their value property with --value-property",
+            args.input.display()
+        ))
+        .into());
+    }
 
     let stage = reporter.stage("read volume");
     let (volume, info) = io::read_volume(&args.input)?;
@@ -56,51 +52,14 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
         size.x,
         info.format_description()
     ));
-    let bad = |e: SkeletonError| -> anyhow::Error {
-        match e {
-            SkeletonError::Tetra(_) | SkeletonError::Evaluator(_) => {
-                anyhow::Error::new(e).context(format!("{}", args.input.display()))
-            }
-            e => BadInput(format!("{}: {e}", args.input.display())).into(),
-        }
-    };
 
     match args.method {
         SkeletonMethod::Ridge => {
-            let params = SkeletonParams {
-                threshold: args.threshold,
-                tolerance: args.eps,
-                sigma: args.sigma.unwrap_or(SkeletonParams::default().sigma),
-                seed: args.seed,
-                ..SkeletonParams::default()
-            };
             let bar = reporter.progress(None, "extracting the skeletal sheet");
-            let result = extract_skeleton(&volume, &params);
+            let result = extract_skeleton(&volume, &ridge_params(args));
             bar.finish_and_clear();
-            let (sheet, stats) = result.map_err(bad)?;
-            for (name, time) in stats.timings.stages() {
-                reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
-            }
-            if stats.thickness_exceeds_r_max() {
-                reporter.warn(&format!(
-                    "the object is up to {:.3} thick, more than the largest support radius {:.3}: thick parts may lose their sheet",
-                    stats.cover.thickness.unwrap_or(0.0),
-                    stats.cover.r_max
-                ));
-            }
-            if stats.components > 1 {
-                reporter.warn(&format!("the sheet has {} components", stats.components));
-            }
-            let stage = reporter.stage("write");
-            io::write_mesh(&args.output, &sheet, &options)?;
-            stage.finish();
-            if let Some(path) = &args.report {
-                let text = serde_json::to_string_pretty(&report_json(args, &stats))?;
-                io::write_atomic(path, std::slice::from_ref(&args.input), |w| {
-                    w.write_all(text.as_bytes())
-                })?;
-            }
-            reporter.summary(&summary(&stats, &args.output.display().to_string()));
+            let (sheet, stats) = result.map_err(|e| bad(args, e))?;
+            write_sheet(args, &sheet, &stats, reporter)?;
         }
         SkeletonMethod::Nms => {
             let params = NmsParams {
@@ -109,14 +68,14 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 ..NmsParams::default()
             };
             let stage = reporter.stage("smoothing and NMS");
-            let (points, stats) = nms_skeleton(&volume, &params).map_err(bad)?;
+            let (points, stats) = nms_skeleton(&volume, &params).map_err(|e| bad(args, e))?;
             stage.finish();
             let stage = reporter.stage("write");
             let cloud = PointCloud {
                 positions: points,
                 ..PointCloud::default()
             };
-            io::write_point_cloud(&args.output, &cloud, &options)?;
+            io::write_point_cloud(&args.output, &cloud, &write_options(args))?;
             stage.finish();
             reporter.summary(&format!(
                 "threshold {:.6} ({}); {} voxels above it after smoothing; {} ridge points -> {}",
@@ -132,6 +91,114 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
             ));
         }
     }
+    Ok(())
+}
+
+/// The sheet of scattered samples with values (a PLY point file and one of its scalar
+/// vertex properties), which the grid-based NMS baseline cannot take.
+fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> anyhow::Result<()> {
+    let name = args.input.display();
+    if io::is_volume_path(&args.input) {
+        return Err(BadInput(format!(
+            "{name}: --value-property names a vertex property of a PLY point file; a volume carries its values on the grid"
+        ))
+        .into());
+    }
+    if args.method == SkeletonMethod::Nms {
+        return Err(BadInput(format!(
+            "{name}: --method nms works on a voxel grid; scattered samples take the ridge method"
+        ))
+        .into());
+    }
+    if args.max_memory.is_some() {
+        return Err(BadInput(
+            "--max-memory: the skeleton's memory model is fitted to volumes, not to scattered samples".to_owned(),
+        )
+        .into());
+    }
+    let stage = reporter.stage("read samples");
+    let (geometry, values) =
+        io::read_geometry_with_vertex_property(&args.input, property, &ReadOptions::default())?;
+    stage.finish();
+    let Some(values) = values else {
+        return Err(BadInput(format!(
+            "{name}: no scalar vertex property named `{property}` (only PLY files declare named properties)"
+        ))
+        .into());
+    };
+    let positions = &geometry.points.positions;
+    reporter.detail(&format!("  {} samples with `{property}`", positions.len()));
+    let bar = reporter.progress(None, "extracting the skeletal sheet of the samples");
+    let result = extract_skeleton_from_samples(positions, &values, &ridge_params(args));
+    bar.finish_and_clear();
+    let (sheet, stats) = result.map_err(|e| bad(args, e))?;
+    write_sheet(args, &sheet, &stats, reporter)
+}
+
+/// The ridge pipeline's parameters: the library's defaults and the command line's.
+fn ridge_params(args: &SkeletonArgs) -> SkeletonParams {
+    SkeletonParams {
+        threshold: args.threshold,
+        tolerance: args.eps,
+        sigma: args.sigma.unwrap_or(SkeletonParams::default().sigma),
+        seed: args.seed,
+        ..SkeletonParams::default()
+    }
+}
+
+/// A failure of the input or parameters is bad input (exit 2); a lower-layer failure is an
+/// internal error, both named after the input file.
+fn bad(args: &SkeletonArgs, e: SkeletonError) -> anyhow::Error {
+    match e {
+        SkeletonError::Tetra(_) | SkeletonError::Evaluator(_) => {
+            anyhow::Error::new(e).context(format!("{}", args.input.display()))
+        }
+        e => BadInput(format!("{}: {e}", args.input.display())).into(),
+    }
+}
+
+fn write_options(args: &SkeletonArgs) -> WriteOptions {
+    WriteOptions {
+        ply_encoding: if args.ascii {
+            PlyEncoding::Ascii
+        } else {
+            PlyEncoding::BinaryLittleEndian
+        },
+        inputs: vec![args.input.clone()],
+        ..WriteOptions::default()
+    }
+}
+
+/// Timings, warnings, the sheet, the optional JSON report and the closing line.
+fn write_sheet(
+    args: &SkeletonArgs,
+    sheet: &TriMesh,
+    stats: &SkeletonStats,
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
+    for (name, time) in stats.timings.stages() {
+        reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
+    }
+    if stats.thickness_exceeds_r_max() {
+        reporter.warn(&format!(
+            "the object is up to {:.3} thick, more than the largest support radius {:.3}: thick parts may lose their sheet",
+            stats.cover.thickness.unwrap_or(0.0),
+            stats.cover.r_max
+        ));
+    }
+    if stats.components > 1 {
+        reporter.warn(&format!("the sheet has {} components", stats.components));
+    }
+    let stage = reporter.stage("write");
+    io::write_mesh(&args.output, sheet, &write_options(args))?;
+    stage.finish();
+    if let Some(path) = &args.report {
+        let text = serde_json::to_string_pretty(&report_json(args, stats))?;
+        io::write_atomic(path, std::slice::from_ref(&args.input), |w| {
+            w.write_all(text.as_bytes())
+        })?;
+    }
+    reporter.summary(&summary(stats, &args.output.display().to_string()));
     Ok(())
 }
 

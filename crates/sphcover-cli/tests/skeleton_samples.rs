@@ -1,0 +1,114 @@
+//! `sphcover skeleton SAMPLES.ply --value-property NAME`: the sheet of scattered samples
+//! with values, independent of the thread count, and its bad input.
+
+mod support;
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use glam::DVec3;
+use support::{files_in, run as sphcover, text};
+
+/// Writes an ascii PLY of jittered samples of a plate 4 units thick (z = 6 … 10), faces
+/// blurred over about one unit, HU-like values in `density` (all `constant` when given).
+fn write_plate_samples(path: &Path, constant: Option<f64>) {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut body = String::new();
+    let mut count = 0;
+    for k in 0..16 {
+        for j in 0..20 {
+            for i in 0..20 {
+                let jitter = DVec3::new(uniform(), uniform(), uniform()) * 0.6 - 0.3;
+                let p = DVec3::new(i as f64, j as f64, k as f64) + jitter;
+                let inside = 2.0 - (p.z - 8.0).abs();
+                let v = constant.unwrap_or(-1000.0 + 1500.0 * (1.0 + (inside / 0.8).tanh()));
+                writeln!(body, "{} {} {} {}", p.x, p.y, p.z, v).unwrap();
+                count += 1;
+            }
+        }
+    }
+    let header = format!(
+        "ply\nformat ascii 1.0\nelement vertex {count}\nproperty double x\nproperty double y\nproperty double z\nproperty double density\nend_header\n"
+    );
+    std::fs::write(path, header + &body).unwrap();
+}
+
+#[test]
+fn scattered_samples_give_one_mid_plane_sheet_whatever_the_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("samples.ply");
+    write_plate_samples(&input, None);
+    let outs = [dir.path().join("one.ply"), dir.path().join("two.ply")];
+    for (threads, out) in ["1", "2"].iter().zip(&outs) {
+        let run = sphcover(&[
+            "--threads",
+            threads,
+            "skeleton",
+            input.to_str().unwrap(),
+            "--value-property",
+            "density",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = text(&run.stderr);
+        assert_eq!(run.status.code(), Some(0), "{stderr}");
+        assert!(stderr.contains("1 component,"), "{stderr}");
+        assert!(stderr.contains("(automatic)"), "{stderr}");
+    }
+    assert!(std::fs::read(&outs[0]).unwrap() == std::fs::read(&outs[1]).unwrap());
+    let sheet = sphcover_core::io::read_mesh(&outs[0], &Default::default()).unwrap();
+    assert!(sheet.triangles.len() > 100, "{}", sheet.triangles.len());
+    assert!(sheet.vertices.iter().all(|v| (v.z - 8.0).abs() < 0.5));
+}
+
+#[test]
+fn scattered_sample_bad_input_is_refused_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("samples.ply");
+    write_plate_samples(&input, None);
+    let flat = dir.path().join("flat.ply");
+    write_plate_samples(&flat, Some(5.0));
+    let out = dir.path().join("sheet.ply");
+    let out_arg = out.to_str().unwrap();
+    let cases: [(&Path, &[&str], &str); 5] = [
+        (
+            &input,
+            &["--value-property", "intensity"],
+            "no scalar vertex property named `intensity`",
+        ),
+        (
+            &input,
+            &["--value-property", "density", "--method", "nms"],
+            "works on a voxel grid",
+        ),
+        (
+            &input,
+            &["--value-property", "density", "--threshold", "1e6"],
+            "selects no voxel",
+        ),
+        (&flat, &["--value-property", "density"], "constant"),
+        (
+            &input,
+            &[],
+            "name their value property with --value-property",
+        ),
+    ];
+    for (path, extra, message) in cases {
+        let mut args = vec!["skeleton", path.to_str().unwrap(), "-o", out_arg];
+        args.extend_from_slice(extra);
+        let run = sphcover(&args);
+        let stderr = text(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{extra:?}: {stderr}");
+        assert!(stderr.contains(message), "{extra:?}: {stderr}");
+        assert!(!out.exists(), "{extra:?}");
+    }
+    let mut names = files_in(dir.path());
+    names.sort();
+    assert_eq!(names, ["flat.ply", "samples.ply"]);
+}
