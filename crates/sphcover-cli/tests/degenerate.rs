@@ -238,9 +238,22 @@ fn open_sheet() -> Vec<DVec3> {
 /// The bound is 6 sample spacings (1/19) past the square's edges: the default trim is 3
 /// spacings, and measured the surface reaches 0.27 ≈ 5.2 spacings past them at depth 6.
 fn assert_trimmed_sheet(case: &Case) {
-    let untrimmed = case.expect_mesh(&case.recon(&[]));
+    let run = case.recon(&[]);
+    let untrimmed = case.expect_mesh(&run);
     assert_flat(&untrimmed, "untrimmed sheet");
-    let trimmed = case.expect_mesh(&case.recon(&["--trim"]));
+    // An open result without --trim says that the surface is extrapolated and how to trim.
+    let stderr = text(&run.stderr);
+    assert!(
+        stderr.contains("the surface is open") && stderr.contains("--trim"),
+        "{stderr}"
+    );
+    let run = case.recon(&["--trim"]);
+    assert!(
+        !text(&run.stderr).contains("the surface is open"),
+        "{}",
+        text(&run.stderr)
+    );
+    let trimmed = case.expect_mesh(&run);
     assert_flat(&trimmed, "trimmed sheet");
     let topology = MeshTopology::of(&trimmed);
     assert_eq!(topology.components, 1);
@@ -276,13 +289,20 @@ fn every_point_duplicated_gives_the_closed_sphere() {
     points.extend_from_within(..);
     normals.extend_from_within(..);
     let case = Case::new(&points, Some(&normals));
-    let mesh = case.expect_mesh(&case.recon(&[]));
+    let run = case.recon(&[]);
+    let mesh = case.expect_mesh(&run);
     assert_closed_sphere(
         &mesh,
         DVec3::ZERO,
         1.0,
         ORIENTED_SPHERE_ERROR,
         "duplicated points",
+    );
+    // A closed result needs no trimming advice.
+    assert!(
+        !text(&run.stderr).contains("the surface is open"),
+        "{}",
+        text(&run.stderr)
     );
 }
 

@@ -117,6 +117,12 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     stage.finish();
 
     let s = &recon.stats;
+    if !s.watertight && args.trim.is_none() {
+        reporter.warn(
+            "the surface is open: the scan does not enclose the object everywhere (one view, a LiDAR tile, an open base), \
+             so away from the samples the surface is extrapolated; --trim drops what lies farther than 3 sample spacings from every sample",
+        );
+    }
     reporter.summary(&format!(
         "{} points{}{}: {} supports, {} inconsistent; {} triangles, {} component{}, {}; {:.2} s -> {}",
         s.points,
