@@ -16,6 +16,7 @@ use crate::flaps::collapse_misaligned_flaps;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
 use crate::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
+use crate::junction_planes::{JunctionPlaneParams, snap_to_junction_planes};
 use crate::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
@@ -85,6 +86,12 @@ pub struct SkeletonParams {
     /// (`phantom_table`, seed 1): T-junction p95 away from the rim 0.41 → 0.40, 0.46 → 0.43,
     /// 0.40 → 0.36 at 0, 10, 30 % noise, no other phantom worse.
     pub junction_fold_reach_voxels: f64,
+    /// Vertices in the band where two sheets meet are projected onto the nearest of the
+    /// planes fitted to the sheets' plate vertices within this distance (voxels; see
+    /// [`crate::junction_planes`]); 0 disables the step.
+    pub junction_plane_reach_voxels: f64,
+    /// Largest move (voxels) of a vertex onto a junction plane.
+    pub junction_plane_max_shift_voxels: f64,
     /// Loops of the sheet through its junctions that bound nothing but go around material
     /// only, up to this perimeter (voxels), are closed (see [`crate::tunnels`]); 0 disables
     /// the step.
@@ -124,6 +131,8 @@ impl Default for SkeletonParams {
             smoothing_rounds: 0,
             junction_angle_degrees: 45.0,
             junction_fold_reach_voxels: 4.0,
+            junction_plane_reach_voxels: 9.0,
+            junction_plane_max_shift_voxels: 2.0,
             max_tunnel_perimeter_voxels: 16.0,
             min_flap_alignment: 0.8,
             remove_pockets: true,
@@ -209,6 +218,8 @@ pub struct SkeletonStats {
     pub flap_triangles: usize,
     /// Junction vertices folded onto a plate's tangent plane.
     pub junction_folded_vertices: usize,
+    /// Vertices of junction bands projected onto a sheet's plane.
+    pub junction_snapped_vertices: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
     /// Triangles of the output.
@@ -402,6 +413,18 @@ pub fn extract_skeleton(
             );
         }
     }
+    let mut snapped = 0;
+    if params.junction_plane_reach_voxels > 0.0 {
+        let planes = JunctionPlaneParams {
+            reach: params.junction_plane_reach_voxels * voxel,
+            min_angle: 60f64.to_radians(),
+            max_ring_angle: 20f64.to_radians(),
+            max_fit_angle: 10f64.to_radians(),
+            min_group: 6,
+            max_shift: params.junction_plane_max_shift_voxels * voxel,
+        };
+        snapped = snap_to_junction_planes(&mut sheet, &planes);
+    }
     smooth_across(&mut sheet, params.smoothing_rounds, 0.5);
     let topology = MeshTopology::of(&sheet);
     timings.cleaning = start.elapsed();
@@ -428,6 +451,7 @@ pub fn extract_skeleton(
         tunnels,
         flap_triangles,
         junction_folded_vertices: folded,
+        junction_snapped_vertices: snapped,
         centred_vertices: centred,
         triangles: sheet.triangles.len(),
         vertices: sheet.vertices.len(),
@@ -478,6 +502,11 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
         ("junction_angle_degrees", p.junction_angle_degrees),
         ("junction_fold_reach_voxels", p.junction_fold_reach_voxels),
+        ("junction_plane_reach_voxels", p.junction_plane_reach_voxels),
+        (
+            "junction_plane_max_shift_voxels",
+            p.junction_plane_max_shift_voxels,
+        ),
         ("max_tunnel_perimeter_voxels", p.max_tunnel_perimeter_voxels),
         ("min_flap_alignment", p.min_flap_alignment),
     ] {
