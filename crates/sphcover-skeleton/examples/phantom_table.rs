@@ -121,6 +121,7 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
         match name {
             "sigma" => p.sigma = v,
             "rim_trim_factor" => p.rim_trim_factor = v,
+            "min_rim_piece_voxels" => p.min_rim_piece_voxels = v,
             "max_centring_shift_voxels" => p.max_centring_shift_voxels = v,
             "smoothing_rounds" => p.smoothing_rounds = v as usize,
             "junction_angle_degrees" => p.junction_angle_degrees = v,

@@ -68,6 +68,9 @@ pub struct SkeletonParams {
     /// Rim trimming: a sheet vertex is in the rim when the object's surface lies closer than
     /// this factor times the local half-thickness along the sheet; `0` disables trimming.
     pub rim_trim_factor: f64,
+    /// Pieces of the sheet of at least this area (voxel²) that rim trimming would cut off
+    /// stay joined to the rest (see [`trim_rims`]); infinity disables this.
+    pub min_rim_piece_voxels: f64,
     /// Largest shift (voxels) of a vertex re-centred between the part's two faces (see
     /// [`crate::medial_correction`]); 0 disables re-centring.
     pub max_centring_shift_voxels: f64,
@@ -127,6 +130,7 @@ impl Default for SkeletonParams {
             min_component_fraction: 0.05,
             min_component_area_voxels: 4.0,
             rim_trim_factor: 0.9,
+            min_rim_piece_voxels: 16.0,
             max_centring_shift_voxels: 2.0,
             smoothing_rounds: 0,
             junction_angle_degrees: 45.0,
@@ -357,7 +361,12 @@ pub fn extract_skeleton(
             max_half_thickness: cover_stats.r_max,
             factor: params.rim_trim_factor,
         };
-        let (trimmed, removed) = trim_rims(&sheet, &plain, &trim);
+        let (trimmed, removed) = trim_rims(
+            &sheet,
+            &plain,
+            &trim,
+            params.min_rim_piece_voxels * voxel * voxel,
+        );
         rim_triangles = removed;
         let (again, second) = clean_sheet(&trimmed, &cleaning_params, is_material);
         cleaning.welded_vertices += second.welded_vertices;
@@ -487,6 +496,13 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         && !(t.is_finite() && t > 0.0)
     {
         return bad("tolerance", t, "must be finite and positive");
+    }
+    if p.min_rim_piece_voxels.is_nan() || p.min_rim_piece_voxels < 0.0 {
+        return bad(
+            "min_rim_piece_voxels",
+            p.min_rim_piece_voxels,
+            "must be non-negative (infinite disables)",
+        );
     }
     if !(p.model_tolerance.is_finite() && p.model_tolerance > 0.0) {
         return bad("model_tolerance", p.model_tolerance, "must be positive");

@@ -34,9 +34,9 @@ fn noise_10_percent_meets_the_goals() {
         let (phantom, m) = run(shape, 0.1);
         let name = shape.name();
         let junction = shape == ThinShape::TJunction;
-        // Goal ≥ 0.99; the T-junction loses a strip along the junction (measured 0.980).
-        let coverage = if junction { 0.97 } else { 0.99 };
-        assert!(m.coverage >= coverage, "{name}: {m:?}");
+        // Goal ≥ 0.99, met on every shape (T-junction 0.995 since rim trimming keeps the
+        // pieces it would cut off, 0.980 before).
+        assert!(m.coverage >= 0.99, "{name}: {m:?}");
         assert!(m.spurious <= 0.03, "{name}: {m:?}");
         assert!(m.spurious_interior <= 0.01, "{name}: {m:?}");
         // Goal ≤ 0.3 voxel, met on every shape (0.10–0.16; T-junction 0.24 since the junction
