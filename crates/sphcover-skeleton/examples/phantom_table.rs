@@ -120,6 +120,7 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
             .unwrap_or_else(|_| panic!("PARAMS: {name}: not a number: {value:?}"));
         match name {
             "sigma" => p.sigma = v,
+            "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = v,
             "rim_trim_factor" => p.rim_trim_factor = v,
             "min_rim_piece_voxels" => p.min_rim_piece_voxels = v,
             "max_centring_shift_voxels" => p.max_centring_shift_voxels = v,

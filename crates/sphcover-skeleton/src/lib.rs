@@ -61,6 +61,7 @@
 #![deny(missing_docs)]
 
 pub mod cleaning;
+pub mod derivative_smoothing;
 pub mod error;
 pub mod flaps;
 pub mod gaussian_filter;
@@ -79,6 +80,7 @@ pub mod symmetric_eigen;
 pub mod tunnels;
 
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
+pub use derivative_smoothing::smoothed_vertex_derivatives;
 pub use error::SkeletonError;
 pub use flaps::{collapse_misaligned_flaps, triangle_alignment};
 pub use intensity_model::{IntensityModel, estimate_intensity_model, otsu_threshold};

@@ -11,6 +11,7 @@ use sphcover_core::{
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 
 use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
+use crate::derivative_smoothing::smoothed_vertex_derivatives;
 use crate::error::SkeletonError;
 use crate::flaps::collapse_misaligned_flaps;
 use crate::gaussian_filter::smoothed_values;
@@ -49,6 +50,10 @@ pub struct SkeletonParams {
     pub r_max: Option<f64>,
     /// Support expansion σ for the derivatives (thesis §6.2.2: 4).
     pub sigma: f64,
+    /// Derivative smoothing (thesis §6.2.3, formulated in [`crate::derivative_smoothing`]):
+    /// `∇f` and `∇²f` take one implicit heat step over the supports' sphere intersection
+    /// graph that smooths over this length (voxels) before the ridge test; 0 disables it.
+    pub derivative_smoothing_voxels: f64,
     /// Radius shrink σ_t of the tetrahedral mesh. The thesis uses 0.75 (§3.5.2) against
     /// skinny tetrahedra; on volume covers of thin plates (centres one voxel layer apart
     /// across a 3–5 voxel plate) the shrunk balls rarely meet four at a time, and the dual
@@ -125,6 +130,7 @@ impl Default for SkeletonParams {
             r_max: None,
             sigma: 4.0,
             tet_shrink: 1.0,
+            derivative_smoothing_voxels: 1.0,
             kernel: Kernel::WendlandC2,
             ridge: RidgeFilter::default(),
             min_component_fraction: 0.05,
@@ -321,7 +327,17 @@ pub fn extract_skeleton(
         .iter()
         .map(|&s| cover.centers()[s as usize])
         .collect();
-    let mut derivatives = vertex_derivatives(&evaluator, &positions);
+    let mut derivatives = if params.derivative_smoothing_voxels > 0.0 {
+        let radii: Vec<f64> = mesh
+            .vertices
+            .iter()
+            .map(|&s| cover.radii()[s as usize])
+            .collect();
+        let length = params.derivative_smoothing_voxels * voxel_length(volume);
+        smoothed_vertex_derivatives(&evaluator, &positions, &radii, 0.5 * length * length)?
+    } else {
+        vertex_derivatives(&evaluator, &positions)
+    };
     drop(evaluator);
     orient_eigenvectors(&mesh, &mut derivatives);
     timings.derivatives = start.elapsed();
@@ -513,6 +529,7 @@ fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("min_component_fraction", p.min_component_fraction),
         ("min_object_fraction", p.min_object_fraction),
         ("rim_trim_factor", p.rim_trim_factor),
+        ("derivative_smoothing_voxels", p.derivative_smoothing_voxels),
         ("min_component_area_voxels", p.min_component_area_voxels),
         ("max_hole_perimeter_voxels", p.max_hole_perimeter_voxels),
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
