@@ -34,15 +34,18 @@
 //!        ─► object_mask (drop noise specks above the threshold)
 //!        ─► build_volume_cover (core: quadratic local fits, automatic r_min / r_max)
 //!        ─► dual_complex + TetMesh (tetra: radius shrink σ_t, edges, ordered edge rings)
-//!        ─► ridge_points (∇f, ∇²f with support expansion σ; eq. 6.1, 6.4, 6.5;
-//!                         eigenvectors oriented over the mesh)
+//!        ─► derivative_smoothing (∇f, ∇²f with support expansion σ, one implicit heat
+//!                                 step over the supports' sphere intersection graph)
+//!        ─► ridge_points (eq. 6.1, 6.4, 6.5; eigenvectors oriented over the mesh)
 //!        ─► patches (fans around ridge edges, open at the mesh boundary)
 //!        ─► cleaning (weld, undo pinches, fill holes over material, drop fragments)
-//!        ─► rim trimming (medial-axis test) ─► cleaning again
+//!        ─► rim trimming (medial-axis test; pieces it would cut off stay joined)
+//!        ─► cleaning again
 //!        ─► holes of the sheets meeting at junctions
 //!        ─► closed pockets opened, tunnels through material closed (Z2 loops), flaps
 //!           standing across the sheet collapsed
 //!        ─► re-centring between the faces, folding junction fillets onto the plates
+//!        ─► junction_planes (the band where sheets meet snapped onto their planes)
 //!        ─► optional smoothing across the sheet
 //!        ─► TriMesh in world units
 //! ```
@@ -52,8 +55,8 @@
 //! sign over the mesh ([`orient_eigenvectors`]), eq. 6.5 relaxed where `f` is concave
 //! ([`ridge_points()`]), and the cleaning stages, which the thesis left as future work. The
 //! derivative smoothing the thesis names but never formulates (§6.2.3: a linear cover and
-//! discrete operators) is not implemented: the plain pipeline meets the noise goals
-//! without it.
+//! discrete operators) is formulated in [`derivative_smoothing`] with the project's own
+//! operators (an implicit heat step of `∇f` and `∇²f` on the sphere intersection graph).
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
 //! [`nms_skeleton`] is the image-based baseline the thesis compares against (Gaussian
