@@ -143,7 +143,7 @@ impl Default for SkeletonParams {
             junction_fold_reach_voxels: 4.0,
             junction_plane_reach_voxels: 9.0,
             junction_plane_max_shift_voxels: 2.0,
-            max_tunnel_perimeter_voxels: 16.0,
+            max_tunnel_perimeter_voxels: 24.0,
             min_flap_alignment: 0.8,
             remove_pockets: true,
             max_hole_edges: 200,
