@@ -2,6 +2,12 @@
 //! phantom at the given noise levels and prints the metrics as a Markdown table:
 //!
 //! `cargo run --release -p sphcover-skeleton --example phantom_table -- 0.1 0.3`
+//!
+//! `SHAPES=t_junction,wedge_plate` restricts the table to those shapes; `PLY_DIR=dir` also
+//! writes each ridge sheet there as `SHAPE_NOISE.ply` (ASCII, with normals), for inspection;
+//! `PARAMS=name=value,...` overrides numeric fields of the default parameters (see
+//! `overridden`), for measuring alternatives with the same command.
+use sphcover_core::io::{self, PlyEncoding, WriteOptions};
 use sphcover_fixtures::sheet_metrics::{SheetMetrics, score_mesh, score_points};
 use sphcover_fixtures::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{NmsParams, SkeletonParams, extract_skeleton, nms_skeleton};
@@ -28,13 +34,18 @@ fn main() {
         .filter_map(|a| a.parse().ok())
         .collect();
     let noises = if noises.is_empty() { vec![0.1] } else { noises };
-    let params = SkeletonParams::default();
+    let params = overridden(SkeletonParams::default());
     println!(
         "| phantom | method | noise | coverage | spurious | spurious away from rim | p95 away from rim (vox) | components | Euler (true) | boundary reach (vox) | time (s) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for &noise in &noises {
         for shape in ThinShape::ALL {
+            if let Ok(only) = std::env::var("SHAPES")
+                && !only.split(',').any(|n| n == shape.name())
+            {
+                continue;
+            }
             let ph = thin_phantom(
                 shape,
                 &PhantomParams {
@@ -48,6 +59,20 @@ fn main() {
                 Ok((mesh, _)) => {
                     let secs = start.elapsed().as_secs_f64();
                     let m = score_mesh(&mesh, &ph.truth, 1.0);
+                    if let Some(dir) = std::env::var_os("PLY_DIR") {
+                        let path = std::path::Path::new(&dir).join(format!(
+                            "{}_{:.0}.ply",
+                            shape.name(),
+                            100.0 * noise
+                        ));
+                        let options = WriteOptions {
+                            ply_encoding: PlyEncoding::Ascii,
+                            ..WriteOptions::default()
+                        };
+                        if let Err(e) = io::write_mesh(&path, &mesh, &options) {
+                            eprintln!("{}: {e}", path.display());
+                        }
+                    }
                     row(
                         shape.name(),
                         "ridge",
@@ -79,4 +104,39 @@ fn main() {
             }
         }
     }
+}
+
+/// The parameters with the `PARAMS` environment variable's `name=value` pairs applied.
+fn overridden(mut p: SkeletonParams) -> SkeletonParams {
+    let Ok(spec) = std::env::var("PARAMS") else {
+        return p;
+    };
+    for pair in spec.split(',').filter(|s| !s.is_empty()) {
+        let Some((name, value)) = pair.split_once('=') else {
+            panic!("PARAMS: expected name=value, got {pair:?}");
+        };
+        let v: f64 = value
+            .parse()
+            .unwrap_or_else(|_| panic!("PARAMS: {name}: not a number: {value:?}"));
+        match name {
+            "sigma" => p.sigma = v,
+            "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = v,
+            "rim_trim_factor" => p.rim_trim_factor = v,
+            "min_rim_piece_voxels" => p.min_rim_piece_voxels = v,
+            "max_centring_shift_voxels" => p.max_centring_shift_voxels = v,
+            "smoothing_rounds" => p.smoothing_rounds = v as usize,
+            "junction_angle_degrees" => p.junction_angle_degrees = v,
+            "junction_fold_reach_voxels" => p.junction_fold_reach_voxels = v,
+            "junction_plane_reach_voxels" => p.junction_plane_reach_voxels = v,
+            "junction_plane_max_shift_voxels" => p.junction_plane_max_shift_voxels = v,
+            "max_tunnel_perimeter_voxels" => p.max_tunnel_perimeter_voxels = v,
+            "min_flap_alignment" => p.min_flap_alignment = v,
+            "min_component_fraction" => p.min_component_fraction = v,
+            "max_hole_perimeter_voxels" => p.max_hole_perimeter_voxels = v,
+            "min_relative_strength" => p.ridge.min_relative_strength = v,
+            "max_eigen_ratio" => p.ridge.max_eigen_ratio = v,
+            _ => panic!("PARAMS: unknown parameter {name:?}"),
+        }
+    }
+    p
 }

@@ -66,4 +66,7 @@ pub enum SkeletonError {
     /// The tetrahedral mesh could not be built.
     #[error("tetrahedral mesh: {0}")]
     Tetra(#[from] TetraError),
+    /// Smoothing the derivatives over the supports failed (graph or solver).
+    #[error("derivative smoothing: {0}")]
+    Smoothing(String),
 }

@@ -34,15 +34,18 @@
 //!        ─► object_mask (drop noise specks above the threshold)
 //!        ─► build_volume_cover (core: quadratic local fits, automatic r_min / r_max)
 //!        ─► dual_complex + TetMesh (tetra: radius shrink σ_t, edges, ordered edge rings)
-//!        ─► ridge_points (∇f, ∇²f with support expansion σ; eq. 6.1, 6.4, 6.5;
-//!                         eigenvectors oriented over the mesh)
+//!        ─► derivative_smoothing (∇f, ∇²f with support expansion σ, one implicit heat
+//!                                 step over the supports' sphere intersection graph)
+//!        ─► ridge_points (eq. 6.1, 6.4, 6.5; eigenvectors oriented over the mesh)
 //!        ─► patches (fans around ridge edges, open at the mesh boundary)
 //!        ─► cleaning (weld, undo pinches, fill holes over material, drop fragments)
-//!        ─► rim trimming (medial-axis test) ─► cleaning again
+//!        ─► rim trimming (medial-axis test; pieces it would cut off stay joined)
+//!        ─► cleaning again
 //!        ─► holes of the sheets meeting at junctions
 //!        ─► closed pockets opened, tunnels through material closed (Z2 loops), flaps
 //!           standing across the sheet collapsed
 //!        ─► re-centring between the faces, folding junction fillets onto the plates
+//!        ─► junction_planes (the band where sheets meet snapped onto their planes)
 //!        ─► optional smoothing across the sheet
 //!        ─► TriMesh in world units
 //! ```
@@ -52,8 +55,8 @@
 //! sign over the mesh ([`orient_eigenvectors`]), eq. 6.5 relaxed where `f` is concave
 //! ([`ridge_points()`]), and the cleaning stages, which the thesis left as future work. The
 //! derivative smoothing the thesis names but never formulates (§6.2.3: a linear cover and
-//! discrete operators) is not implemented: the plain pipeline meets the noise goals
-//! without it.
+//! discrete operators) is formulated in [`derivative_smoothing`] with the project's own
+//! operators (an implicit heat step of `∇f` and `∇²f` on the sphere intersection graph).
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
 //! [`extract_skeleton_from_samples`] runs the same stages on scattered samples with values
@@ -63,12 +66,14 @@
 #![deny(missing_docs)]
 
 pub mod cleaning;
+pub mod derivative_smoothing;
 pub mod error;
 pub mod flaps;
 pub mod from_samples;
 pub mod gaussian_filter;
 pub mod intensity_model;
 pub mod junction_holes;
+pub mod junction_planes;
 pub mod medial_correction;
 pub mod nms_baseline;
 pub mod object_mask;
@@ -81,6 +86,7 @@ pub mod symmetric_eigen;
 pub mod tunnels;
 
 pub use cleaning::{CleaningParams, CleaningStats, clean_sheet};
+pub use derivative_smoothing::smoothed_vertex_derivatives;
 pub use error::SkeletonError;
 pub use flaps::{collapse_misaligned_flaps, triangle_alignment};
 pub use from_samples::extract_skeleton_from_samples;
@@ -88,6 +94,7 @@ pub use intensity_model::{
     IntensityModel, estimate_intensity_model, estimate_sample_intensity_model, otsu_threshold,
 };
 pub use junction_holes::{SheetHoleParams, fill_holes_within_sheets};
+pub use junction_planes::{JunctionPlaneParams, snap_to_junction_planes};
 pub use medial_correction::{centre_between_faces, fold_junction_vertices};
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};

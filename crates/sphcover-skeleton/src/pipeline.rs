@@ -11,11 +11,13 @@ use sphcover_core::{
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 
 use crate::cleaning::{CleaningParams, CleaningStats, clean_sheet};
+use crate::derivative_smoothing::smoothed_vertex_derivatives;
 use crate::error::SkeletonError;
 use crate::flaps::collapse_misaligned_flaps;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
 use crate::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
+use crate::junction_planes::{JunctionPlaneParams, snap_to_junction_planes};
 use crate::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 use crate::patches::ridge_patches;
@@ -48,6 +50,10 @@ pub struct SkeletonParams {
     pub r_max: Option<f64>,
     /// Support expansion σ for the derivatives (thesis §6.2.2: 4).
     pub sigma: f64,
+    /// Derivative smoothing (thesis §6.2.3, formulated in [`crate::derivative_smoothing`]):
+    /// `∇f` and `∇²f` take one implicit heat step over the supports' sphere intersection
+    /// graph that smooths over this length (voxels) before the ridge test; 0 disables it.
+    pub derivative_smoothing_voxels: f64,
     /// Radius shrink σ_t of the tetrahedral mesh. The thesis uses 0.75 (§3.5.2) against
     /// skinny tetrahedra; on volume covers of thin plates (centres one voxel layer apart
     /// across a 3–5 voxel plate) the shrunk balls rarely meet four at a time, and the dual
@@ -67,6 +73,9 @@ pub struct SkeletonParams {
     /// Rim trimming: a sheet vertex is in the rim when the object's surface lies closer than
     /// this factor times the local half-thickness along the sheet; `0` disables trimming.
     pub rim_trim_factor: f64,
+    /// Pieces of the sheet of at least this area (voxel²) that rim trimming would cut off
+    /// stay joined to the rest (see [`trim_rims`]); infinity disables this.
+    pub min_rim_piece_voxels: f64,
     /// Largest shift (voxels) of a vertex re-centred between the part's two faces (see
     /// [`crate::medial_correction`]); 0 disables re-centring.
     pub max_centring_shift_voxels: f64,
@@ -85,6 +94,12 @@ pub struct SkeletonParams {
     /// (`phantom_table`, seed 1): T-junction p95 away from the rim 0.41 → 0.40, 0.46 → 0.43,
     /// 0.40 → 0.36 at 0, 10, 30 % noise, no other phantom worse.
     pub junction_fold_reach_voxels: f64,
+    /// Vertices in the band where two sheets meet are projected onto the nearest of the
+    /// planes fitted to the sheets' plate vertices within this distance (voxels; see
+    /// [`crate::junction_planes`]); 0 disables the step.
+    pub junction_plane_reach_voxels: f64,
+    /// Largest move (voxels) of a vertex onto a junction plane.
+    pub junction_plane_max_shift_voxels: f64,
     /// Loops of the sheet through its junctions that bound nothing but go around material
     /// only, up to this perimeter (voxels), are closed (see [`crate::tunnels`]); 0 disables
     /// the step.
@@ -115,16 +130,20 @@ impl Default for SkeletonParams {
             r_max: None,
             sigma: 4.0,
             tet_shrink: 1.0,
+            derivative_smoothing_voxels: 1.0,
             kernel: Kernel::WendlandC2,
             ridge: RidgeFilter::default(),
             min_component_fraction: 0.05,
             min_component_area_voxels: 4.0,
             rim_trim_factor: 0.9,
+            min_rim_piece_voxels: 16.0,
             max_centring_shift_voxels: 2.0,
             smoothing_rounds: 0,
             junction_angle_degrees: 45.0,
             junction_fold_reach_voxels: 4.0,
-            max_tunnel_perimeter_voxels: 16.0,
+            junction_plane_reach_voxels: 9.0,
+            junction_plane_max_shift_voxels: 2.0,
+            max_tunnel_perimeter_voxels: 24.0,
             min_flap_alignment: 0.8,
             remove_pockets: true,
             max_hole_edges: 200,
@@ -209,6 +228,8 @@ pub struct SkeletonStats {
     pub flap_triangles: usize,
     /// Junction vertices folded onto a plate's tangent plane.
     pub junction_folded_vertices: usize,
+    /// Vertices of junction bands projected onto a sheet's plane.
+    pub junction_snapped_vertices: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
     /// Triangles of the output.
@@ -352,7 +373,17 @@ pub(crate) fn sheet_from_cover(
         .iter()
         .map(|&s| cover.centers()[s as usize])
         .collect();
-    let mut derivatives = vertex_derivatives(&evaluator, &positions);
+    let mut derivatives = if params.derivative_smoothing_voxels > 0.0 {
+        let radii: Vec<f64> = mesh
+            .vertices
+            .iter()
+            .map(|&s| cover.radii()[s as usize])
+            .collect();
+        let length = params.derivative_smoothing_voxels * voxel_length(volume);
+        smoothed_vertex_derivatives(&evaluator, &positions, &radii, 0.5 * length * length)?
+    } else {
+        vertex_derivatives(&evaluator, &positions)
+    };
     drop(evaluator);
     orient_eigenvectors(&mesh, &mut derivatives);
     timings.derivatives = start.elapsed();
@@ -391,7 +422,12 @@ pub(crate) fn sheet_from_cover(
             max_half_thickness: cover_stats.r_max,
             factor: params.rim_trim_factor,
         };
-        let (trimmed, removed) = trim_rims(&sheet, &plain, &trim);
+        let (trimmed, removed) = trim_rims(
+            &sheet,
+            &plain,
+            &trim,
+            params.min_rim_piece_voxels * voxel * voxel,
+        );
         rim_triangles = removed;
         let (again, second) = clean_sheet(&trimmed, &cleaning_params, is_material);
         cleaning.welded_vertices += second.welded_vertices;
@@ -447,6 +483,18 @@ pub(crate) fn sheet_from_cover(
             );
         }
     }
+    let mut snapped = 0;
+    if params.junction_plane_reach_voxels > 0.0 {
+        let planes = JunctionPlaneParams {
+            reach: params.junction_plane_reach_voxels * voxel,
+            min_angle: 60f64.to_radians(),
+            max_ring_angle: 20f64.to_radians(),
+            max_fit_angle: 10f64.to_radians(),
+            min_group: 6,
+            max_shift: params.junction_plane_max_shift_voxels * voxel,
+        };
+        snapped = snap_to_junction_planes(&mut sheet, &planes);
+    }
     smooth_across(&mut sheet, params.smoothing_rounds, 0.5);
     let topology = MeshTopology::of(&sheet);
     timings.cleaning = start.elapsed();
@@ -473,6 +521,7 @@ pub(crate) fn sheet_from_cover(
         tunnels,
         flap_triangles,
         junction_folded_vertices: folded,
+        junction_snapped_vertices: snapped,
         centred_vertices: centred,
         triangles: sheet.triangles.len(),
         vertices: sheet.vertices.len(),
@@ -509,6 +558,13 @@ pub(crate) fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
     {
         return bad("tolerance", t, "must be finite and positive");
     }
+    if p.min_rim_piece_voxels.is_nan() || p.min_rim_piece_voxels < 0.0 {
+        return bad(
+            "min_rim_piece_voxels",
+            p.min_rim_piece_voxels,
+            "must be non-negative (infinite disables)",
+        );
+    }
     if !(p.model_tolerance.is_finite() && p.model_tolerance > 0.0) {
         return bad("model_tolerance", p.model_tolerance, "must be positive");
     }
@@ -518,11 +574,17 @@ pub(crate) fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
         ("min_component_fraction", p.min_component_fraction),
         ("min_object_fraction", p.min_object_fraction),
         ("rim_trim_factor", p.rim_trim_factor),
+        ("derivative_smoothing_voxels", p.derivative_smoothing_voxels),
         ("min_component_area_voxels", p.min_component_area_voxels),
         ("max_hole_perimeter_voxels", p.max_hole_perimeter_voxels),
         ("max_centring_shift_voxels", p.max_centring_shift_voxels),
         ("junction_angle_degrees", p.junction_angle_degrees),
         ("junction_fold_reach_voxels", p.junction_fold_reach_voxels),
+        ("junction_plane_reach_voxels", p.junction_plane_reach_voxels),
+        (
+            "junction_plane_max_shift_voxels",
+            p.junction_plane_max_shift_voxels,
+        ),
         ("max_tunnel_perimeter_voxels", p.max_tunnel_perimeter_voxels),
         ("min_flap_alignment", p.min_flap_alignment),
     ] {
