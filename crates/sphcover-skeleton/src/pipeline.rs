@@ -379,7 +379,7 @@ pub(crate) fn sheet_from_cover(
             .iter()
             .map(|&s| cover.radii()[s as usize])
             .collect();
-        let length = params.derivative_smoothing_voxels * voxel_length(volume);
+        let length = params.derivative_smoothing_voxels * voxel;
         smoothed_vertex_derivatives(&evaluator, &positions, &radii, 0.5 * length * length)?
     } else {
         vertex_derivatives(&evaluator, &positions)
