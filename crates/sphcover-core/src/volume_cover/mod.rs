@@ -34,6 +34,13 @@
 //!    *more* candidates, never a gap. The centre itself is always marked covered, which
 //!    guarantees progress (a centre on a corner of the object is a hull vertex).
 //! 4. Repeat until no candidate is uncovered.
+//! 5. Elimination (default; [`VolumeCoverParams::eliminate_redundant`], a departure from the
+//!    thesis, after its surface builder §3.4.1). A support's *members* are the object points
+//!    (all grid points for the linear variant) strictly inside its ball. Supports over ε
+//!    first, then by increasing member count (ties by position), a support is removed when
+//!    every member lies in at least one other remaining support. With elimination on, a
+//!    centre whose fit misses ε in step 2 is set aside (nothing is marked covered) and is
+//!    only taken after step 4 if no accepted ball contains it by then.
 //!
 //! # No object point is left outside the cover
 //!
@@ -46,11 +53,18 @@
 //! that a ball holds the whole 3×3×3 neighbourhood of its centre) except at steep edges
 //! where that ball misses `ε`; the argument above does not depend on the radius.
 //!
+//! Elimination keeps this: each object point starts in at least one member set (a centre,
+//! or a hull-interior point at `‖p − c‖ < s`), and a support goes only when all its members
+//! have another one. Every kept support holds a member no other kept ball holds.
+//!
 //! # Compactness
 //!
 //! With the thesis' `ε = 5 %`, a quadratic follows the intensity profile across a plate of
-//! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, so such plates get
-//! about one support per 8 object voxels; an 8-voxel plate at `ε = 10 %` gets one per 40.
+//! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, and the hull rule
+//! marks only a ball's hull interior, so the thesis' loop gives such plates about one
+//! support per 8 object voxels, most balls overlapping their neighbours far more than
+//! needed. Elimination removes that redundancy: 34 object voxels per support on the
+//! tests' 4-voxel plate, 70 on the 6-voxel one (measurements in `docs/benchmarks.md`).
 //!
 //! # Centre order (a departure from the thesis, optional)
 //!
@@ -63,7 +77,15 @@
 //! support, random → deepest first: 4-voxel plate 7.7 → 11.3, 6-voxel 14.9 → 21.7, 8-voxel
 //! 14.5 → 15.6; the T-junction phantom 6.4 → 8.4; every RMS ≤ ε, no object voxel uncovered.
 //! It stays opt-in (the default keeps the thesis' random order, which the skeleton
-//! pipeline's figures were measured with).
+//! pipeline's figures were measured with). With elimination the orders give 34.1 / 61.4 /
+//! 69.6 object voxels per support on the 4-voxel plate (random / deepest first /
+//! [`CentreOrder::MostUncovered`]), and 69.5 / 129.3 / 150.2 on the 6-voxel one.
+//!
+//! [`CentreOrder::MostUncovered`] is a greedy set cover: every candidate's support is fitted
+//! (one fit per object point, against about one per eight in the thesis' loop), then the
+//! support with the most uncovered members is taken next, supports within ε before those
+//! over it. Only it reaches every support within ε where some points' smallest ball misses
+//! ε but a neighbour's ball around them does not (sharp edges).
 //!
 //! # Radii
 //!
@@ -78,7 +100,9 @@
 //! A support's radius and function depend on its centre only, so the fits of the next few
 //! uncovered candidates run in parallel ahead of time; the covering check then runs in
 //! candidate order and drops the speculative fits whose centre got covered meanwhile. The
-//! result is that of the sequential algorithm, bit for bit, whatever the thread count.
+//! result is that of the sequential algorithm, bit for bit, whatever the thread count. The
+//! greedy order fits every candidate in parallel, then selects sequentially; elimination
+//! counts members in parallel (integer sums) and decides sequentially.
 
 mod distance_transform;
 mod fit;
@@ -86,6 +110,9 @@ mod scattered;
 
 pub use scattered::build_scattered_cover;
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use glam::{DMat3, DVec3};
@@ -136,6 +163,10 @@ pub enum CentreOrder {
     /// transform that gives `r_max`), ties in the seeded random order. Object variant only
     /// (the linear variant has no background); see the module docs for the measurements.
     DeepestFirst,
+    /// Greedy set cover: every candidate's support is fitted, then the support holding the
+    /// most still-uncovered object points (as samples) is taken next, ties in the seeded
+    /// order. Costs one fit per candidate.
+    MostUncovered,
 }
 
 /// Parameters of [`build_volume_cover`]. `Default` gives the thesis defaults.
@@ -164,6 +195,10 @@ pub struct VolumeCoverParams {
     pub seed: u64,
     /// Which uncovered candidate becomes the next centre.
     pub centre_order: CentreOrder,
+    /// After covering, remove the supports whose every object point (every grid point, for
+    /// the linear variant) is also a sample of another remaining support (see the module
+    /// documentation).
+    pub eliminate_redundant: bool,
 }
 
 impl Default for VolumeCoverParams {
@@ -179,6 +214,7 @@ impl Default for VolumeCoverParams {
             kernel: Kernel::TruncatedGaussian,
             seed: 0,
             centre_order: CentreOrder::default(),
+            eliminate_redundant: true,
         }
     }
 }
@@ -505,6 +541,9 @@ struct Support {
     shell_d2: f64,
     /// Number of offsets (in table order) inside the ball.
     offsets: usize,
+    /// Number of offsets strictly inside the ball's sphere (`offsets`, or the shells before
+    /// the last one when that lies on the sphere at `r_max`).
+    inner_offsets: usize,
     /// Coefficients in the frame `u = (x − c)/r`, constant term relative to `shift`.
     coef: [f64; QUADRATIC],
     shift: f64,
@@ -788,11 +827,20 @@ impl<'a> Grid<'a> {
         coef[..N].copy_from_slice(&c);
         let end = self.shells[shell].1;
         let rms = self.direct_rms::<N>(base, end, &c, radius, shift);
+        // The last shell can lie on the sphere (r = r_max, e.g. the thickness, which is a
+        // voxel distance): its points are not strictly inside, up to rounding.
+        let on_sphere =
+            shell > 0 && self.shells[shell].0.sqrt() * self.unit >= radius * (1.0 - 1e-9);
         Support {
             center: center as u32,
             radius,
             shell_d2: self.shells[shell].0,
             offsets: end,
+            inner_offsets: if on_sphere {
+                self.shells[shell - 1].1
+            } else {
+                end
+            },
             coef,
             shift,
             rms,
@@ -875,8 +923,132 @@ impl<'a> Grid<'a> {
         if let Some(d) = depth {
             order.sort_by(|&a, &b| d[b as usize].total_cmp(&d[a as usize]));
         }
+        let supports = if params.centre_order == CentreOrder::MostUncovered {
+            self.cover_greedy::<N>(&order, stats)
+        } else {
+            self.cover_in_order::<N>(&order, params.eliminate_redundant, stats)
+        };
+        if params.eliminate_redundant {
+            self.eliminate_redundant(supports)
+        } else {
+            supports
+        }
+    }
+
+    /// Calls `f` with every object point (every grid point, for the linear variant) strictly
+    /// inside the support's ball.
+    #[inline]
+    fn for_each_member(&self, s: &Support, mut f: impl FnMut(usize)) {
+        let base = self.base(s.center as usize);
+        for o in &self.offsets[..s.inner_offsets] {
+            if let Some(idx) = self.neighbour(base, o.step)
+                && (self.bounding_box || self.object[idx])
+            {
+                f(idx);
+            }
+        }
+    }
+
+    /// Removes redundant supports: those over ε first, then in order of increasing member
+    /// count (ties by position), a support goes when each of its members lies in at least one other remaining support.
+    /// Every member keeps at least one support, so the cover stays gap-free. Sequential and
+    /// order-defined: the same whatever the thread count.
+    fn eliminate_redundant(&self, supports: Vec<Support>) -> Vec<Support> {
+        let n = self.volume.len();
+        let counts: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(0)).collect();
+        let sizes: Vec<u32> = supports
+            .par_iter()
+            .map(|s| {
+                let mut size = 0u32;
+                self.for_each_member(s, |idx| {
+                    counts[idx].fetch_add(1, Ordering::Relaxed);
+                    size += 1;
+                });
+                size
+            })
+            .collect();
+        let mut counts: Vec<u32> = counts.into_iter().map(AtomicU32::into_inner).collect();
+        // Supports over ε go first, then the smallest.
+        let mut by_size: Vec<u32> = (0..supports.len() as u32).collect();
+        by_size.sort_by_key(|&i| {
+            let s = &supports[i as usize];
+            (s.rms <= self.tolerance, sizes[i as usize], i)
+        });
+        let mut keep = vec![true; supports.len()];
+        for &i in &by_size {
+            let s = &supports[i as usize];
+            let mut redundant = true;
+            self.for_each_member(s, |idx| redundant &= counts[idx] >= 2);
+            if redundant {
+                self.for_each_member(s, |idx| counts[idx] -= 1);
+                keep[i as usize] = false;
+            }
+        }
+        supports
+            .into_iter()
+            .zip(keep)
+            .filter_map(|(s, k)| k.then_some(s))
+            .collect()
+    }
+
+    /// Greedy set cover over the supports of every candidate (in `order`, the seeded
+    /// order): the support with the most uncovered members next, supports within ε before
+    /// those over it (lazy re-evaluation; ties to the earlier candidate).
+    fn cover_greedy<const N: usize>(
+        &self,
+        order: &[u32],
+        stats: &mut VolumeCoverStats,
+    ) -> Vec<Support> {
+        let fits: Vec<Support> = order.par_iter().map(|&c| self.fit::<N>(c as usize)).collect();
+        stats.fits += fits.len();
+        let gains: Vec<u32> = fits
+            .par_iter()
+            .map(|s| {
+                let mut g = 0u32;
+                self.for_each_member(s, |_| g += 1);
+                g
+            })
+            .collect();
+        let tolerance = self.tolerance;
+        let within = |s: &Support| s.rms <= tolerance;
+        let mut heap: BinaryHeap<(bool, u32, Reverse<u32>)> = gains
+            .iter()
+            .zip(&fits)
+            .enumerate()
+            .map(|(rank, (&g, s))| (within(s), g, Reverse(rank as u32)))
+            .collect();
+        let mut covered = vec![false; self.volume.len()];
+        let mut supports = Vec::new();
+        while let Some((ok, stale, Reverse(rank))) = heap.pop() {
+            let s = &fits[rank as usize];
+            let mut gain = 0u32;
+            self.for_each_member(s, |idx| gain += u32::from(!covered[idx]));
+            if gain == 0 {
+                continue;
+            }
+            if gain < stale && heap.peek().is_some_and(|&(o, g, _)| (o, g) > (ok, gain)) {
+                heap.push((ok, gain, Reverse(rank)));
+                continue;
+            }
+            self.for_each_member(s, |idx| covered[idx] = true);
+            supports.push(*s);
+        }
+        supports
+    }
+
+    /// The covering loop of the thesis over candidates in `order`; returns the accepted
+    /// supports in order. With `defer`, a centre whose fit misses ε is set aside and taken
+    /// at the end only if no accepted ball contains it by then.
+    fn cover_in_order<const N: usize>(
+        &self,
+        order: &[u32],
+        defer: bool,
+        stats: &mut VolumeCoverStats,
+    ) -> Vec<Support> {
+        let n = self.volume.len();
         let mut covered = vec![false; n];
         let mut supports = Vec::new();
+        let mut deferred = Vec::new();
         let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
         let mut pos = 0;
         let mut batch = Vec::with_capacity(batch_size);
@@ -895,8 +1067,24 @@ impl<'a> Grid<'a> {
                 if covered[s.center as usize] {
                     continue;
                 }
+                if defer && s.rms > self.tolerance {
+                    deferred.push(s);
+                    continue;
+                }
                 self.mark_covered(&s, &mut covered);
                 supports.push(s);
+            }
+        }
+        if !deferred.is_empty() {
+            let mut in_ball = vec![false; n];
+            for s in &supports {
+                self.for_each_member(s, |idx| in_ball[idx] = true);
+            }
+            for s in deferred {
+                if !in_ball[s.center as usize] {
+                    self.for_each_member(&s, |idx| in_ball[idx] = true);
+                    supports.push(s);
+                }
             }
         }
         supports
