@@ -1,7 +1,7 @@
 //! Builds the volume cover of a NIfTI file and prints its statistics.
 //!
 //! `cargo run --release -p sphcover-core --example volume_cover -- FILE.nii.gz THRESHOLD
-//! [linear|scattered] [order=random|deepest|greedy] [eliminate=yes|no]
+//! [linear|scattered] [order=random|deepest|greedy] [eliminate=no|centres|corners]
 //! [min=MIN_SAMPLES] [eps=E]`
 //! (THRESHOLD in the file's units; `linear` builds the bounding-box linear variant;
 //! `scattered` gives the voxel centres and values to the scattered-sample builder instead;
@@ -18,20 +18,20 @@ use std::time::Instant;
 
 use sphcover_core::io::read_nifti;
 use sphcover_core::{
-    CentreOrder, Cover, DVec3, PuEvaluator, Threshold, Volume, VolumeCoverParams,
+    CentreOrder, Cover, DVec3, Elimination, PuEvaluator, Threshold, Volume, VolumeCoverParams,
     VolumeCoverStats, VolumeCoverVariant, VoxelValues, build_scattered_cover, build_volume_cover,
 };
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let usage = "usage: volume_cover FILE.nii[.gz] THRESHOLD [linear|scattered] \
-                 [order=random|deepest|greedy] [eliminate=yes|no] [min=MIN_SAMPLES] [eps=E]";
+                 [order=random|deepest|greedy] [eliminate=no|centres|corners] [min=MIN_SAMPLES] [eps=E]";
     let path = PathBuf::from(args.next().ok_or(usage)?);
     let threshold: f64 = args.next().ok_or(usage)?.parse()?;
     let defaults = VolumeCoverParams::default();
     let (mut linear, mut scattered) = (false, false);
     let mut centre_order = defaults.centre_order;
-    let mut eliminate_redundant = defaults.eliminate_redundant;
+    let mut elimination = defaults.elimination;
     let mut min_samples = defaults.min_samples;
     let mut tolerance = defaults.tolerance;
     for arg in args {
@@ -47,9 +47,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
             Some(("eliminate", v)) => {
-                eliminate_redundant = match v {
-                    "yes" => true,
-                    "no" => false,
+                elimination = match v {
+                    "no" => Elimination::Off,
+                    "centres" => Elimination::VoxelCentres,
+                    "corners" => Elimination::CellCorners,
                     _ => return Err(usage.into()),
                 }
             }
@@ -99,7 +100,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             VolumeCoverVariant::ObjectQuadratic
         },
         centre_order,
-        eliminate_redundant,
+        elimination,
         min_samples,
         tolerance,
         ..defaults

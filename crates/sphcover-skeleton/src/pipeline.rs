@@ -268,7 +268,7 @@ pub fn extract_skeleton(
         r_max: params.r_max,
         kernel: params.kernel,
         seed: params.seed,
-        eliminate_redundant: false, // the sheet needs the dense thesis cover (docs/benchmarks.md)
+        elimination: sphcover_core::Elimination::Off, // the sheet needs the dense thesis cover (docs/benchmarks.md)
         ..VolumeCoverParams::default()
     };
     let (cover, cover_stats) = build_volume_cover(volume, &cover_params)?;

@@ -558,7 +558,7 @@ impl Samples<'_> {
                 supports.push(s);
             }
         }
-        if params.eliminate_redundant {
+        if params.elimination != super::Elimination::Off && !self.bounding_box {
             self.eliminate_redundant(supports)
         } else {
             supports
