@@ -42,7 +42,7 @@
 //!    first, then by increasing member count (ties by position), a support is removed when
 //!    every member lies in at least one other remaining support. With elimination on, a
 //!    centre whose fit misses ε in step 2 is set aside (nothing is marked covered) and is
-//!    only taken after step 4 if no accepted ball contains it by then.
+//!    only taken after step 4 if it holds a member that no accepted ball holds by then.
 //!
 //! # No object point is left outside the cover
 //!
@@ -954,7 +954,7 @@ impl<'a> Grid<'a> {
         let supports = if params.centre_order == CentreOrder::MostUncovered {
             self.cover_greedy::<N>(&order, corners, stats)
         } else {
-            self.cover_in_order::<N>(&order, eliminate, stats)
+            self.cover_in_order::<N>(&order, eliminate, corners, stats)
         };
         if eliminate {
             self.eliminate_redundant(supports, corners)
@@ -1086,11 +1086,13 @@ impl<'a> Grid<'a> {
 
     /// The covering loop of the thesis over candidates in `order`; returns the accepted
     /// supports in order. With `defer`, a centre whose fit misses ε is set aside and taken
-    /// at the end only if no accepted ball contains it by then.
+    /// at the end only if it holds a member that no accepted ball holds by then (with
+    /// `corners`, cell corners count as members).
     fn cover_in_order<const N: usize>(
         &self,
         order: &[u32],
         defer: bool,
+        corners: Option<&CornerSet>,
         stats: &mut VolumeCoverStats,
     ) -> Vec<Support> {
         let n = self.volume.len();
@@ -1124,13 +1126,18 @@ impl<'a> Grid<'a> {
             }
         }
         if !deferred.is_empty() {
-            let mut in_ball = vec![false; n];
+            let total = n + corners.map_or(0, |cs| cs.object.len());
+            let mut in_ball = vec![false; total];
             for s in &supports {
-                self.for_each_member(s, &mut |idx| in_ball[idx] = true);
+                self.for_each_point(s, corners, &mut |idx| in_ball[idx] = true);
             }
             for s in deferred {
-                if !in_ball[s.center as usize] {
-                    self.for_each_member(&s, &mut |idx| in_ball[idx] = true);
+                // Taken when it holds a member (its centre, or with `corners` a cell corner)
+                // that no accepted ball holds.
+                let mut needed = false;
+                self.for_each_point(&s, corners, &mut |idx| needed |= !in_ball[idx]);
+                if needed {
+                    self.for_each_point(&s, corners, &mut |idx| in_ball[idx] = true);
                     supports.push(s);
                 }
             }
