@@ -6,8 +6,8 @@ mod volume_common;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sphcover_core::{
-    DVec3, Threshold, Volume, VolumeCoverParams, VolumeCoverVariant, VoxelValues,
-    build_volume_cover,
+    CentreOrder, DVec3, Elimination, Threshold, Volume, VolumeCoverParams, VolumeCoverVariant,
+    VoxelValues, build_volume_cover,
 };
 use std::hint::black_box;
 
@@ -29,6 +29,20 @@ fn bench(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("plate_96x96x48_quadratic", |b| {
         b.iter(|| build_volume_cover(black_box(&volume), &params).expect("cover"))
+    });
+    let thesis = VolumeCoverParams {
+        elimination: Elimination::Off,
+        ..params.clone()
+    };
+    group.bench_function("plate_96x96x48_quadratic_no_elimination", |b| {
+        b.iter(|| build_volume_cover(black_box(&volume), &thesis).expect("cover"))
+    });
+    let greedy = VolumeCoverParams {
+        centre_order: CentreOrder::MostUncovered,
+        ..params.clone()
+    };
+    group.bench_function("plate_96x96x48_quadratic_greedy", |b| {
+        b.iter(|| build_volume_cover(black_box(&volume), &greedy).expect("cover"))
     });
     let linear = VolumeCoverParams {
         variant: VolumeCoverVariant::BoundingBoxLinear,

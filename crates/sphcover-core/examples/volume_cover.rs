@@ -1,11 +1,14 @@
 //! Builds the volume cover of a NIfTI file and prints its statistics.
 //!
-//! `cargo run --release -p sphcover-core --example volume_cover -- FILE.nii.gz THRESHOLD [linear]`
+//! `cargo run --release -p sphcover-core --example volume_cover -- FILE.nii.gz THRESHOLD
+//! [linear|scattered] [order=random|deepest|greedy] [eliminate=no|centres|corners]
+//! [min=MIN_SAMPLES] [eps=E]`
 //! (THRESHOLD in the file's units; `linear` builds the bounding-box linear variant;
-//! `scattered` gives the voxel centres and values to the scattered-sample builder instead).
+//! `scattered` gives the voxel centres and values to the scattered-sample builder instead;
+//! the `key=value` options set [`VolumeCoverParams`] fields, library defaults otherwise).
 //! FILE may also be `plate:T[:EPS]`: the tests' tilted plate phantom of `T` voxels
 //! (40 × 40 × 24 voxels of 0.1, PSF 0.8 voxel, HU −1000/+2000) at tolerance EPS (default
-//! 0.05). Set `DEEPEST=1` for the deepest-first centre order.
+//! 0.05).
 
 #[path = "../tests/volume_common/mod.rs"]
 mod volume_common;
@@ -15,22 +18,49 @@ use std::time::Instant;
 
 use sphcover_core::io::read_nifti;
 use sphcover_core::{
-    CentreOrder, DVec3, Threshold, Volume, VolumeCoverParams, VolumeCoverVariant, VoxelValues,
-    build_scattered_cover, build_volume_cover,
+    CentreOrder, Cover, DVec3, Elimination, PuEvaluator, Threshold, Volume, VolumeCoverParams,
+    VolumeCoverStats, VolumeCoverVariant, VoxelValues, build_scattered_cover, build_volume_cover,
 };
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let usage = "usage: volume_cover FILE.nii[.gz] THRESHOLD [linear|scattered]";
+    let usage = "usage: volume_cover FILE.nii[.gz] THRESHOLD [linear|scattered] \
+                 [order=random|deepest|greedy] [eliminate=no|centres|corners] [min=MIN_SAMPLES] [eps=E]";
     let path = PathBuf::from(args.next().ok_or(usage)?);
     let threshold: f64 = args.next().ok_or(usage)?.parse()?;
-    let mode = args.next();
-    let linear = mode.as_deref() == Some("linear");
-    let scattered = mode.as_deref() == Some("scattered");
-    let deepest = std::env::var_os("DEEPEST").is_some();
+    let defaults = VolumeCoverParams::default();
+    let (mut linear, mut scattered) = (false, false);
+    let mut centre_order = defaults.centre_order;
+    let mut elimination = defaults.elimination;
+    let mut min_samples = defaults.min_samples;
+    let mut tolerance = defaults.tolerance;
+    for arg in args {
+        match arg.split_once('=') {
+            None if arg == "linear" => linear = true,
+            None if arg == "scattered" => scattered = true,
+            Some(("order", v)) => {
+                centre_order = match v {
+                    "random" => CentreOrder::Random,
+                    "deepest" => CentreOrder::DeepestFirst,
+                    "greedy" => CentreOrder::MostUncovered,
+                    _ => return Err(usage.into()),
+                }
+            }
+            Some(("eliminate", v)) => {
+                elimination = match v {
+                    "no" => Elimination::Off,
+                    "centres" => Elimination::VoxelCentres,
+                    "corners" => Elimination::CellCorners,
+                    _ => return Err(usage.into()),
+                }
+            }
+            Some(("min", v)) => min_samples = v.parse()?,
+            Some(("eps", v)) => tolerance = v.parse()?,
+            _ => return Err(usage.into()),
+        }
+    }
 
     let name = path.to_string_lossy().into_owned();
-    let mut tolerance = VolumeCoverParams::default().tolerance;
     let volume = if let Some(spec) = name.strip_prefix("plate:") {
         let mut parts = spec.split(':');
         let thickness: f64 = parts.next().ok_or(usage)?.parse()?;
@@ -69,13 +99,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         } else {
             VolumeCoverVariant::ObjectQuadratic
         },
-        centre_order: if deepest {
-            CentreOrder::DeepestFirst
-        } else {
-            CentreOrder::Random
-        },
+        centre_order,
+        elimination,
+        min_samples,
         tolerance,
-        ..VolumeCoverParams::default()
+        ..defaults
     };
     let start = Instant::now();
     let (cover, stats) = if scattered {
@@ -113,6 +141,64 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "time               {:.3?} (distance transform {:.3?}, cover {:.3?})",
         total, stats.time_distance_transform, stats.time_cover
+    );
+    blend_check(&volume, &cover, &stats, threshold)?;
+    Ok(())
+}
+
+/// The blended function against the normalised voxel values at the object voxels' centres
+/// (RMS and largest error, and how many lie in no ball), and the corners of the object
+/// voxels' cells that lie in no ball (gaps between voxel centres).
+fn blend_check(
+    volume: &Volume,
+    cover: &Cover,
+    stats: &VolumeCoverStats,
+    threshold: f64,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let start = Instant::now();
+    let (lo, hi) = stats.value_range;
+    let f = PuEvaluator::new(cover, 1.0)?;
+    let object: Vec<usize> = (0..volume.len())
+        .filter(|&i| volume.value(i) > threshold)
+        .collect();
+    let centres: Vec<DVec3> = object
+        .iter()
+        .map(|&i| volume.voxel_center(volume.ijk(i)))
+        .collect();
+    let values = f.values(&centres);
+    let (mut sum, mut worst, mut outside) = (0.0, 0.0f64, 0usize);
+    for (&i, v) in object.iter().zip(&values) {
+        match v {
+            Some(v) => {
+                let e = v - (volume.value(i) - lo) / (hi - lo);
+                sum += e * e;
+                worst = worst.max(e.abs());
+            }
+            None => outside += 1,
+        }
+    }
+    let half = volume.affine().matrix3 * DVec3::splat(0.5);
+    let mut corners = Vec::with_capacity(8 * centres.len());
+    for c in &centres {
+        for k in 0..8 {
+            let s = DVec3::new(
+                if k & 1 == 0 { -1.0 } else { 1.0 },
+                if k & 2 == 0 { -1.0 } else { 1.0 },
+                if k & 4 == 0 { -1.0 } else { 1.0 },
+            );
+            corners.push(*c + half * s);
+        }
+    }
+    let gaps = f.values(&corners).iter().filter(|v| v.is_none()).count();
+    println!(
+        "blend at object voxels: RMS {:.4}, max |error| {:.4}, outside every ball {}; \
+         voxel-cell corners outside every ball {} of {} ({:.3?})",
+        (sum / (object.len() - outside).max(1) as f64).sqrt(),
+        worst,
+        outside,
+        gaps,
+        corners.len(),
+        start.elapsed()
     );
     Ok(())
 }

@@ -74,6 +74,6 @@ pub use surface_cover::{
 };
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
-    CentreOrder, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
+    CentreOrder, Elimination, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
     VolumeCoverVariant, build_scattered_cover, build_volume_cover,
 };

@@ -310,6 +310,7 @@ pub(crate) fn intensity_cover_params(
         r_max: params.r_max,
         kernel: params.kernel,
         seed: params.seed,
+        elimination: sphcover_core::Elimination::Off, // the sheet needs the dense thesis cover (docs/benchmarks.md)
         ..VolumeCoverParams::default()
     }
 }

@@ -34,6 +34,15 @@
 //!    *more* candidates, never a gap. The centre itself is always marked covered, which
 //!    guarantees progress (a centre on a corner of the object is a hull vertex).
 //! 4. Repeat until no candidate is uncovered.
+//! 5. Elimination (default, object variant only; [`VolumeCoverParams::elimination`],
+//!    a departure from the thesis, after its surface builder §3.4.1). A support's *members*
+//!    are the object points strictly inside its ball and, for [`Elimination::CellCorners`]
+//!    (the default), the corners of object voxels' cells strictly inside it that lie in
+//!    some ball of the loop's cover. Supports over ε
+//!    first, then by increasing member count (ties by position), a support is removed when
+//!    every member lies in at least one other remaining support. With elimination on, a
+//!    centre whose fit misses ε in step 2 is set aside (nothing is marked covered) and is
+//!    only taken after step 4 if it holds a member that no accepted ball holds by then.
 //!
 //! # No object point is left outside the cover
 //!
@@ -46,11 +55,22 @@
 //! that a ball holds the whole 3×3×3 neighbourhood of its centre) except at steep edges
 //! where that ball misses `ε`; the argument above does not depend on the radius.
 //!
+//! Elimination keeps this: each object point starts in at least one member set (a centre,
+//! or a hull-interior point at `‖p − c‖ < s`), and a support goes only when all its members
+//! have another one. Every kept support holds a member no other kept ball holds. With
+//! [`Elimination::CellCorners`] no cell corner leaves the union of the balls either, so the
+//! elimination opens no gap at those points between the voxel centres
+//! ([`Elimination::VoxelCentres`] leaves 1–4 % of them in no ball on the phantoms).
+//!
 //! # Compactness
 //!
 //! With the thesis' `ε = 5 %`, a quadratic follows the intensity profile across a plate of
-//! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, so such plates get
-//! about one support per 8 object voxels; an 8-voxel plate at `ε = 10 %` gets one per 40.
+//! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, and the hull rule
+//! marks only a ball's hull interior, so the thesis' loop gives such plates about one
+//! support per 8 object voxels, most balls overlapping their neighbours far more than
+//! needed. Elimination removes that redundancy: 20.7 object voxels per support on the
+//! tests' 4-voxel plate, 41.9 on the 6-voxel one (cell corners kept; 34.1 and 69.5 with
+//! voxel centres only; measurements in `docs/algorithms.md` and `docs/benchmarks.md`).
 //!
 //! # Centre order (a departure from the thesis, optional)
 //!
@@ -63,7 +83,15 @@
 //! support, random → deepest first: 4-voxel plate 7.7 → 11.3, 6-voxel 14.9 → 21.7, 8-voxel
 //! 14.5 → 15.6; the T-junction phantom 6.4 → 8.4; every RMS ≤ ε, no object voxel uncovered.
 //! It stays opt-in (the default keeps the thesis' random order, which the skeleton
-//! pipeline's figures were measured with).
+//! pipeline's figures were measured with). With the default elimination the orders give
+//! 20.7 / 29.7 / 42.4 object voxels per support on the 4-voxel plate (random / deepest
+//! first / [`CentreOrder::MostUncovered`]), and 41.9 / 62.3 / 105.3 on the 6-voxel one.
+//!
+//! [`CentreOrder::MostUncovered`] is a greedy set cover: every candidate's support is fitted
+//! (one fit per object point, against about one per eight in the thesis' loop), then the
+//! support with the most uncovered members is taken next, supports within ε before those
+//! over it. Only it reaches every support within ε where some points' smallest ball misses
+//! ε but a neighbour's ball around them does not (sharp edges).
 //!
 //! # Radii
 //!
@@ -78,7 +106,9 @@
 //! A support's radius and function depend on its centre only, so the fits of the next few
 //! uncovered candidates run in parallel ahead of time; the covering check then runs in
 //! candidate order and drops the speculative fits whose centre got covered meanwhile. The
-//! result is that of the sequential algorithm, bit for bit, whatever the thread count.
+//! result is that of the sequential algorithm, bit for bit, whatever the thread count. The
+//! greedy order fits every candidate in parallel, then selects sequentially; elimination
+//! counts members in parallel (integer sums) and decides sequentially.
 
 mod distance_transform;
 mod fit;
@@ -86,6 +116,9 @@ mod scattered;
 
 pub use scattered::build_scattered_cover;
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use glam::{DMat3, DVec3};
@@ -136,6 +169,11 @@ pub enum CentreOrder {
     /// transform that gives `r_max`), ties in the seeded random order. Object variant only
     /// (the linear variant has no background); see the module docs for the measurements.
     DeepestFirst,
+    /// Greedy set cover: every candidate's support is fitted, then the support holding the
+    /// most still-uncovered members (object points strictly inside it, and cell corners
+    /// under [`Elimination::CellCorners`]) is taken next, supports within ε first, ties in
+    /// the seeded order. Costs one fit per candidate.
+    MostUncovered,
 }
 
 /// Parameters of [`build_volume_cover`]. `Default` gives the thesis defaults.
@@ -164,6 +202,26 @@ pub struct VolumeCoverParams {
     pub seed: u64,
     /// Which uncovered candidate becomes the next centre.
     pub centre_order: CentreOrder,
+    /// Which redundant supports are removed after covering (see [`Elimination`]). Object
+    /// variant only: the linear variant keeps the thesis' cover (elimination raised its
+    /// largest error at the skull's object voxels from 0.12 to 0.45).
+    pub elimination: Elimination,
+}
+
+/// The elimination pass after covering (a departure from the thesis; module docs, step 5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Elimination {
+    /// Keep every support of the covering loop (the thesis' cover).
+    Off,
+    /// Remove a support when each object voxel strictly inside it lies strictly inside
+    /// another remaining support.
+    VoxelCentres,
+    /// As `VoxelCentres`, and each corner of an object voxel's cell strictly inside it also
+    /// lies in another remaining support (a corner in no ball of the thesis' cover does not
+    /// count): no gap opens at the sampled corners. The scattered builder has no cells and
+    /// treats this as `VoxelCentres`.
+    #[default]
+    CellCorners,
 }
 
 impl Default for VolumeCoverParams {
@@ -179,6 +237,7 @@ impl Default for VolumeCoverParams {
             kernel: Kernel::TruncatedGaussian,
             seed: 0,
             centre_order: CentreOrder::default(),
+            elimination: Elimination::default(),
         }
     }
 }
@@ -505,6 +564,9 @@ struct Support {
     shell_d2: f64,
     /// Number of offsets (in table order) inside the ball.
     offsets: usize,
+    /// Number of offsets strictly inside the ball's sphere (`offsets`, or the shells before
+    /// the last one when that lies on the sphere at `r_max`).
+    inner_offsets: usize,
     /// Coefficients in the frame `u = (x − c)/r`, constant term relative to `shift`.
     coef: [f64; QUADRATIC],
     shift: f64,
@@ -788,11 +850,20 @@ impl<'a> Grid<'a> {
         coef[..N].copy_from_slice(&c);
         let end = self.shells[shell].1;
         let rms = self.direct_rms::<N>(base, end, &c, radius, shift);
+        // The last shell can lie on the sphere (r = r_max, e.g. the thickness, which is a
+        // voxel distance): its points are not strictly inside, up to rounding.
+        let on_sphere =
+            shell > 0 && self.shells[shell].0.sqrt() * self.unit >= radius * (1.0 - 1e-9);
         Support {
             center: center as u32,
             radius,
             shell_d2: self.shells[shell].0,
             offsets: end,
+            inner_offsets: if on_sphere {
+                self.shells[shell - 1].1
+            } else {
+                end
+            },
             coef,
             shift,
             rms,
@@ -875,8 +946,159 @@ impl<'a> Grid<'a> {
         if let Some(d) = depth {
             order.sort_by(|&a, &b| d[b as usize].total_cmp(&d[a as usize]));
         }
+        // The linear variant (smoothing input, §6.2.3) keeps the thesis' cover.
+        let eliminate = params.elimination != Elimination::Off && !self.bounding_box;
+        let corners = (eliminate && params.elimination == Elimination::CellCorners)
+            .then(|| CornerSet::new(self));
+        let corners = corners.as_ref();
+        let supports = if params.centre_order == CentreOrder::MostUncovered {
+            self.cover_greedy::<N>(&order, corners, stats)
+        } else {
+            self.cover_in_order::<N>(&order, eliminate, corners, stats)
+        };
+        if eliminate {
+            self.eliminate_redundant(supports, corners)
+        } else {
+            supports
+        }
+    }
+
+    /// Calls `f` with every object point (every grid point, for the linear variant) strictly
+    /// inside the support's ball.
+    #[inline]
+    fn for_each_member(&self, s: &Support, f: &mut dyn FnMut(usize)) {
+        let base = self.base(s.center as usize);
+        for o in &self.offsets[..s.inner_offsets] {
+            if let Some(idx) = self.neighbour(base, o.step)
+                && (self.bounding_box || self.object[idx])
+            {
+                f(idx);
+            }
+        }
+    }
+
+    /// Calls `f` with the support's member voxels (`0..n`) and, with `corners`, its member
+    /// cell corners (`n..`).
+    fn for_each_point(&self, s: &Support, corners: Option<&CornerSet>, f: &mut dyn FnMut(usize)) {
+        self.for_each_member(s, &mut *f);
+        if let Some(cs) = corners {
+            let n = self.volume.len();
+            cs.for_each_member(self, s, |c| f(n + c));
+        }
+    }
+
+    /// Removes redundant supports: those over ε first, then in order of increasing member
+    /// count (ties by position), a support goes when each of its members lies in at least one other remaining support.
+    /// Every member keeps at least one support, so the cover stays gap-free. Sequential and
+    /// order-defined: the same whatever the thread count.
+    fn eliminate_redundant(
+        &self,
+        supports: Vec<Support>,
+        corners: Option<&CornerSet>,
+    ) -> Vec<Support> {
+        let for_each = |s: &Support, f: &mut dyn FnMut(usize)| self.for_each_point(s, corners, f);
+        let total = self.volume.len() + corners.map_or(0, |cs| cs.object.len());
+        let counts: Vec<AtomicU32> = (0..total).map(|_| AtomicU32::new(0)).collect();
+        let sizes: Vec<u32> = supports
+            .par_iter()
+            .map(|s| {
+                let mut size = 0u32;
+                for_each(s, &mut |idx| {
+                    counts[idx].fetch_add(1, Ordering::Relaxed);
+                    size += 1;
+                });
+                size
+            })
+            .collect();
+        let mut counts: Vec<u32> = counts.into_iter().map(AtomicU32::into_inner).collect();
+        // Supports over ε go first, then the smallest.
+        let mut by_size: Vec<u32> = (0..supports.len() as u32).collect();
+        by_size.sort_by_key(|&i| {
+            let s = &supports[i as usize];
+            (s.rms <= self.tolerance, sizes[i as usize], i)
+        });
+        let mut keep = vec![true; supports.len()];
+        for &i in &by_size {
+            let s = &supports[i as usize];
+            let mut redundant = true;
+            for_each(s, &mut |idx| redundant &= counts[idx] >= 2);
+            if redundant {
+                for_each(s, &mut |idx| counts[idx] -= 1);
+                keep[i as usize] = false;
+            }
+        }
+        supports
+            .into_iter()
+            .zip(keep)
+            .filter_map(|(s, k)| k.then_some(s))
+            .collect()
+    }
+
+    /// Greedy set cover over the supports of every candidate (in `order`, the seeded
+    /// order): the support with the most uncovered members next, supports within ε before
+    /// those over it (lazy re-evaluation; ties to the earlier candidate).
+    fn cover_greedy<const N: usize>(
+        &self,
+        order: &[u32],
+        corners: Option<&CornerSet>,
+        stats: &mut VolumeCoverStats,
+    ) -> Vec<Support> {
+        let fits: Vec<Support> = order
+            .par_iter()
+            .map(|&c| self.fit::<N>(c as usize))
+            .collect();
+        stats.fits += fits.len();
+        let gains: Vec<u32> = fits
+            .par_iter()
+            .map(|s| {
+                let mut g = 0u32;
+                self.for_each_point(s, corners, &mut |_| g += 1);
+                g
+            })
+            .collect();
+        let tolerance = self.tolerance;
+        let within = |s: &Support| s.rms <= tolerance;
+        let mut heap: BinaryHeap<(bool, u32, Reverse<u32>)> = gains
+            .iter()
+            .zip(&fits)
+            .enumerate()
+            .map(|(rank, (&g, s))| (within(s), g, Reverse(rank as u32)))
+            .collect();
+        let total = self.volume.len() + corners.map_or(0, |cs| cs.object.len());
+        let mut covered = vec![false; total];
+        let mut supports = Vec::new();
+        while let Some((ok, stale, Reverse(rank))) = heap.pop() {
+            let s = &fits[rank as usize];
+            let mut gain = 0u32;
+            self.for_each_point(s, corners, &mut |idx| gain += u32::from(!covered[idx]));
+            if gain == 0 {
+                continue;
+            }
+            if gain < stale && heap.peek().is_some_and(|&(o, g, _)| (o, g) > (ok, gain)) {
+                heap.push((ok, gain, Reverse(rank)));
+                continue;
+            }
+            self.for_each_point(s, corners, &mut |idx| covered[idx] = true);
+            supports.push(*s);
+        }
+        supports
+    }
+
+    /// The covering loop of the thesis over candidates in `order`; returns the accepted
+    /// supports in order. With `defer`, a centre whose fit misses ε is set aside and taken
+    /// at the end only if it holds a member that no accepted ball holds by then (with
+    /// `corners`, cell corners count as members).
+    fn cover_in_order<const N: usize>(
+        &self,
+        order: &[u32],
+        defer: bool,
+        corners: Option<&CornerSet>,
+        stats: &mut VolumeCoverStats,
+    ) -> Vec<Support> {
+        let n = self.volume.len();
         let mut covered = vec![false; n];
         let mut supports = Vec::new();
+        let mut deferred = Vec::new();
         let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
         let mut pos = 0;
         let mut batch = Vec::with_capacity(batch_size);
@@ -895,11 +1117,115 @@ impl<'a> Grid<'a> {
                 if covered[s.center as usize] {
                     continue;
                 }
+                if defer && s.rms > self.tolerance {
+                    deferred.push(s);
+                    continue;
+                }
                 self.mark_covered(&s, &mut covered);
                 supports.push(s);
             }
         }
+        if !deferred.is_empty() {
+            let total = n + corners.map_or(0, |cs| cs.object.len());
+            let mut in_ball = vec![false; total];
+            for s in &supports {
+                self.for_each_point(s, corners, &mut |idx| in_ball[idx] = true);
+            }
+            for s in deferred {
+                // Taken when it holds a member (its centre, or with `corners` a cell corner)
+                // that no accepted ball holds.
+                let mut needed = false;
+                self.for_each_point(&s, corners, &mut |idx| needed |= !in_ball[idx]);
+                if needed {
+                    self.for_each_point(&s, corners, &mut |idx| in_ball[idx] = true);
+                    supports.push(s);
+                }
+            }
+        }
         supports
+    }
+}
+
+/// The corners of the voxel cells (the lattice shifted by half a voxel) that touch an object
+/// voxel, for [`Elimination::CellCorners`]. Corner `(a, b, c)`, `a ∈ 0..=nx`, sits at voxel
+/// coordinates `(a − ½, b − ½, c − ½)`.
+struct CornerSet {
+    dims: [i64; 3],
+    object: Vec<bool>,
+    /// Offsets from a voxel centre to corners within `r_max`: `(step, distance² in frame
+    /// d/h)`, by increasing distance; the corner of step `s` from voxel `v` is `v + s + 1`.
+    offsets: Vec<([i32; 3], f64)>,
+}
+
+impl CornerSet {
+    fn new(grid: &Grid) -> CornerSet {
+        let [nx, ny, nz] = grid.dims;
+        let dims = [nx + 1, ny + 1, nz + 1];
+        let count = (dims[0] * dims[1] * dims[2]) as usize;
+        let object: Vec<bool> = (0..count)
+            .into_par_iter()
+            .map(|c| {
+                let c = c as i64;
+                let (a, b, k) = (
+                    c % dims[0],
+                    (c / dims[0]) % dims[1],
+                    c / (dims[0] * dims[1]),
+                );
+                (0..8).any(|m| {
+                    let (i, j, l) = (a - 1 + (m & 1), b - 1 + ((m >> 1) & 1), k - 1 + (m >> 2));
+                    (0..nx).contains(&i)
+                        && (0..ny).contains(&j)
+                        && (0..nz).contains(&l)
+                        && grid.object[(i + nx * (j + ny * l)) as usize]
+                })
+            })
+            .collect();
+        let reach = grid.r_max / grid.unit;
+        let inv = grid.linear.inverse().transpose();
+        let ext = [inv.x_axis, inv.y_axis, inv.z_axis]
+            .map(|row| (reach * row.length()).ceil() as i32 + 1);
+        let mut offsets = Vec::new();
+        for k in -ext[2]..ext[2] {
+            for j in -ext[1]..ext[1] {
+                for i in -ext[0]..ext[0] {
+                    let p =
+                        grid.linear * DVec3::new(i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5);
+                    let d2 = p.length_squared();
+                    if d2 <= reach * reach {
+                        offsets.push(([i, j, k], d2));
+                    }
+                }
+            }
+        }
+        offsets.sort_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)));
+        CornerSet {
+            dims,
+            object,
+            offsets,
+        }
+    }
+
+    /// Calls `f` with the object corners strictly inside the support's ball.
+    fn for_each_member(&self, grid: &Grid, s: &Support, mut f: impl FnMut(usize)) {
+        let base = grid.base(s.center as usize);
+        let limit = s.radius / grid.unit * (1.0 - 1e-9);
+        let limit2 = limit * limit;
+        for &(step, d2) in &self.offsets {
+            if d2 >= limit2 {
+                break;
+            }
+            let a = base[0] + i64::from(step[0]) + 1;
+            let b = base[1] + i64::from(step[1]) + 1;
+            let c = base[2] + i64::from(step[2]) + 1;
+            let [dx, dy, dz] = self.dims;
+            if a < 0 || b < 0 || c < 0 || a >= dx || b >= dy || c >= dz {
+                continue;
+            }
+            let idx = (a + dx * (b + dy * c)) as usize;
+            if self.object[idx] {
+                f(idx);
+            }
+        }
     }
 }
 

@@ -28,6 +28,7 @@
 //!   inside the ball (its distance is at most the accepted shell's, below the radius), so
 //!   marking a point covered never leaves a gap, whatever the test decides.
 
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
 use glam::DVec3;
@@ -452,6 +453,8 @@ impl Samples<'_> {
             radius,
             shell_d2,
             offsets: end,
+            // The grid's lattice bookkeeping; `members` tests the radius instead.
+            inner_offsets: end,
             coef,
             shift,
             rms: (sum / count.max(1) as f64).sqrt(),
@@ -555,6 +558,68 @@ impl Samples<'_> {
                 supports.push(s);
             }
         }
+        if params.elimination != super::Elimination::Off && !self.bounding_box {
+            self.eliminate_redundant(supports)
+        } else {
+            supports
+        }
+    }
+
+    /// The object samples (every sample, for the linear variant) strictly inside the
+    /// support's ball, into `out`.
+    fn members(&self, s: &Support, ball: &mut Vec<(f64, u32)>, out: &mut Vec<u32>) {
+        self.ball(s, ball);
+        out.clear();
+        let limit = s.radius * (1.0 - 1e-9) / self.unit;
+        let limit2 = limit * limit;
+        out.extend(
+            ball.iter()
+                .filter(|&&(d2, i)| d2 < limit2 && (self.bounding_box || self.object[i as usize]))
+                .map(|&(_, i)| i),
+        );
+    }
+
+    /// The grid builder's elimination pass (see `Grid::eliminate_redundant`): over-ε
+    /// supports first, then by increasing member count, a support goes when every member
+    /// lies in another remaining support.
+    fn eliminate_redundant(&self, supports: Vec<Support>) -> Vec<Support> {
+        let counts: Vec<AtomicU32> = (0..self.positions.len())
+            .map(|_| AtomicU32::new(0))
+            .collect();
+        let sizes: Vec<u32> = supports
+            .par_iter()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(ball, members), s| {
+                    self.members(s, ball, members);
+                    for &i in members.iter() {
+                        counts[i as usize].fetch_add(1, Ordering::Relaxed);
+                    }
+                    members.len() as u32
+                },
+            )
+            .collect();
+        let mut counts: Vec<u32> = counts.into_iter().map(AtomicU32::into_inner).collect();
+        let mut by_size: Vec<u32> = (0..supports.len() as u32).collect();
+        by_size.sort_by_key(|&i| {
+            let s = &supports[i as usize];
+            (s.rms <= self.tolerance, sizes[i as usize], i)
+        });
+        let mut keep = vec![true; supports.len()];
+        let (mut ball, mut members) = (Vec::new(), Vec::new());
+        for &i in &by_size {
+            self.members(&supports[i as usize], &mut ball, &mut members);
+            if members.iter().all(|&m| counts[m as usize] >= 2) {
+                for &m in &members {
+                    counts[m as usize] -= 1;
+                }
+                keep[i as usize] = false;
+            }
+        }
         supports
+            .into_iter()
+            .zip(keep)
+            .filter_map(|(s, k)| k.then_some(s))
+            .collect()
     }
 }
