@@ -182,6 +182,12 @@ pub struct CoverArgs {
     /// cover; no normals needed.
     #[arg(long, value_name = "NAME")]
     pub value_property: Option<String>,
+    /// Volumes: the order in which uncovered object points become centres.
+    #[arg(long, value_enum, default_value_t = CoverCentreOrder::Random)]
+    pub centre_order: CoverCentreOrder,
+    /// Volumes: which redundant supports are removed after covering.
+    #[arg(long, value_enum, default_value_t = CoverElimination::Corners)]
+    pub elimination: CoverElimination,
     /// Seed of the random choices (expansion order, centre choice).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -190,6 +196,31 @@ pub struct CoverArgs {
     pub ascii: bool,
     #[command(flatten)]
     pub read: InputArgs,
+}
+
+/// `sphcover cover --centre-order`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CoverCentreOrder {
+    /// Uniformly random among the uncovered points, from the seed (thesis §3.4.2).
+    Random,
+    /// Deepest inside the object first (quadratic variant only).
+    Deepest,
+    /// Greedy set cover: the support covering the most uncovered points next (one fit per
+    /// object point: 5–20× slower, fewest supports).
+    Greedy,
+}
+
+/// `sphcover cover --elimination`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CoverElimination {
+    /// Keep every support of the covering loop (the thesis' cover).
+    Off,
+    /// Remove supports whose object voxels all lie in other supports; points between voxel
+    /// centres may then fall outside every ball.
+    Centres,
+    /// As `centres`, and the corners of the object voxels' cells stay covered too: no new
+    /// gap in the cover.
+    Corners,
 }
 
 /// How `sphcover skeleton` finds the sheet.

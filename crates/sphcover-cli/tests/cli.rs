@@ -259,6 +259,56 @@ fn cover_of_a_ct_volume_and_its_tetrahedral_mesh() {
 }
 
 #[test]
+fn cover_centre_order_and_elimination_trade_supports_for_build_time() {
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let dir = tempfile::tempdir().unwrap();
+    let supports = |extra: &[&str]| {
+        let out = dir.path().join("c.ply");
+        let mut args = vec![
+            "cover",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(&["--threshold", "500"]);
+        args.extend_from_slice(extra);
+        let run = sphcover(&args);
+        assert_eq!(
+            run.status.code(),
+            Some(0),
+            "{extra:?}: {}",
+            text(&run.stderr)
+        );
+        sphcover_core::io::read_cover(&out).unwrap().0.len()
+    };
+    let thesis = supports(&["--elimination", "off"]);
+    let default = supports(&[]);
+    let greedy = supports(&["--centre-order", "greedy", "--elimination", "centres"]);
+    assert!(
+        greedy < default && default < thesis,
+        "{greedy} / {default} / {thesis}"
+    );
+    // On oriented points the volume options are refused.
+    let out = dir.path().join("s.ply");
+    let points = fixture("sphere_2k.ply");
+    let run = sphcover(&[
+        "cover",
+        points.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--centre-order",
+        "greedy",
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(
+        text(&run.stderr).contains("--centre-order"),
+        "{}",
+        text(&run.stderr)
+    );
+    assert!(!out.exists());
+}
+
+#[test]
 fn cover_refuses_points_without_normals_and_empty_thresholds() {
     let dir = tempfile::tempdir().unwrap();
     let bare = dir.path().join("bare.xyz");

@@ -5,11 +5,12 @@ use std::path::Path;
 
 use sphcover_core::io::{self, CoverFileMeta, PlyEncoding, WriteOptions};
 use sphcover_core::{
-    Cover, Normalisation, SurfaceCoverParams, Threshold, VolumeCoverParams, VolumeCoverStats,
-    VolumeCoverVariant, build_scattered_cover, build_surface_cover_from_cloud, build_volume_cover,
+    CentreOrder, Cover, Elimination, Normalisation, SurfaceCoverParams, Threshold,
+    VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant, build_scattered_cover,
+    build_surface_cover_from_cloud, build_volume_cover,
 };
 
-use crate::args::CoverArgs;
+use crate::args::{CoverArgs, CoverCentreOrder, CoverElimination};
 use crate::exit::BadInput;
 use crate::report::Reporter;
 
@@ -25,9 +26,13 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
     } else if io::is_volume_path(&args.input) {
         volume_cover(args, reporter)?
     } else {
-        if args.threshold.is_some() || args.linear {
+        if args.threshold.is_some()
+            || args.linear
+            || args.centre_order != CoverCentreOrder::Random
+            || args.elimination != CoverElimination::Corners
+        {
             return Err(BadInput(
-                "--threshold and --linear apply to volumes (.nii, .nii.gz, .inr) and to scattered samples (--value-property) only".to_owned(),
+                "--threshold, --linear, --centre-order and --elimination apply to volumes (.nii, .nii.gz, .inr) and to scattered samples (--value-property) only".to_owned(),
             )
             .into());
         }
@@ -207,6 +212,16 @@ fn volume_params(args: &CoverArgs) -> VolumeCoverParams {
             VolumeCoverVariant::BoundingBoxLinear
         } else {
             VolumeCoverVariant::ObjectQuadratic
+        },
+        centre_order: match args.centre_order {
+            CoverCentreOrder::Random => CentreOrder::Random,
+            CoverCentreOrder::Deepest => CentreOrder::DeepestFirst,
+            CoverCentreOrder::Greedy => CentreOrder::MostUncovered,
+        },
+        elimination: match args.elimination {
+            CoverElimination::Off => Elimination::Off,
+            CoverElimination::Centres => Elimination::VoxelCentres,
+            CoverElimination::Corners => Elimination::CellCorners,
         },
         seed: args.seed,
         ..defaults
