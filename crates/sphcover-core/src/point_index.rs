@@ -22,6 +22,9 @@ use glam::DVec3;
 const BUCKET: usize = 12;
 /// Subtrees with at least this many points are built on two threads.
 const PARALLEL_BUILD: usize = 1 << 14;
+/// [`PointIndex::nearest_k_run`] bounds a search by the previous answer only while that bound
+/// is at most this factor times the previous `k`-th squared distance.
+const SEED_BOUND_GROWTH: f64 = 4.0;
 
 /// Why a point index could not be built.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -225,6 +228,114 @@ impl PointIndex {
             far_gap[axis] = delta.abs();
             stack[top] = (far as u32, far_gap);
             top += 1;
+            stack[top] = (near as u32, gap);
+            top += 1;
+        }
+    }
+
+    /// The `k` nearest indexed points to each of `queries` in turn: `visit(q, neighbours)`
+    /// gets exactly what [`PointIndex::nearest_k_with_distances`] gives for `queries[q]`
+    /// (same pairs, same order), only faster when consecutive queries lie close together
+    /// (points in slot order, say). Each search after the first is bounded by the previous
+    /// answer: the previous query's `k` neighbours are `k` points at squared distance at most
+    /// `b` (their `k`-th smallest, computed exactly as the search computes distances) from
+    /// the new query, so the answer lies in the closed ball of squared radius `b`. Collecting
+    /// that ball and selecting the `k` smallest `(distance², index)` pairs replaces the
+    /// search's insertions into a sorted list, and the bound prunes the tree from the start.
+    pub fn nearest_k_run(
+        &self,
+        queries: &[DVec3],
+        k: usize,
+        mut visit: impl FnMut(usize, &[(f64, u32)]),
+    ) {
+        let k_eff = k.min(self.len());
+        let mut found: Vec<(f64, u32)> = Vec::with_capacity(k_eff);
+        // The current answer, as (distance², index, slot).
+        let mut answer: Vec<(f64, u32, u32)> = Vec::with_capacity(k_eff);
+        let mut seed_d2: Vec<f64> = Vec::with_capacity(k_eff);
+        let key =
+            |a: &(f64, u32, u32), b: &(f64, u32, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        for (q, &x) in queries.iter().enumerate() {
+            found.clear();
+            if k_eff == 0 || !x.is_finite() {
+                answer.clear();
+                visit(q, &found);
+                continue;
+            }
+            let mut bound = f64::INFINITY;
+            if answer.len() == k_eff {
+                seed_d2.clear();
+                seed_d2.extend(
+                    answer
+                        .iter()
+                        .map(|&(_, _, s)| (self.points[s as usize] - x).length_squared()),
+                );
+                let seeded = *seed_d2.select_nth_unstable_by(k_eff - 1, f64::total_cmp).1;
+                // A query far from the previous one (slot order jumps between subtrees) would
+                // collect a large ball: search it plainly instead.
+                if seeded <= SEED_BOUND_GROWTH * answer[k_eff - 1].0 {
+                    bound = seeded;
+                }
+            }
+            if bound == f64::INFINITY {
+                // A plain search gives the bound, and the collection below the slots that
+                // the next query's bound needs.
+                self.nearest_k_with_distances(x, k_eff, &mut found);
+                bound = found[k_eff - 1].0;
+                found.clear();
+            }
+            answer.clear();
+            self.for_each_slot_within_closed(x, bound, |s, d2| {
+                answer.push((d2, self.order[s], s as u32));
+            });
+            // At least `k_eff` points lie in the closed ball, so its `k_eff` smallest pairs
+            // are the answer.
+            debug_assert!(answer.len() >= k_eff);
+            if answer.len() > k_eff {
+                answer.select_nth_unstable_by(k_eff - 1, key);
+                answer.truncate(k_eff);
+            }
+            answer.sort_unstable_by(key);
+            found.extend(answer.iter().map(|&(d2, i, _)| (d2, i)));
+            visit(q, &found);
+        }
+    }
+
+    /// Calls `visit(slot, distance²)` for every indexed point with `‖p − x‖² ≤ bound`, in
+    /// tree order (the closed ball, unlike [`PointIndex::for_each_slot_within`]).
+    fn for_each_slot_within_closed(&self, x: DVec3, bound: f64, mut visit: impl FnMut(usize, f64)) {
+        if self.nodes.is_empty() || !x.is_finite() || bound.is_nan() {
+            return;
+        }
+        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let (n, gap) = stack[top];
+            let n = n as usize;
+            let node = self.nodes[n];
+            if node.right == 0 {
+                for s in node.lo as usize..node.hi as usize {
+                    let d2 = (self.points[s] - x).length_squared();
+                    if d2 <= bound {
+                        visit(s, d2);
+                    }
+                }
+                continue;
+            }
+            let axis = node.axis as usize;
+            let delta = x[axis] - node.split;
+            let (near, far) = if delta < 0.0 {
+                (n + 1, n + node.right as usize)
+            } else {
+                (n + node.right as usize, n + 1)
+            };
+            let mut far_gap = gap;
+            far_gap[axis] = delta.abs();
+            if far_gap.length_squared() <= bound {
+                stack[top] = (far as u32, far_gap);
+                top += 1;
+            }
             stack[top] = (near as u32, gap);
             top += 1;
         }

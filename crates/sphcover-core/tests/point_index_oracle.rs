@@ -65,6 +65,35 @@ proptest! {
     }
 
     #[test]
+    fn nearest_k_run_matches_single_queries(
+        points in cloud(),
+        extra in prop::collection::vec(any_point(), 0..40),
+        k in 0usize..40,
+        from_slots in any::<bool>(),
+    ) {
+        let index = PointIndex::new(&points).unwrap();
+        // Slot order (the intended use: consecutive queries close together) or an arbitrary
+        // sequence, with far jumps, a non-finite query and repeated queries.
+        let mut queries: Vec<DVec3> = if from_slots {
+            index.slot_points().to_vec()
+        } else {
+            points.clone()
+        };
+        queries.extend(&extra);
+        queries.push(DVec3::new(f64::NAN, 0.0, 0.0));
+        queries.extend(extra.iter().take(3));
+        let mut seen = 0;
+        index.nearest_k_run(&queries, k, |q, got| {
+            assert_eq!(q, seen, "queries are visited in order");
+            seen += 1;
+            let mut expected = Vec::new();
+            index.nearest_k_with_distances(queries[q], k, &mut expected);
+            assert_eq!(got, &expected[..], "query {q} at {}", queries[q]);
+        });
+        prop_assert_eq!(seen, queries.len());
+    }
+
+    #[test]
     fn slot_order_is_a_permutation(points in cloud()) {
         let index = PointIndex::new(&points).unwrap();
         let mut order = index.order().to_vec();

@@ -100,6 +100,10 @@ fn grow(
     }
     let Some(mut hi) = hi else { return best };
     let ratio = 1.0 + params.growth_tolerance;
+    // Every later trial `√(lo·hi)` has a squared radius below `hi² / ratio`, so once `hi`
+    // shrinks the candidates outside it can go (exactly; see `Candidates::keep_within`):
+    // the bisection passes then read the points of the bracket, not of the failed doubling.
+    let compact = ratio >= 1.0 + 1e-6;
     while hi > lo * ratio {
         let mid = (lo * hi).sqrt();
         if !(mid > lo && mid < hi) {
@@ -112,7 +116,12 @@ fn grow(
                 best.radius = mid;
                 best.fit = fit;
             }
-            _ => hi = mid,
+            _ => {
+                hi = mid;
+                if compact && hi > lo * ratio {
+                    cand.keep_within(hi);
+                }
+            }
         }
     }
     best

@@ -74,6 +74,31 @@ impl Candidates {
         });
     }
 
+    /// Drops the candidates with `distance² ≥ r²`, keeping the others in order. Exact for
+    /// every later fit whose radius `ρ` has `ρ² ≤ r² / (1 + 1e-6)`: the dropped candidates
+    /// would get kernel weight exactly 0 there (`s = d²/ρ² > 1`, with a margin far above
+    /// rounding) and be skipped by the error pass, so the sums and the error do not change
+    /// by a bit.
+    pub fn keep_within(&mut self, r: f64) {
+        let r2 = r * r;
+        let mut kept = 0;
+        for j in 0..self.len() {
+            if self.dist2[j] < r2 {
+                self.offsets[kept] = self.offsets[j];
+                self.normals[kept] = self.normals[j];
+                self.dist2[kept] = self.dist2[j];
+                if !self.confidence.is_empty() {
+                    self.confidence[kept] = self.confidence[j];
+                }
+                kept += 1;
+            }
+        }
+        self.offsets.truncate(kept);
+        self.normals.truncate(kept);
+        self.dist2.truncate(kept);
+        self.confidence.truncate(kept);
+    }
+
     fn clear(&mut self) {
         self.offsets.clear();
         self.normals.clear();
