@@ -13,7 +13,7 @@
 //!
 //! with the moment-matched mass (consistent on regular stencils,
 //! [`sphcover_ops::MassKind::MomentMatched`]), solved by conjugate gradients
-//! ([`sphcover_ops::implicit_smoothing`]). A step of time `t` damps a Fourier mode of
+//! ([`sphcover_ops::implicit_smoothing()`]). A step of time `t` damps a Fourier mode of
 //! wavelength `λ` by `1 / (1 + t (2π/λ)²)`, so `t = ℓ² / 2` smooths over a length `ℓ` (the
 //! standard deviation of the heat kernel of time `t`). The ridge test (eq. 6.1, 6.4, 6.5)
 //! then runs on the eigen-decomposition of the smoothed Hessians, with the smoothed
