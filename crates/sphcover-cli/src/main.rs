@@ -8,6 +8,7 @@ mod interrupt;
 mod render;
 mod report;
 mod skeleton_memory;
+mod value_samples;
 
 use std::process::ExitCode;
 

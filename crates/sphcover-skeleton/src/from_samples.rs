@@ -6,6 +6,7 @@
 use std::time::Instant;
 
 use rayon::prelude::*;
+use sphcover_core::volume_cover::median_nearest_distance;
 use sphcover_core::{DVec3, PointIndex, TriMesh, VolumeCoverError, build_scattered_cover};
 
 use crate::error::SkeletonError;
@@ -88,7 +89,8 @@ pub fn extract_skeleton_from_samples(
     let index = PointIndex::new(positions).map_err(|_| VolumeCoverError::TooManyVoxels {
         voxels: positions.len(),
     })?;
-    let spacing = median_nearest_distance(&index, positions);
+    // 1 when more than half the samples coincide: the cover refuses them.
+    let spacing = median_nearest_distance(&index, positions).unwrap_or(1.0);
     let smooth = smoothed_sample_values(&index, positions, values, OTSU_SMOOTHING * spacing);
     let intensity = estimate_sample_intensity_model(values, &smooth, params.threshold)?;
     let tolerance = params.tolerance.unwrap_or_else(|| {
@@ -130,28 +132,6 @@ pub fn extract_skeleton_from_samples(
 /// Samples closer than this many spacings are neighbours when the object's samples are
 /// split into connected pieces: the diagonal of a voxel, as the 26-neighbourhood of a grid.
 const SPECK_NEIGHBOUR_DISTANCE: f64 = 1.75;
-
-/// The median distance from a sample to its nearest other sample (the voxel edge of the
-/// equivalent grid); 1 when more than half the samples coincide (the cover refuses them).
-fn median_nearest_distance(index: &PointIndex, positions: &[DVec3]) -> f64 {
-    let mut nearest: Vec<f64> = positions
-        .par_iter()
-        .map_init(Vec::new, |out, &p| {
-            index.nearest_k_with_distances(p, 2, out);
-            out.get(1).map_or(f64::INFINITY, |&(d2, _)| d2.sqrt())
-        })
-        .collect();
-    if nearest.is_empty() {
-        return 1.0;
-    }
-    let mid = nearest.len() / 2;
-    let median = *nearest.select_nth_unstable_by(mid, f64::total_cmp).1;
-    if median.is_finite() && median > 0.0 {
-        median
-    } else {
-        1.0
-    }
-}
 
 /// Each sample's value replaced by the Gaussian-weighted mean (standard deviation `sigma`,
 /// truncated at 3σ) of the finite values around it: the scattered counterpart of the

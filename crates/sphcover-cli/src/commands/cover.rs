@@ -153,27 +153,15 @@ fn scattered_cover(
     property: &str,
     reporter: &Reporter,
 ) -> anyhow::Result<(Cover, CoverFileMeta)> {
-    if io::is_volume_path(&args.input) {
-        return Err(BadInput(format!(
-            "{}: --value-property names a vertex property of a PLY point file; a volume carries its values on the grid",
-            args.input.display()
-        ))
-        .into());
-    }
-    let stage = reporter.stage("read samples");
-    let (geometry, values) =
-        io::read_geometry_with_vertex_property(&args.input, property, &args.read.read_options())?;
-    stage.finish();
-    let Some(values) = values else {
-        return Err(BadInput(format!(
-            "{}: no scalar vertex property named `{property}` (only PLY files declare named properties)",
-            args.input.display()
-        ))
-        .into());
-    };
+    let (positions, values) = crate::value_samples::read_value_samples(
+        &args.input,
+        property,
+        &args.read.read_options(),
+        reporter,
+    )?;
     let params = volume_params(args);
     let bar = reporter.progress(None, "building the volume cover of scattered samples");
-    let (cover, stats) = build_scattered_cover(&geometry.points.positions, &values, &params)
+    let (cover, stats) = build_scattered_cover(&positions, &values, &params)
         .map_err(|e| BadInput(format!("{}: {e}", args.input.display())))?;
     bar.finish_and_clear();
     reporter.detail(&format!(

@@ -98,12 +98,6 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
 /// vertex properties), which the grid-based NMS baseline cannot take.
 fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> anyhow::Result<()> {
     let name = args.input.display();
-    if io::is_volume_path(&args.input) {
-        return Err(BadInput(format!(
-            "{name}: --value-property names a vertex property of a PLY point file; a volume carries its values on the grid"
-        ))
-        .into());
-    }
     if args.method == SkeletonMethod::Nms {
         return Err(BadInput(format!(
             "{name}: --method nms works on a voxel grid; scattered samples take the ridge method"
@@ -116,20 +110,15 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
         )
         .into());
     }
-    let stage = reporter.stage("read samples");
-    let (geometry, values) =
-        io::read_geometry_with_vertex_property(&args.input, property, &ReadOptions::default())?;
-    stage.finish();
-    let Some(values) = values else {
-        return Err(BadInput(format!(
-            "{name}: no scalar vertex property named `{property}` (only PLY files declare named properties)"
-        ))
-        .into());
-    };
-    let positions = &geometry.points.positions;
+    let (positions, values) = crate::value_samples::read_value_samples(
+        &args.input,
+        property,
+        &ReadOptions::default(),
+        reporter,
+    )?;
     reporter.detail(&format!("  {} samples with `{property}`", positions.len()));
     let bar = reporter.progress(None, "extracting the skeletal sheet of the samples");
-    let result = extract_skeleton_from_samples(positions, &values, &ridge_params(args));
+    let result = extract_skeleton_from_samples(&positions, &values, &ridge_params(args));
     bar.finish_and_clear();
     let (sheet, stats) = result.map_err(|e| bad(args, e))?;
     write_sheet(args, &sheet, &stats, reporter)

@@ -114,7 +114,7 @@ mod distance_transform;
 mod fit;
 mod scattered;
 
-pub use scattered::build_scattered_cover;
+pub use scattered::{build_scattered_cover, median_nearest_distance};
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;

@@ -179,6 +179,16 @@ pub fn build_scattered_cover(
 
 /// `√3 ×` the median distance from a sample to its nearest other sample.
 fn sample_spacing(index: &PointIndex, positions: &[DVec3]) -> Result<f64, VolumeCoverError> {
+    // `None`: more than half the samples coincide with another one.
+    let median =
+        median_nearest_distance(index, positions).ok_or(VolumeCoverError::CoincidentSamples)?;
+    Ok(3f64.sqrt() * median)
+}
+
+/// The median over `positions` of the distance to the nearest other indexed point (the
+/// voxel edge of the equivalent grid for scattered samples); `None` when it is zero or not
+/// finite (more than half the points coincide with another, or fewer than two points).
+pub fn median_nearest_distance(index: &PointIndex, positions: &[DVec3]) -> Option<f64> {
     let mut nearest: Vec<f64> = positions
         .par_iter()
         .map_init(Vec::new, |out, &p| {
@@ -186,13 +196,12 @@ fn sample_spacing(index: &PointIndex, positions: &[DVec3]) -> Result<f64, Volume
             out.get(1).map_or(f64::INFINITY, |&(d2, _)| d2.sqrt())
         })
         .collect();
-    nearest.sort_by(f64::total_cmp);
-    let median = nearest[nearest.len() / 2];
-    if !(median.is_finite() && median > 0.0) {
-        // More than half the samples coincide with another one.
-        return Err(VolumeCoverError::CoincidentSamples);
+    if nearest.is_empty() {
+        return None;
     }
-    Ok(3f64.sqrt() * median)
+    let mid = nearest.len() / 2;
+    let median = *nearest.select_nth_unstable_by(mid, f64::total_cmp).1;
+    (median.is_finite() && median > 0.0).then_some(median)
 }
 
 /// Twice the largest distance from an object sample to its nearest background sample;
