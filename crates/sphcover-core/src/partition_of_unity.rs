@@ -227,6 +227,27 @@ impl<'a> PuEvaluator<'a> {
         Ok(self.batch(points, |x, ids| dispatch!(self, x, ids, blend_sum, values)))
     }
 
+    /// [`PuEvaluator::values_gradients`] and [`PuEvaluator::blend`] of `values` (one per
+    /// support) at every point, from one gathering of the supports per block of points
+    /// instead of two: `(f, ∇f)` and the blend, each bitwise equal to its own query; `None`
+    /// where no weight is positive.
+    pub fn values_gradients_blends(
+        &self,
+        points: &[DVec3],
+        values: &[f64],
+    ) -> Result<Vec<Option<(ValueGradient, f64)>>, CoverError> {
+        if values.len() != self.cover.len() {
+            return Err(CoverError::LengthMismatch {
+                array: "blended values",
+                expected: self.cover.len(),
+                found: values.len(),
+            });
+        }
+        Ok(self.batch(points, |x, ids| {
+            dispatch!(self, x, ids, value_gradient_blend_sum, values)
+        }))
+    }
+
     /// `eval(x, supports at x)` at every point, in parallel, in input order, bitwise equal to
     /// the single-point queries.
     ///
@@ -341,6 +362,55 @@ const SPATIAL_ORDER_MIN_LEN: usize = 4096;
 
 /// Neighbouring points (in Morton order) that share one index query in batch evaluation.
 const BLOCK_LEN: usize = 16;
+
+/// [`value_gradient_sum`] and [`blend_sum`] of `values` in one pass over `ids`, each summed
+/// exactly as in its own function.
+#[inline]
+fn value_gradient_blend_sum<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+    values: &[f64],
+) -> Option<(ValueGradient, f64)> {
+    let mut w_sum = 0.0;
+    let mut n_sum = 0.0;
+    let mut w_grad = DVec3::ZERO;
+    let mut n_grad = DVec3::ZERO;
+    let (mut blend_num, mut blend_den) = (0.0, 0.0);
+    for &j in ids {
+        let sup = &supports[j as usize];
+        let inv_r = sup.inv_radius();
+        let d = x - sup.center();
+        let u = d * inv_r;
+        let s = u.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        let (w, a) = K::KERNEL.value_slope_sq(s);
+        let grad_w = u * (a * inv_r);
+        let (g, grad_g) = sup.value_gradient(d);
+        w_sum += w;
+        n_sum += w * g;
+        w_grad += grad_w;
+        n_grad += grad_w * g + grad_g * w;
+        if w > 0.0 {
+            blend_num += w * values[j as usize];
+            blend_den += w;
+        }
+    }
+    if w_sum <= 0.0 || blend_den <= 0.0 {
+        return None;
+    }
+    let value = n_sum / w_sum;
+    let inv_w = 1.0 / w_sum;
+    Some((
+        ValueGradient {
+            value,
+            gradient: (n_grad - w_grad * value) * inv_w,
+        },
+        blend_num / blend_den,
+    ))
+}
 
 /// `a bᵀ + b aᵀ`.
 #[inline]

@@ -319,3 +319,44 @@ fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
         })
     );
 }
+
+#[test]
+fn fused_gradient_and_blend_equal_the_separate_queries() {
+    for kernel in Kernel::ALL {
+        let (cover, mut points) = sample_cover(kernel);
+        for i in 0..200 {
+            let c = cover.centers()[i];
+            let r = 1.5 * cover.radii()[i];
+            points.push(c + DVec3::new(0.6, -0.48, 0.64) * r);
+        }
+        let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).cos()).collect();
+        let eval = PuEvaluator::new(&cover, 1.5).unwrap();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| eval.values_gradients_blends(&points, &values).unwrap())
+        };
+        let fused = run(1);
+        assert_eq!(fused, run(3), "{kernel}");
+        let gradients = eval.values_gradients(&points);
+        let blends = eval.blend(&points, &values).unwrap();
+        assert!(fused.iter().any(Option::is_none) && fused.iter().any(Option::is_some));
+        for ((f, g), b) in fused.iter().zip(&gradients).zip(&blends) {
+            assert_eq!(f.map(|(vg, _)| vg), *g, "{kernel}");
+            assert_eq!(f.map(|(_, b)| b), *b, "{kernel}");
+        }
+        // Below the batch threshold (one query per point) too.
+        let few = eval
+            .values_gradients_blends(&points[..100], &values)
+            .unwrap();
+        assert_eq!(few, fused[..100]);
+    }
+    let (cover, points) = sample_cover(Kernel::default());
+    let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+    assert!(matches!(
+        eval.values_gradients_blends(&points, &[1.0]),
+        Err(CoverError::LengthMismatch { found: 1, .. })
+    ));
+}

@@ -222,20 +222,29 @@ impl FittingTerms {
             });
         }
         let kernel = cover.kernel();
+        // The samples' normals and confidences in the index's slot order, so the per-support
+        // loops read them as contiguously as the positions instead of at random (the input
+        // order of a scan can be anything). The sums run in the same order as before.
+        let slot_points = index.slot_points();
+        let (slot_normals, slot_confidence): (Vec<DVec3>, Vec<f64>) = index
+            .order()
+            .par_iter()
+            .map(|&k| (normals[k as usize], confidence[k as usize]))
+            .unzip();
         let sums: Vec<(f64, DVec3, DVec3, f64)> = cover
             .centers()
             .par_iter()
             .zip(cover.radii().par_iter())
             .map(|(&c, &r)| {
                 let mut sum = (0.0, DVec3::ZERO, DVec3::ZERO, 0.0);
-                index.for_each_within(c, r, |k, p| {
-                    let k = k as usize;
+                index.for_each_slot_within(c, r, |s, _| {
+                    let p = slot_points[s];
                     let kw = kernel.weight(p, c, r);
                     sum.3 += kw;
-                    let w = confidence[k] * kw;
+                    let w = slot_confidence[s] * kw;
                     if w > 0.0 {
                         sum.0 += w;
-                        let n = normals[k];
+                        let n = slot_normals[s];
                         let len = n.length();
                         if len > 0.0 && len.is_finite() {
                             sum.1 -= (w / len) * n;

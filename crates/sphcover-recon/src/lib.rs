@@ -76,7 +76,9 @@ pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use pipeline::{
     Method, ReconError, ReconParams, ReconStats, Reconstruction, Trim, default_depth, reconstruct,
 };
-pub use polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
+pub use polygonise::{
+    GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,
+};
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
 pub use unused_vertices::remove_unused_vertices;

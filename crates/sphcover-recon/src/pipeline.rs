@@ -41,7 +41,9 @@ use crate::graphcut_reconstruction::{
     GraphCutReconstructionError, GraphCutReconstructionParams, reconstruct_graphcut,
 };
 use crate::normals::{NormalError, NormalParams, estimate_normals};
-use crate::polygonise::{GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise};
+use crate::polygonise::{
+    GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise_blending,
+};
 use crate::scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 use crate::small_components::{SmallComponentsError, remove_small_components};
 
@@ -411,7 +413,9 @@ pub fn reconstruct(
 
     let (unit_mesh, conf) = if params.method == Method::GraphCut {
         clock.start("graph cut");
-        let (mesh, gc_stats) = reconstruct_graphcut(&cover, &points, &params.graph_cut_only)?;
+        let (mut mesh, gc_stats) = reconstruct_graphcut(&cover, &points, &params.graph_cut_only)?;
+        // The clean stage blends the support confidence at these vertices.
+        mesh.values = None;
         stats.cut = Some(gc_stats.cut.clone());
         stats.inconsistent_supports = gc_stats.cut.inconsistent;
         clock.start("confidence");
@@ -484,13 +488,17 @@ pub fn reconstruct(
 
     clock.start("clean");
     let mut mesh = unit_mesh;
-    let surface_confidence = blend_over_supports(&cover, &mesh.vertices, &conf.support_confidence)?;
-    mesh.values = Some(
-        surface_confidence
-            .into_iter()
-            .map(|v| v.unwrap_or(0.0))
-            .collect(),
-    );
+    // Polygonisation blended the support confidence at the vertices already.
+    if mesh.values.as_ref().map(Vec::len) != Some(mesh.vertices.len()) {
+        let surface_confidence =
+            blend_over_supports(&cover, &mesh.vertices, &conf.support_confidence)?;
+        mesh.values = Some(
+            surface_confidence
+                .into_iter()
+                .map(|v| v.unwrap_or(0.0))
+                .collect(),
+        );
+    }
     stats.dropped_components =
         remove_small_components(&mut mesh, params.min_component_fraction)?.components_removed;
     if mesh.triangles.is_empty() {
@@ -637,7 +645,8 @@ fn polygonise_confident(
         },
         ..PolygoniseParams::default()
     };
-    let (mesh, poly_stats) = polygonise(&eval, &seeds, &poly)?;
+    let (mesh, poly_stats) =
+        polygonise_blending(&eval, &seeds, &poly, Some(&conf.support_confidence))?;
     stats.polygonise = Some(poly_stats);
     Ok(mesh)
 }

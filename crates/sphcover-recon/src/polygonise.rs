@@ -52,7 +52,7 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::{Aabb, PointIndex, PointIndexError, PuEvaluator, TriMesh};
+use sphcover_core::{Aabb, PointIndex, PointIndexError, PuEvaluator, TriMesh, ValueGradient};
 
 use crate::unused_vertices::remove_unused_vertices;
 
@@ -151,6 +151,14 @@ pub enum PolygoniseError {
     /// The seeds could not be indexed for trimming.
     #[error(transparent)]
     TooManySeeds(#[from] PointIndexError),
+    /// The values to blend at the vertices are not one per support.
+    #[error("{found} values to blend at the vertices for a cover of {expected} supports")]
+    BlendLengthMismatch {
+        /// Supports in the cover.
+        expected: usize,
+        /// Values given.
+        found: usize,
+    },
 }
 
 /// What [`polygonise`] did.
@@ -206,8 +214,33 @@ pub fn polygonise(
     seeds: &[DVec3],
     params: &PolygoniseParams,
 ) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
+    polygonise_blending(eval, seeds, params, None)
+}
+
+/// [`polygonise`], and with `blend` (one value per support) also the partition-of-unity
+/// blend `Σ w_i v_i / Σ w_i` of those values at every vertex as the mesh's
+/// [`TriMesh::values`] (0 where no weight is positive).
+///
+/// The blend is taken where each vertex was placed on its cell's edges, before the Newton
+/// step of [`PolygoniseParams::project`] (less than a cell away): there it shares the
+/// gathering of the supports with `f` and `∇f`, which costs as much as the blend itself. The
+/// mesh geometry is the same as without `blend`.
+pub fn polygonise_blending(
+    eval: &PuEvaluator<'_>,
+    seeds: &[DVec3],
+    params: &PolygoniseParams,
+    blend: Option<&[f64]>,
+) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
     let start = Instant::now();
     check_params(params)?;
+    if let Some(values) = blend
+        && values.len() != eval.cover().len()
+    {
+        return Err(PolygoniseError::BlendLengthMismatch {
+            expected: eval.cover().len(),
+            found: values.len(),
+        });
+    }
     let finite_seeds: Vec<DVec3> = seeds.iter().copied().filter(|p| p.is_finite()).collect();
     if finite_seeds.is_empty() {
         return Err(PolygoniseError::NoSeeds { given: seeds.len() });
@@ -274,7 +307,7 @@ pub fn polygonise(
     stats.search_time = start.elapsed();
 
     let extraction_start = Instant::now();
-    let mut mesh = extract(&search, &grid, params, &mut stats);
+    let mut mesh = extract(&search, &grid, params, blend, &mut stats);
     stats.extraction_time = extraction_start.elapsed();
     if let Some(limit) = params.trim {
         stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
@@ -886,6 +919,7 @@ fn extract(
     search: &Search,
     grid: &Grid,
     params: &PolygoniseParams,
+    blend: Option<&[f64]>,
     stats: &mut PolygoniseStats,
 ) -> TriMesh {
     // Ascending cell order, whatever order the search found them in.
@@ -946,13 +980,28 @@ fn extract(
         .collect();
 
     let mut normals = None;
+    let mut blended = None;
     if params.project || params.normals {
         let owner: Vec<Index3> = keys
             .iter()
             .zip(&cells)
             .flat_map(|(&k, cell)| std::iter::repeat_n(unpack(k), usize::from(cell.sheets)))
             .collect();
-        let fg = search.eval.values_gradients(&vertices);
+        let fg: Vec<Option<ValueGradient>> = match blend {
+            // Lengths were checked on entry.
+            Some(values) => match search.eval.values_gradients_blends(&vertices, values) {
+                Ok(fgb) => {
+                    blended = Some(
+                        fgb.par_iter()
+                            .map(|r| r.map_or(0.0, |(_, b)| b))
+                            .collect::<Vec<f64>>(),
+                    );
+                    fgb.into_iter().map(|r| r.map(|(vg, _)| vg)).collect()
+                }
+                Err(_) => search.eval.values_gradients(&vertices),
+            },
+            None => search.eval.values_gradients(&vertices),
+        };
         // The gradient before the Newton step serves as the normal: the step is shorter than
         // a cell, and another evaluation would cost as much as the whole projection.
         normals = Some(
@@ -1041,8 +1090,18 @@ fn extract(
         triangles.extend(tris);
         stats.open_quads += open;
     }
+    if blended.is_none()
+        && let Some(values) = blend
+    {
+        blended = search.eval.blend(&vertices, values).ok().map(|b| {
+            b.into_iter()
+                .map(|v| v.unwrap_or(0.0))
+                .collect::<Vec<f64>>()
+        });
+    }
     let mut mesh = TriMesh::new(vertices, triangles);
     mesh.normals = if params.normals { normals } else { None };
+    mesh.values = blended;
     remove_unused_vertices(&mut mesh);
     mesh
 }
@@ -1108,6 +1167,9 @@ fn split_fans(mesh: &mut TriMesh) -> usize {
             mesh.vertices.push(mesh.vertices[v]);
             if let Some(normals) = &mut mesh.normals {
                 normals.push(normals[v]);
+            }
+            if let Some(values) = &mut mesh.values {
+                values.push(values[v]);
             }
         }
         added += count - 1;
@@ -1205,6 +1267,53 @@ mod tests {
             step: GridStep::Depth(depth),
             ..PolygoniseParams::default()
         }
+    }
+
+    #[test]
+    fn blending_keeps_the_geometry_and_blends_at_the_unprojected_vertices() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 4000);
+        let cover = cover_of(&cloud);
+        let eval = PuEvaluator::new(&cover, 1.0).unwrap();
+        let values: Vec<f64> = cover.centers().iter().map(|c| c.x + 2.0 * c.z).collect();
+        for (project, normals) in [(true, true), (false, true), (false, false)] {
+            let p = PolygoniseParams {
+                project,
+                normals,
+                ..params(6)
+            };
+            let (plain, _) = polygonise(&eval, &cloud.positions, &p).unwrap();
+            let (mesh, _) =
+                polygonise_blending(&eval, &cloud.positions, &p, Some(&values)).unwrap();
+            assert_eq!(plain.vertices, mesh.vertices);
+            assert_eq!(plain.triangles, mesh.triangles);
+            assert_eq!(plain.normals, mesh.normals);
+            assert_eq!(plain.values, None);
+            let blended = mesh.values.as_ref().unwrap();
+            assert_eq!(blended.len(), mesh.vertices.len());
+            let (lo, hi) = values
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            assert!(blended.iter().all(|&b| (lo..=hi).contains(&b)));
+            if !project {
+                // Unprojected vertices are where the blend was taken.
+                let direct: Vec<f64> = eval
+                    .blend(&mesh.vertices, &values)
+                    .unwrap()
+                    .into_iter()
+                    .map(|v| v.unwrap_or(0.0))
+                    .collect();
+                assert_eq!(*blended, direct, "project {project}, normals {normals}");
+            }
+        }
+        assert_eq!(
+            polygonise_blending(&eval, &cloud.positions, &params(6), Some(&[1.0])).unwrap_err(),
+            PolygoniseError::BlendLengthMismatch {
+                expected: cover.len(),
+                found: 1
+            }
+        );
     }
 
     #[test]
@@ -1687,6 +1796,7 @@ mod tests {
             [tet([0, 1, 2, 3]), tet([0, 4, 5, 6])].concat(),
         );
         pinched.normals = Some(vertices.clone());
+        pinched.values = Some((0..7).map(f64::from).collect());
         assert_eq!(MeshTopology::of(&pinched).non_manifold_vertices, 1);
         assert_eq!(split_fans(&mut pinched), 1);
         let topo = MeshTopology::of(&pinched);
@@ -1694,6 +1804,10 @@ mod tests {
         assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
         assert_eq!(pinched.normals.as_ref().map(Vec::len), Some(8));
         assert_eq!(pinched.vertices[7], DVec3::ZERO);
+        assert_eq!(
+            pinched.values.as_ref().map(|v| (v.len(), v[7])),
+            Some((8, 0.0))
+        );
         // Sharing the edge 0–1: the second tetrahedron is the first turned half a turn about
         // the x axis, so it is wound outwards too.
         let mut glued = TriMesh::new(vertices, [tet([0, 1, 2, 3]), tet([0, 1, 5, 6])].concat());
