@@ -987,51 +987,17 @@ impl<'a> Grid<'a> {
         }
     }
 
-    /// Removes redundant supports: those over ε first, then in order of increasing member
-    /// count (ties by position), a support goes when each of its members lies in at least one other remaining support.
-    /// Every member keeps at least one support, so the cover stays gap-free. Sequential and
-    /// order-defined: the same whatever the thread count.
+    /// Removes redundant supports (see [`eliminate_redundant_supports`]); members are the
+    /// object voxels and, with `corners`, the cell corners.
     fn eliminate_redundant(
         &self,
         supports: Vec<Support>,
         corners: Option<&CornerSet>,
     ) -> Vec<Support> {
-        let for_each = |s: &Support, f: &mut dyn FnMut(usize)| self.for_each_point(s, corners, f);
         let total = self.volume.len() + corners.map_or(0, |cs| cs.object.len());
-        let counts: Vec<AtomicU32> = (0..total).map(|_| AtomicU32::new(0)).collect();
-        let sizes: Vec<u32> = supports
-            .par_iter()
-            .map(|s| {
-                let mut size = 0u32;
-                for_each(s, &mut |idx| {
-                    counts[idx].fetch_add(1, Ordering::Relaxed);
-                    size += 1;
-                });
-                size
-            })
-            .collect();
-        let mut counts: Vec<u32> = counts.into_iter().map(AtomicU32::into_inner).collect();
-        // Supports over ε go first, then the smallest.
-        let mut by_size: Vec<u32> = (0..supports.len() as u32).collect();
-        by_size.sort_by_key(|&i| {
-            let s = &supports[i as usize];
-            (s.rms <= self.tolerance, sizes[i as usize], i)
-        });
-        let mut keep = vec![true; supports.len()];
-        for &i in &by_size {
-            let s = &supports[i as usize];
-            let mut redundant = true;
-            for_each(s, &mut |idx| redundant &= counts[idx] >= 2);
-            if redundant {
-                for_each(s, &mut |idx| counts[idx] -= 1);
-                keep[i as usize] = false;
-            }
-        }
-        supports
-            .into_iter()
-            .zip(keep)
-            .filter_map(|(s, k)| k.then_some(s))
-            .collect()
+        eliminate_redundant_supports(supports, self.tolerance, total, |s, f| {
+            self.for_each_point(s, corners, f)
+        })
     }
 
     /// Greedy set cover over the supports of every candidate (in `order`, the seeded
@@ -1251,4 +1217,50 @@ fn shuffle(items: &mut [u32], seed: u64) {
         };
         items.swap(i, j);
     }
+}
+
+/// Removes redundant supports: those over `tolerance` first, then in order of increasing
+/// member count (ties by position), a support goes when each of its members (indices below
+/// `members`, listed by `for_each_member`) lies in at least one other remaining support.
+/// Every member keeps at least one support, so the cover stays gap-free. The removal is
+/// sequential and order-defined: the same whatever the thread count.
+fn eliminate_redundant_supports(
+    supports: Vec<Support>,
+    tolerance: f64,
+    members: usize,
+    for_each_member: impl Fn(&Support, &mut dyn FnMut(usize)) + Sync,
+) -> Vec<Support> {
+    let counts: Vec<AtomicU32> = (0..members).map(|_| AtomicU32::new(0)).collect();
+    let sizes: Vec<u32> = supports
+        .par_iter()
+        .map(|s| {
+            let mut size = 0u32;
+            for_each_member(s, &mut |idx| {
+                counts[idx].fetch_add(1, Ordering::Relaxed);
+                size += 1;
+            });
+            size
+        })
+        .collect();
+    let mut counts: Vec<u32> = counts.into_iter().map(AtomicU32::into_inner).collect();
+    let mut by_size: Vec<u32> = (0..supports.len() as u32).collect();
+    by_size.sort_by_key(|&i| {
+        let s = &supports[i as usize];
+        (s.rms <= tolerance, sizes[i as usize], i)
+    });
+    let mut keep = vec![true; supports.len()];
+    for &i in &by_size {
+        let s = &supports[i as usize];
+        let mut redundant = true;
+        for_each_member(s, &mut |idx| redundant &= counts[idx] >= 2);
+        if redundant {
+            for_each_member(s, &mut |idx| counts[idx] -= 1);
+            keep[i as usize] = false;
+        }
+    }
+    supports
+        .into_iter()
+        .zip(keep)
+        .filter_map(|(s, k)| k.then_some(s))
+        .collect()
 }

@@ -28,7 +28,6 @@
 //!   inside the ball (its distance is at most the accepted shell's, below the radius), so
 //!   marking a point covered never leaves a gap, whatever the test decides.
 
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
 use glam::DVec3;
@@ -574,61 +573,31 @@ impl Samples<'_> {
         }
     }
 
-    /// The object samples (every sample, for the linear variant) strictly inside the
-    /// support's ball, into `out`.
-    fn members(&self, s: &Support, ball: &mut Vec<(f64, u32)>, out: &mut Vec<u32>) {
-        self.ball(s, ball);
-        out.clear();
-        let limit = s.radius * (1.0 - 1e-9) / self.unit;
+    /// Calls `f` with every object sample (every sample, for the linear variant) strictly
+    /// inside the support's ball.
+    fn for_each_member(&self, s: &Support, f: &mut dyn FnMut(usize)) {
+        let c = self.positions[s.center as usize];
+        let h = self.unit;
+        let limit = s.radius * (1.0 - 1e-9) / h;
         let limit2 = limit * limit;
-        out.extend(
-            ball.iter()
-                .filter(|&&(d2, i)| d2 < limit2 && (self.bounding_box || self.object[i as usize]))
-                .map(|&(_, i)| i),
-        );
+        let order = self.index.order();
+        self.index
+            .for_each_slot_within(c, (s.shell_d2 * (1.0 + 1e-6)).sqrt() * h, |slot, _| {
+                let i = order[slot] as usize;
+                let d2 = ((self.positions[i] - c) / h).length_squared();
+                if d2 <= s.shell_d2 && d2 < limit2 && (self.bounding_box || self.object[i]) {
+                    f(i);
+                }
+            });
     }
 
-    /// The grid builder's elimination pass (see `Grid::eliminate_redundant`): over-ε
-    /// supports first, then by increasing member count, a support goes when every member
-    /// lies in another remaining support.
+    /// The grid builder's elimination pass, on samples.
     fn eliminate_redundant(&self, supports: Vec<Support>) -> Vec<Support> {
-        let counts: Vec<AtomicU32> = (0..self.positions.len())
-            .map(|_| AtomicU32::new(0))
-            .collect();
-        let sizes: Vec<u32> = supports
-            .par_iter()
-            .map_init(
-                || (Vec::new(), Vec::new()),
-                |(ball, members), s| {
-                    self.members(s, ball, members);
-                    for &i in members.iter() {
-                        counts[i as usize].fetch_add(1, Ordering::Relaxed);
-                    }
-                    members.len() as u32
-                },
-            )
-            .collect();
-        let mut counts: Vec<u32> = counts.into_iter().map(AtomicU32::into_inner).collect();
-        let mut by_size: Vec<u32> = (0..supports.len() as u32).collect();
-        by_size.sort_by_key(|&i| {
-            let s = &supports[i as usize];
-            (s.rms <= self.tolerance, sizes[i as usize], i)
-        });
-        let mut keep = vec![true; supports.len()];
-        let (mut ball, mut members) = (Vec::new(), Vec::new());
-        for &i in &by_size {
-            self.members(&supports[i as usize], &mut ball, &mut members);
-            if members.iter().all(|&m| counts[m as usize] >= 2) {
-                for &m in &members {
-                    counts[m as usize] -= 1;
-                }
-                keep[i as usize] = false;
-            }
-        }
-        supports
-            .into_iter()
-            .zip(keep)
-            .filter_map(|(s, k)| k.then_some(s))
-            .collect()
+        super::eliminate_redundant_supports(
+            supports,
+            self.tolerance,
+            self.positions.len(),
+            |s, f| self.for_each_member(s, f),
+        )
     }
 }
