@@ -372,44 +372,14 @@ fn value_gradient_blend_sum<K: FixedKernel, S: PackedSupport>(
     ids: &[u32],
     values: &[f64],
 ) -> Option<(ValueGradient, f64)> {
-    let mut w_sum = 0.0;
-    let mut n_sum = 0.0;
-    let mut w_grad = DVec3::ZERO;
-    let mut n_grad = DVec3::ZERO;
-    let (mut blend_num, mut blend_den) = (0.0, 0.0);
-    for &j in ids {
-        let sup = &supports[j as usize];
-        let inv_r = sup.inv_radius();
-        let d = x - sup.center();
-        let u = d * inv_r;
-        let s = u.length_squared();
-        if s >= 1.0 {
-            continue;
-        }
-        let (w, a) = K::KERNEL.value_slope_sq(s);
-        let grad_w = u * (a * inv_r);
-        let (g, grad_g) = sup.value_gradient(d);
-        w_sum += w;
-        n_sum += w * g;
-        w_grad += grad_w;
-        n_grad += grad_w * g + grad_g * w;
+    let (mut num, mut den) = (0.0, 0.0);
+    let vg = value_gradient_sum_visiting::<K, S>(supports, x, ids, |j, w| {
         if w > 0.0 {
-            blend_num += w * values[j as usize];
-            blend_den += w;
+            num += w * values[j as usize];
+            den += w;
         }
-    }
-    if w_sum <= 0.0 || blend_den <= 0.0 {
-        return None;
-    }
-    let value = n_sum / w_sum;
-    let inv_w = 1.0 / w_sum;
-    Some((
-        ValueGradient {
-            value,
-            gradient: (n_grad - w_grad * value) * inv_w,
-        },
-        blend_num / blend_den,
-    ))
+    })?;
+    (den > 0.0).then(|| (vg, num / den))
 }
 
 /// `a bᵀ + b aᵀ`.
@@ -474,6 +444,17 @@ fn value_gradient_sum<K: FixedKernel, S: PackedSupport>(
     x: DVec3,
     ids: &[u32],
 ) -> Option<ValueGradient> {
+    value_gradient_sum_visiting::<K, S>(supports, x, ids, |_, _| {})
+}
+
+/// `f` and `∇f` over `ids`, calling `visit(j, w_j)` for every support summed.
+#[inline(always)]
+fn value_gradient_sum_visiting<K: FixedKernel, S: PackedSupport>(
+    supports: &[S],
+    x: DVec3,
+    ids: &[u32],
+    mut visit: impl FnMut(u32, f64),
+) -> Option<ValueGradient> {
     let mut w_sum = 0.0;
     let mut n_sum = 0.0;
     let mut w_grad = DVec3::ZERO;
@@ -495,6 +476,7 @@ fn value_gradient_sum<K: FixedKernel, S: PackedSupport>(
         n_sum += w * g;
         w_grad += grad_w;
         n_grad += grad_w * g + grad_g * w;
+        visit(j, w);
     }
     if w_sum <= 0.0 {
         return None;
