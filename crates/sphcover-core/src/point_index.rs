@@ -116,47 +116,11 @@ impl PointIndex {
 
     /// Calls `visit(slot, distance²)` for every indexed point with `‖p − x‖² < r²`, in tree
     /// order. Nothing is reported for a non-finite `x` or a radius that is not positive.
-    pub fn for_each_slot_within(&self, x: DVec3, r: f64, mut visit: impl FnMut(usize, f64)) {
-        if self.nodes.is_empty() || !x.is_finite() || r.is_nan() || r <= 0.0 {
+    pub fn for_each_slot_within(&self, x: DVec3, r: f64, visit: impl FnMut(usize, f64)) {
+        if r.is_nan() || r <= 0.0 {
             return;
         }
-        let r2 = r * r;
-        // Each entry carries the per-axis distances from `x` to the node's cell, whose
-        // squared length bounds the distance to every point below (Arya & Mount's
-        // incremental distance: tighter than the largest single-axis gap).
-        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
-        let mut top = 1usize;
-        while top > 0 {
-            top -= 1;
-            let (n, gap) = stack[top];
-            let n = n as usize;
-            let node = self.nodes[n];
-            if node.right == 0 {
-                for s in node.lo as usize..node.hi as usize {
-                    let d2 = (self.points[s] - x).length_squared();
-                    if d2 < r2 {
-                        visit(s, d2);
-                    }
-                }
-                continue;
-            }
-            let axis = node.axis as usize;
-            let delta = x[axis] - node.split;
-            let (near, far) = if delta < 0.0 {
-                (n + 1, n + node.right as usize)
-            } else {
-                (n + node.right as usize, n + 1)
-            };
-            let mut far_gap = gap;
-            far_gap[axis] = delta.abs();
-            // Points on the far side are at least `far_gap` away, axis by axis.
-            if far_gap.length_squared() < r2 {
-                stack[top] = (far as u32, far_gap);
-                top += 1;
-            }
-            stack[top] = (near as u32, gap);
-            top += 1;
-        }
+        self.for_each_slot_in_ball::<false>(x, r * r, visit);
     }
 
     /// Calls `visit(index, point)` for every indexed point with `‖p − x‖² < r²`, in tree
@@ -303,10 +267,25 @@ impl PointIndex {
 
     /// Calls `visit(slot, distance²)` for every indexed point with `‖p − x‖² ≤ bound`, in
     /// tree order (the closed ball, unlike [`PointIndex::for_each_slot_within`]).
-    fn for_each_slot_within_closed(&self, x: DVec3, bound: f64, mut visit: impl FnMut(usize, f64)) {
-        if self.nodes.is_empty() || !x.is_finite() || bound.is_nan() {
+    fn for_each_slot_within_closed(&self, x: DVec3, bound: f64, visit: impl FnMut(usize, f64)) {
+        self.for_each_slot_in_ball::<true>(x, bound, visit);
+    }
+
+    /// Calls `visit(slot, distance²)` for every indexed point with `‖p − x‖² < r2` (`≤` when
+    /// `CLOSED`), in tree order. Nothing is reported for a non-finite `x` or a NaN `r2`.
+    fn for_each_slot_in_ball<const CLOSED: bool>(
+        &self,
+        x: DVec3,
+        r2: f64,
+        mut visit: impl FnMut(usize, f64),
+    ) {
+        if self.nodes.is_empty() || !x.is_finite() || r2.is_nan() {
             return;
         }
+        let inside = |d2: f64| if CLOSED { d2 <= r2 } else { d2 < r2 };
+        // Each entry carries the per-axis distances from `x` to the node's cell, whose
+        // squared length bounds the distance to every point below (Arya & Mount's
+        // incremental distance: tighter than the largest single-axis gap).
         let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
         let mut top = 1usize;
         while top > 0 {
@@ -317,7 +296,7 @@ impl PointIndex {
             if node.right == 0 {
                 for s in node.lo as usize..node.hi as usize {
                     let d2 = (self.points[s] - x).length_squared();
-                    if d2 <= bound {
+                    if inside(d2) {
                         visit(s, d2);
                     }
                 }
@@ -332,7 +311,8 @@ impl PointIndex {
             };
             let mut far_gap = gap;
             far_gap[axis] = delta.abs();
-            if far_gap.length_squared() <= bound {
+            // Points on the far side are at least `far_gap` away, axis by axis.
+            if inside(far_gap.length_squared()) {
                 stack[top] = (far as u32, far_gap);
                 top += 1;
             }
