@@ -11,7 +11,7 @@ use sphcover_core::{DVec3, PointIndex, TriMesh, VolumeCoverError, build_scattere
 
 use crate::error::SkeletonError;
 use crate::intensity_model::{OTSU_SMOOTHING, estimate_sample_intensity_model};
-use crate::object_mask::ObjectMaskStats;
+use crate::object_mask::{ObjectMaskStats, lower_specks};
 use crate::pipeline::{
     CoverStage, SkeletonParams, SkeletonStats, SkeletonTimings, check_params,
     intensity_cover_params, sheet_from_cover,
@@ -177,60 +177,16 @@ fn drop_sample_specks(
     smooth: Option<&[f64]>,
     neighbour: f64,
 ) -> (Vec<f64>, ObjectMaskStats) {
-    let raw_object = |i: usize| values[i] > threshold;
-    let object: Vec<bool> = (0..values.len())
-        .map(|i| raw_object(i) && smooth.is_none_or(|s| s[i] > threshold))
-        .collect();
-    let mut stats = ObjectMaskStats {
-        unsmooth_voxels: (0..values.len())
-            .filter(|&i| raw_object(i) && !object[i])
-            .count(),
-        ..ObjectMaskStats::default()
+    let neighbours = |i: usize, visit: &mut dyn FnMut(usize)| {
+        index.for_each_within(positions[i], neighbour, |j, _| visit(j as usize));
     };
-    let mut label = vec![u32::MAX; values.len()];
-    let mut sizes: Vec<usize> = Vec::new();
-    let mut stack = Vec::new();
-    for seed in 0..values.len() {
-        if !object[seed] || label[seed] != u32::MAX {
-            continue;
-        }
-        let id = sizes.len() as u32;
-        label[seed] = id;
-        stack.push(seed);
-        let mut size = 0;
-        while let Some(i) = stack.pop() {
-            size += 1;
-            index.for_each_within(positions[i], neighbour, |j, _| {
-                let j = j as usize;
-                if object[j] && label[j] == u32::MAX {
-                    label[j] = id;
-                    stack.push(j);
-                }
-            });
-        }
-        sizes.push(size);
-    }
-    let largest = sizes.iter().copied().max().unwrap_or(0);
-    let keep: Vec<bool> = sizes
-        .iter()
-        .map(|&s| s as f64 >= min_fraction * largest as f64)
-        .collect();
-    stats.components = sizes.len();
-    stats.dropped_components = keep.iter().filter(|&&k| !k).count();
-    let lowered = values
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| {
-            let l = label[i];
-            if l != u32::MAX && !keep[l as usize] {
-                stats.dropped_voxels += 1;
-                threshold
-            } else if raw_object(i) && !object[i] {
-                threshold
-            } else {
-                v
-            }
-        })
-        .collect();
-    (lowered, stats)
+    let (lowered, stats) = lower_specks(
+        values.len(),
+        |i| values[i],
+        threshold,
+        min_fraction,
+        smooth,
+        neighbours,
+    );
+    (lowered.unwrap_or_else(|| values.to_vec()), stats)
 }

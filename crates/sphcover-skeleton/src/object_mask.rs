@@ -43,8 +43,48 @@ pub fn drop_small_object_components(
     smooth: Option<&[f64]>,
 ) -> (Option<Volume>, ObjectMaskStats) {
     let [nx, ny, nz] = volume.dims();
-    let n = volume.len();
-    let raw_object = |i: usize| volume.value(i) > threshold;
+    let neighbours_26 = |v: usize, visit: &mut dyn FnMut(usize)| {
+        let [i, j, k] = volume.ijk(v);
+        for dk in -1i64..=1 {
+            for dj in -1i64..=1 {
+                for di in -1i64..=1 {
+                    let (a, b, c) = (i as i64 + di, j as i64 + dj, k as i64 + dk);
+                    if a < 0 || b < 0 || c < 0 || a >= nx as i64 || b >= ny as i64 || c >= nz as i64
+                    {
+                        continue;
+                    }
+                    visit(volume.index(a as usize, b as usize, c as usize));
+                }
+            }
+        }
+    };
+    let (values, stats) = lower_specks(
+        volume.len(),
+        |i| volume.value(i),
+        threshold,
+        min_fraction,
+        smooth,
+        neighbours_26,
+    );
+    let cleaned = values.map(|values| {
+        Volume::new(volume.dims(), VoxelValues::F64(values), volume.affine())
+            .expect("same dims and affine as a valid volume")
+    });
+    (cleaned, stats)
+}
+
+/// The speck removal of [`drop_small_object_components`] on any `n` points with values
+/// `value(i)` and a neighbourhood (`for_each_neighbour(i, visit)` visits the neighbours of
+/// `i`): the new values, `None` when nothing was lowered.
+pub(crate) fn lower_specks(
+    n: usize,
+    value: impl Fn(usize) -> f64,
+    threshold: f64,
+    min_fraction: f64,
+    smooth: Option<&[f64]>,
+    for_each_neighbour: impl Fn(usize, &mut dyn FnMut(usize)),
+) -> (Option<Vec<f64>>, ObjectMaskStats) {
+    let raw_object = |i: usize| value(i) > threshold;
     let object: Vec<bool> = (0..n)
         .map(|i| raw_object(i) && smooth.is_none_or(|s| s[i] > threshold))
         .collect();
@@ -62,28 +102,12 @@ pub fn drop_small_object_components(
         stack.push(seed);
         while let Some(v) = stack.pop() {
             size += 1;
-            let [i, j, k] = volume.ijk(v);
-            for dk in -1i64..=1 {
-                for dj in -1i64..=1 {
-                    for di in -1i64..=1 {
-                        let (a, b, c) = (i as i64 + di, j as i64 + dj, k as i64 + dk);
-                        if a < 0
-                            || b < 0
-                            || c < 0
-                            || a >= nx as i64
-                            || b >= ny as i64
-                            || c >= nz as i64
-                        {
-                            continue;
-                        }
-                        let w = volume.index(a as usize, b as usize, c as usize);
-                        if object[w] && label[w] == u32::MAX {
-                            label[w] = id;
-                            stack.push(w);
-                        }
-                    }
+            for_each_neighbour(v, &mut |w| {
+                if object[w] && label[w] == u32::MAX {
+                    label[w] = id;
+                    stack.push(w);
                 }
-            }
+            });
         }
         sizes.push(size);
     }
@@ -110,13 +134,11 @@ pub fn drop_small_object_components(
             } else if raw_object(i) && !object[i] {
                 threshold
             } else {
-                volume.value(i)
+                value(i)
             }
         })
         .collect();
-    let cleaned = Volume::new(volume.dims(), VoxelValues::F64(values), volume.affine())
-        .expect("same dims and affine as a valid volume");
-    (Some(cleaned), stats)
+    (Some(values), stats)
 }
 
 #[cfg(test)]
