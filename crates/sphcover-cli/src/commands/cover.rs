@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use sphcover_core::io::{self, CoverFileMeta, PlyEncoding, WriteOptions};
+use sphcover_core::io::{self, CoverFileMeta};
 use sphcover_core::{
     CentreOrder, Cover, Elimination, Normalisation, SurfaceCoverParams, Threshold,
     VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant, build_scattered_cover,
@@ -39,15 +39,7 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
         surface_cover(args, reporter)?
     };
     let stage = reporter.stage("write");
-    let options = WriteOptions {
-        ply_encoding: if args.ascii {
-            PlyEncoding::Ascii
-        } else {
-            PlyEncoding::BinaryLittleEndian
-        },
-        inputs: vec![args.input.clone()],
-        ..WriteOptions::default()
-    };
+    let options = super::write_options(&args.input, args.ascii);
     io::write_cover(&args.output, &cover, &meta, &options)?;
     stage.finish();
     Ok(())

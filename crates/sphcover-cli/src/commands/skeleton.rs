@@ -2,7 +2,7 @@
 //! from scattered samples with values, or the non-maximum-suppression baseline for
 //! comparison.
 
-use sphcover_core::io::{self, PlyEncoding, ReadOptions, VolumeInfo, WriteOptions};
+use sphcover_core::io::{self, ReadOptions, VolumeInfo};
 use sphcover_core::{PointCloud, TriMesh, Volume};
 use sphcover_skeleton::{
     NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton,
@@ -75,7 +75,11 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 positions: points,
                 ..PointCloud::default()
             };
-            io::write_point_cloud(&args.output, &cloud, &write_options(args))?;
+            io::write_point_cloud(
+                &args.output,
+                &cloud,
+                &super::write_options(&args.input, args.ascii),
+            )?;
             stage.finish();
             reporter.summary(&format!(
                 "threshold {:.6} ({}); {} voxels above it after smoothing; {} ridge points -> {}",
@@ -146,18 +150,6 @@ fn bad(args: &SkeletonArgs, e: SkeletonError) -> anyhow::Error {
     }
 }
 
-fn write_options(args: &SkeletonArgs) -> WriteOptions {
-    WriteOptions {
-        ply_encoding: if args.ascii {
-            PlyEncoding::Ascii
-        } else {
-            PlyEncoding::BinaryLittleEndian
-        },
-        inputs: vec![args.input.clone()],
-        ..WriteOptions::default()
-    }
-}
-
 /// Timings, warnings, the sheet, the optional JSON report and the closing line.
 fn write_sheet(
     args: &SkeletonArgs,
@@ -179,7 +171,11 @@ fn write_sheet(
         reporter.warn(&format!("the sheet has {} components", stats.components));
     }
     let stage = reporter.stage("write");
-    io::write_mesh(&args.output, sheet, &write_options(args))?;
+    io::write_mesh(
+        &args.output,
+        sheet,
+        &super::write_options(&args.input, args.ascii),
+    )?;
     stage.finish();
     if let Some(path) = &args.report {
         let text = serde_json::to_string_pretty(&report_json(args, stats))?;
