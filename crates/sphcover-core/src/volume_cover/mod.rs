@@ -1062,35 +1062,22 @@ impl<'a> Grid<'a> {
         stats: &mut VolumeCoverStats,
     ) -> Vec<Support> {
         let n = self.volume.len();
-        let mut covered = vec![false; n];
         let mut supports = Vec::new();
         let mut deferred = Vec::new();
-        let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
-        let mut pos = 0;
-        let mut batch = Vec::with_capacity(batch_size);
-        while pos < order.len() {
-            batch.clear();
-            while pos < order.len() && batch.len() < batch_size {
-                let c = order[pos] as usize;
-                pos += 1;
-                if !covered[c] {
-                    batch.push(c);
-                }
-            }
-            let fits: Vec<Support> = batch.par_iter().map(|&c| self.fit::<N>(c)).collect();
-            stats.fits += fits.len();
-            for s in fits {
-                if covered[s.center as usize] {
-                    continue;
-                }
+        covering_loop(
+            order,
+            n,
+            |c| self.fit::<N>(c),
+            stats,
+            |s, covered| {
                 if defer && s.rms > self.tolerance {
                     deferred.push(s);
-                    continue;
+                } else {
+                    self.mark_covered(&s, covered);
+                    supports.push(s);
                 }
-                self.mark_covered(&s, &mut covered);
-                supports.push(s);
-            }
-        }
+            },
+        );
         if !deferred.is_empty() {
             let total = n + corners.map_or(0, |cs| cs.object.len());
             let mut in_ball = vec![false; total];
@@ -1216,6 +1203,40 @@ fn shuffle(items: &mut [u32], seed: u64) {
             }
         };
         items.swap(i, j);
+    }
+}
+
+/// The thesis' covering loop (§3.4.2): the candidates of `order` (indices below `n`) not yet
+/// covered are fitted in parallel batches, then handed in order to `take`, which marks what
+/// the support covers; a candidate covered by an earlier support of its batch is skipped.
+/// The result depends on the order only, not on the thread count.
+fn covering_loop(
+    order: &[u32],
+    n: usize,
+    fit: impl Fn(usize) -> Support + Sync,
+    stats: &mut VolumeCoverStats,
+    mut take: impl FnMut(Support, &mut [bool]),
+) {
+    let mut covered = vec![false; n];
+    let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
+    let mut pos = 0;
+    let mut batch = Vec::with_capacity(batch_size);
+    while pos < order.len() {
+        batch.clear();
+        while pos < order.len() && batch.len() < batch_size {
+            let c = order[pos] as usize;
+            pos += 1;
+            if !covered[c] {
+                batch.push(c);
+            }
+        }
+        let fits: Vec<Support> = batch.par_iter().map(|&c| fit(c)).collect();
+        stats.fits += fits.len();
+        for s in fits {
+            if !covered[s.center as usize] {
+                take(s, &mut covered);
+            }
+        }
     }
 }
 

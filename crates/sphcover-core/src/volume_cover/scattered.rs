@@ -541,31 +541,18 @@ impl Samples<'_> {
         };
         stats.candidates = order.len();
         shuffle(&mut order, params.seed);
-        let mut covered = vec![false; n];
         let mut supports = Vec::new();
-        let batch_size = (rayon::current_num_threads() * 4).clamp(1, 256);
-        let mut pos = 0;
-        let mut batch = Vec::with_capacity(batch_size);
         let mut ball = Vec::new();
-        while pos < order.len() {
-            batch.clear();
-            while pos < order.len() && batch.len() < batch_size {
-                let c = order[pos] as usize;
-                pos += 1;
-                if !covered[c] {
-                    batch.push(c);
-                }
-            }
-            let fits: Vec<Support> = batch.par_iter().map(|&c| self.fit::<N>(c)).collect();
-            stats.fits += fits.len();
-            for s in fits {
-                if covered[s.center as usize] {
-                    continue;
-                }
-                self.mark_covered(&s, &mut covered, &mut ball);
+        super::covering_loop(
+            &order,
+            n,
+            |c| self.fit::<N>(c),
+            stats,
+            |s, covered| {
+                self.mark_covered(&s, covered, &mut ball);
                 supports.push(s);
-            }
-        }
+            },
+        );
         if params.elimination != super::Elimination::Off && !self.bounding_box {
             self.eliminate_redundant(supports)
         } else {
