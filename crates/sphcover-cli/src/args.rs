@@ -131,6 +131,10 @@ pub struct ReconArgs {
     /// Estimate normals even when the input has them (for unreliable normals).
     #[arg(long)]
     pub estimate_normals: bool,
+    /// Keep the vertices on the function's zero set instead of moving them onto quadrics
+    /// fitted to the samples near them (the thesis's surface; less accurate on clean scans).
+    #[arg(long)]
+    pub no_refine: bool,
     /// Seed of the random choices (cover expansion order).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

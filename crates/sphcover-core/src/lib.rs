@@ -62,7 +62,7 @@ pub use geometry::{Aabb, Normalisation};
 pub use glam::{DMat3, DVec3};
 pub use kernel::Kernel;
 pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, QuadraticFunction};
-pub use mesh::TriMesh;
+pub use mesh::{TriMesh, vertex_normals};
 pub use mesh_topology::MeshTopology;
 pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;

@@ -1,6 +1,7 @@
 //! Indexed triangle meshes.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::geometry::{Aabb, Normalisation};
 
@@ -70,5 +71,57 @@ impl TriMesh {
     /// Maps the vertices back to input coordinates.
     pub fn to_input(&mut self, norm: &Normalisation) {
         norm.points_to_input(&mut self.vertices);
+    }
+}
+
+/// Area-weighted vertex normals of a triangle mesh (unit; zero for a vertex of no
+/// triangle with area).
+pub fn vertex_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
+    let faces: Vec<DVec3> = triangles
+        .par_iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| positions[v as usize]);
+            let f = (b - a).cross(c - a);
+            if f.is_finite() { f } else { DVec3::ZERO }
+        })
+        .collect();
+    // One pass in triangle order: the sums are the same whatever the thread count.
+    let mut sums = vec![DVec3::ZERO; positions.len()];
+    for (t, f) in triangles.iter().zip(&faces) {
+        for &v in t {
+            sums[v as usize] += *f;
+        }
+    }
+    sums.par_iter_mut().for_each(|s| *s = s.normalize_or_zero());
+    sums
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vertex_normals_of_a_closed_box_point_outward() {
+        // A unit cube of twelve outward-wound triangles.
+        let positions: Vec<DVec3> = (0..8)
+            .map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+            .collect();
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let triangles: Vec<[u32; 3]> = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        let normals = vertex_normals(&positions, &triangles);
+        for (p, n) in positions.iter().zip(&normals) {
+            let outward = (*p - DVec3::splat(0.5)).normalize();
+            assert!(n.dot(outward) > 0.9, "{p} {n}");
+        }
     }
 }

@@ -71,6 +71,7 @@ pub mod mesh_smoothing;
 pub mod polygonise;
 pub mod small_components;
 pub mod unused_vertices;
+pub mod vertex_refinement;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use pipeline::{
@@ -82,3 +83,7 @@ pub use polygonise::{
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
 pub use unused_vertices::remove_unused_vertices;
+pub use vertex_refinement::{
+    RefinementSamples, RefinementScale, VertexRefinementError, VertexRefinementParams,
+    VertexRefinementStats, refine_vertices,
+};

@@ -46,6 +46,10 @@ use crate::polygonise::{
 };
 use crate::scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 use crate::small_components::{SmallComponentsError, remove_small_components};
+use crate::vertex_refinement::{
+    RefinementSamples, RefinementScale, VertexRefinementError, VertexRefinementParams,
+    VertexRefinementStats, refine_vertices,
+};
 
 /// Which reconstruction to run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -115,6 +119,9 @@ pub struct ReconParams {
     pub noise_tolerance: Option<f64>,
     /// Leave isolated samples out of the cover and label them outliers.
     pub drop_isolated: bool,
+    /// Move the vertices onto quadrics fitted to the samples near them (module docs of
+    /// [`mod@crate::vertex_refinement`]); `None` keeps the function's zero set.
+    pub refine: Option<VertexRefinementParams>,
 }
 
 impl Default for ReconParams {
@@ -135,6 +142,7 @@ impl Default for ReconParams {
             scan: ScanStatisticsParams::default(),
             noise_tolerance: Some(4.0),
             drop_isolated: true,
+            refine: Some(VertexRefinementParams::default()),
         }
     }
 }
@@ -234,6 +242,9 @@ pub enum ReconError {
     /// Small components could not be removed.
     #[error(transparent)]
     SmallComponents(#[from] SmallComponentsError),
+    /// Vertex refinement failed.
+    #[error("vertex refinement: {0}")]
+    Refinement(#[from] VertexRefinementError),
     /// Nothing was left to mesh.
     #[error("the reconstruction is empty: {0}")]
     Empty(&'static str),
@@ -276,6 +287,8 @@ pub struct ReconStats {
     pub depth: u32,
     /// Components dropped as too small.
     pub dropped_components: usize,
+    /// What the vertex refinement did, when it ran.
+    pub refinement: Option<VertexRefinementStats>,
     /// Triangles of the result.
     pub triangles: usize,
     /// Vertices of the result.
@@ -505,6 +518,27 @@ pub fn reconstruct(
         return Err(ReconError::Empty(
             "no surface was found near the confident samples",
         ));
+    }
+    if let Some(refine) = &params.refine {
+        clock.start("refine");
+        let weights: Vec<f64> = conf
+            .confidence
+            .iter()
+            .zip(&conf.outliers)
+            .map(|(&c, &o)| if o { 0.0 } else { c })
+            .collect();
+        let samples = RefinementSamples {
+            points: &points,
+            normals: &normals,
+            weights: &weights,
+            index: &index,
+        };
+        let scale = RefinementScale {
+            spacing: scan.spacing,
+            step: 1.0 / f64::from(1u32 << depth),
+            noise_ratio: stats.eps / params.cover.eps,
+        };
+        stats.refinement = Some(refine_vertices(&mut mesh, &samples, &scale, refine)?);
     }
     mesh.to_input(&normalisation);
     let topology = MeshTopology::of(&mesh);

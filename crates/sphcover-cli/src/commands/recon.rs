@@ -291,6 +291,9 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
         ..defaults
     };
     params.normals.k = args.normal_neighbors;
+    if args.no_refine {
+        params.refine = None;
+    }
     for (name, value, slot) in [
         (
             "--normal-fit",
@@ -343,6 +346,12 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
             s.depth, p.step, p.cells_visited, p.grid_evaluations
         ));
     }
+    if let Some(r) = &s.refinement {
+        reporter.detail(&format!(
+            "  refine: {} vertices moved (mean {:.2e}, longest {:.2e}), {} out of reach, {} unfitted",
+            r.moved, r.mean_move, r.longest_move, r.out_of_reach, r.unfitted
+        ));
+    }
     reporter.detail(&format!(
         "  result: {} vertices, {} triangles, {} components ({} dropped), Euler characteristic {}",
         s.vertices, s.triangles, s.components, s.dropped_components, s.euler_characteristic
@@ -377,6 +386,7 @@ fn report_json(
         "triangles": s.triangles,
         "components": s.components,
         "dropped_components": s.dropped_components,
+        "refined_vertices": s.refinement.as_ref().map(|r| r.moved),
         "watertight": s.watertight,
         "euler_characteristic": s.euler_characteristic,
         "stages_seconds": s.stages.iter().map(|(n, t)| json!({"stage": n, "seconds": t.as_secs_f64()})).collect::<Vec<_>>(),
