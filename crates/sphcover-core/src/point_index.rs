@@ -50,6 +50,22 @@ struct Node {
     right: u32,
     /// Split axis (inner nodes).
     axis: u8,
+    /// Corners of the tight bounding box of the node's points: for points on a surface it
+    /// is far smaller than the node's cell, so it prunes more of a query's tree.
+    min: DVec3,
+    max: DVec3,
+}
+
+impl Node {
+    /// Squared distance from `x` to the node's bounding box (0 inside). Rounding is
+    /// monotonic, so it never exceeds the computed squared distance to a point below.
+    #[inline]
+    fn box_distance2(&self, x: DVec3) -> f64 {
+        (self.min - x)
+            .max(x - self.max)
+            .max(DVec3::ZERO)
+            .length_squared()
+    }
 }
 
 /// A static k-d tree over a set of points (see the module docs for the query conventions).
@@ -155,16 +171,16 @@ impl PointIndex {
         }
         // `out` is kept sorted ascending; k is small in every use (tens), so insertion into a
         // sorted vector beats a heap and yields the final order directly.
-        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
+        let mut stack = [0u32; 64];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
-            let (n, gap) = stack[top];
+            let n = stack[top] as usize;
+            let node = &self.nodes[n];
             // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
-            if out.len() == k && gap.length_squared() > out[k - 1].0 {
+            if out.len() == k && node.box_distance2(x) > out[k - 1].0 {
                 continue;
             }
-            let node = self.nodes[n as usize];
             if node.right == 0 {
                 for s in node.lo as usize..node.hi as usize {
                     let d2 = (self.points[s] - x).length_squared();
@@ -180,19 +196,14 @@ impl PointIndex {
                 }
                 continue;
             }
-            let axis = node.axis as usize;
-            let delta = x[axis] - node.split;
-            let n = n as usize;
-            let (near, far) = if delta < 0.0 {
+            let (near, far) = if x[node.axis as usize] < node.split {
                 (n + 1, n + node.right as usize)
             } else {
                 (n + node.right as usize, n + 1)
             };
-            let mut far_gap = gap;
-            far_gap[axis] = delta.abs();
-            stack[top] = (far as u32, far_gap);
+            stack[top] = far as u32;
             top += 1;
-            stack[top] = (near as u32, gap);
+            stack[top] = near as u32;
             top += 1;
         }
     }
@@ -283,16 +294,17 @@ impl PointIndex {
             return;
         }
         let inside = |d2: f64| if CLOSED { d2 <= r2 } else { d2 < r2 };
-        // Each entry carries the per-axis distances from `x` to the node's cell, whose
-        // squared length bounds the distance to every point below (Arya & Mount's
-        // incremental distance: tighter than the largest single-axis gap).
-        let mut stack: [(u32, DVec3); 64] = [(0, DVec3::ZERO); 64];
+        if !inside(self.nodes[0].box_distance2(x)) {
+            return;
+        }
+        // Children whose bounding box lies outside the ball hold no point inside it; the near
+        // child is visited first, so the points come in tree order.
+        let mut stack = [0u32; 64];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
-            let (n, gap) = stack[top];
-            let n = n as usize;
-            let node = self.nodes[n];
+            let n = stack[top] as usize;
+            let node = &self.nodes[n];
             if node.right == 0 {
                 for s in node.lo as usize..node.hi as usize {
                     let d2 = (self.points[s] - x).length_squared();
@@ -302,22 +314,17 @@ impl PointIndex {
                 }
                 continue;
             }
-            let axis = node.axis as usize;
-            let delta = x[axis] - node.split;
-            let (near, far) = if delta < 0.0 {
+            let (near, far) = if x[node.axis as usize] < node.split {
                 (n + 1, n + node.right as usize)
             } else {
                 (n + node.right as usize, n + 1)
             };
-            let mut far_gap = gap;
-            far_gap[axis] = delta.abs();
-            // Points on the far side are at least `far_gap` away, axis by axis.
-            if inside(far_gap.length_squared()) {
-                stack[top] = (far as u32, far_gap);
-                top += 1;
+            for child in [far, near] {
+                if inside(self.nodes[child].box_distance2(x)) {
+                    stack[top] = child as u32;
+                    top += 1;
+                }
             }
-            stack[top] = (near as u32, gap);
-            top += 1;
         }
     }
 }
@@ -335,20 +342,22 @@ fn build(items: &mut [(DVec3, u32)], base: usize) -> Vec<Node> {
     if n == 0 {
         return Vec::new();
     }
+    let (lo, hi) = items.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), (p, _)| (lo.min(*p), hi.max(*p)),
+    );
     let leaf = Node {
         split: 0.0,
         lo: base as u32,
         hi: (base + n) as u32,
         right: 0,
         axis: 0,
+        min: lo,
+        max: hi,
     };
     if n <= BUCKET {
         return vec![leaf];
     }
-    let (lo, hi) = items.iter().fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(lo, hi), (p, _)| (lo.min(*p), hi.max(*p)),
-    );
     let extent = hi - lo;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
@@ -381,6 +390,8 @@ fn build(items: &mut [(DVec3, u32)], base: usize) -> Vec<Node> {
         hi: (base + n) as u32,
         right: (1 + left_nodes.len()) as u32,
         axis: axis as u8,
+        min: lo,
+        max: hi,
     });
     nodes.extend(left_nodes);
     nodes.extend(right_nodes);
