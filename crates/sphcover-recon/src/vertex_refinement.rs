@@ -8,9 +8,9 @@
 //! (plain blend 0.0064%), against Screened Poisson's 0.0035%, and halving ε only gives
 //! 0.0060%.
 //!
-//! Each vertex is therefore moved along its normal onto a quadric height field fitted to its
-//! samples within a ball around it, the projection of moving-least-squares point-set surfaces (Levin
-//! 2003; Alexa et al. 2003). The fit weights every sample by its confidence (thesis
+//! Each vertex is therefore moved along its normal onto a quadric height field fitted to the
+//! samples within a ball around it, the projection of moving-least-squares point-set
+//! surfaces (Levin 2003; Alexa et al. 2003). The fit weights every sample by its confidence (thesis
 //! eq. 5.39–5.40; outliers weigh nothing) and by a kernel of its distance, and leaves out
 //! samples whose normal faces away from the vertex's (the other side of a thin part). Three
 //! guards keep the step from undoing what the rest of the pipeline achieved:
@@ -19,12 +19,12 @@
 //!   move is shrunk to `a · a² / (a² + g·se²)`, so an offset the samples do not pin down
 //!   beyond their own scatter is not taken. On a scan whose noise raised the cover tolerance
 //!   (by `r = ε_used / ε`) the diffused function averages far more samples than one fit,
-//!   so `g = r⁴`: on the bunny with noise of 0.25% of the diagonal (`r` = 5.9) an
-//!   unshrunk fit of 24 samples drops the normal consistency from 0.996 to 0.89.
-//! - **Holes.** A vertex farther than `reach` from every sample, measured along its
-//!   tangent plane, keeps the position the
-//!   function gave it (a filled hole is the function's, not the samples'); the move fades
-//!   out between half the reach and the reach.
+//!   so `g = r⁴`: on the bunny with noise of 0.25% of the diagonal (`r` = 5.9) unshrunk
+//!   fits over the 24 nearest samples dropped the normal consistency from 0.996 to 0.89 (a
+//!   prototype); shrunk, every noisy benchmark case scores as without the step.
+//! - **Holes.** A vertex farther than `reach` from every sample, measured in its tangent
+//!   plane, keeps the position the function gave it (a filled hole is the function's, not
+//!   the samples'); the move fades out between half the reach and the reach.
 //! - **Folds.** No move exceeds `max_move` (a fraction of the grid step), so a triangle
 //!   cannot turn over.
 //!
@@ -68,7 +68,8 @@ impl Default for VertexRefinementParams {
 /// The scan's scales the parameters are relative to.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefinementScale {
-    /// Sample spacing (the scan statistics' median neighbour distance).
+    /// Sample spacing (the scan statistics': the median over the samples of the mean distance
+    /// to their 16 nearest neighbours).
     pub spacing: f64,
     /// Grid step of the polygonisation.
     pub step: f64,
@@ -179,7 +180,7 @@ pub fn refine_vertices(
     check(samples, scale, params)?;
     let normals = vertex_normals(&mesh.vertices, &mesh.triangles);
     let fit = Fit {
-        samples,
+        index: samples.index,
         slot_points: samples.index.slot_points(),
         slot_samples: samples
             .index
@@ -269,7 +270,7 @@ enum Outcome {
 
 /// One vertex's fit, with what every fit shares.
 struct Fit<'a> {
-    samples: &'a RefinementSamples<'a>,
+    index: &'a PointIndex,
     /// Sample positions in the index's slot order.
     slot_points: &'a [DVec3],
     /// Sample normals and weights in the index's slot order.
@@ -290,7 +291,7 @@ impl Fit<'_> {
         let mut radius = self.radius;
         for _ in 0..RADIUS_TRIES {
             let mut sums = Sums::default();
-            self.samples.index.for_each_slot_within(v, radius, |s, d2| {
+            self.index.for_each_slot_within(v, radius, |s, d2| {
                 let (normal, w) = self.slot_samples[s];
                 if w.is_nan() || w <= 0.0 || normal.dot(n) <= 0.0 {
                     return;
