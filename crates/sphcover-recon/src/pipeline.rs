@@ -540,6 +540,7 @@ pub fn reconstruct(
         };
         stats.refinement = Some(refine_vertices(&mut mesh, &samples, &scale, refine)?);
     }
+    clock.start("topology");
     mesh.to_input(&normalisation);
     let topology = MeshTopology::of(&mesh);
     stats.triangles = mesh.triangles.len();
