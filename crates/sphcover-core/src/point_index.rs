@@ -57,6 +57,17 @@ struct Node {
 }
 
 impl Node {
+    /// The children of inner node `n` (this node): the one on `x`'s side of the split first.
+    #[inline]
+    fn children_near_far(&self, n: usize, x: DVec3) -> (usize, usize) {
+        let (left, right) = (n + 1, n + self.right as usize);
+        if x[self.axis as usize] < self.split {
+            (left, right)
+        } else {
+            (right, left)
+        }
+    }
+
     /// Squared distance from `x` to the node's bounding box (0 inside). Rounding is
     /// monotonic, so it never exceeds the computed squared distance to a point below.
     #[inline]
@@ -196,11 +207,7 @@ impl PointIndex {
                 }
                 continue;
             }
-            let (near, far) = if x[node.axis as usize] < node.split {
-                (n + 1, n + node.right as usize)
-            } else {
-                (n + node.right as usize, n + 1)
-            };
+            let (near, far) = node.children_near_far(n, x);
             stack[top] = far as u32;
             top += 1;
             stack[top] = near as u32;
@@ -314,11 +321,7 @@ impl PointIndex {
                 }
                 continue;
             }
-            let (near, far) = if x[node.axis as usize] < node.split {
-                (n + 1, n + node.right as usize)
-            } else {
-                (n + node.right as usize, n + 1)
-            };
+            let (near, far) = node.children_near_far(n, x);
             for child in [far, near] {
                 if inside(self.nodes[child].box_distance2(x)) {
                     stack[top] = child as u32;
