@@ -3,42 +3,23 @@
 
 mod support;
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use glam::DVec3;
-use support::{run as sphcover, text};
+use support::{run as sphcover, text, write_jittered_samples};
 
 /// Writes an ascii PLY of jittered samples of a blurred ball with the value in `density`
 /// (and `nan` at sample `nan_at`, when given).
 fn write_samples(path: &Path, nan_at: Option<usize>) {
     let n = 12;
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut body = String::new();
     let centre = DVec3::splat(0.5 * (n as f64 - 1.0));
-    let mut count = 0;
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                let jitter = DVec3::new(uniform(), uniform(), uniform()) * 0.6 - 0.3;
-                let p = DVec3::new(i as f64, j as f64, k as f64) + jitter;
-                let v = 1000.0 / (1.0 + ((p.distance(centre) - 4.0) / 1.2).exp());
-                let v = if nan_at == Some(count) { f64::NAN } else { v };
-                writeln!(body, "{} {} {} {}", p.x, p.y, p.z, v).unwrap();
-                count += 1;
-            }
+    write_jittered_samples(path, [n; 3], 0x2545_f491_4f6c_dd1d, |p, sample| {
+        if nan_at == Some(sample) {
+            f64::NAN
+        } else {
+            1000.0 / (1.0 + ((p.distance(centre) - 4.0) / 1.2).exp())
         }
-    }
-    let header = format!(
-        "ply\nformat ascii 1.0\nelement vertex {count}\nproperty double x\nproperty double y\nproperty double z\nproperty double density\nend_header\n"
-    );
-    std::fs::write(path, header + &body).unwrap();
+    });
 }
 
 #[test]

@@ -3,40 +3,17 @@
 
 mod support;
 
-use std::fmt::Write as _;
 use std::path::Path;
 
-use glam::DVec3;
-use support::{files_in, run as sphcover, text};
+use support::{files_in, run as sphcover, text, write_jittered_samples};
 
 /// Writes an ascii PLY of jittered samples of a plate 4 units thick (z = 6 … 10), faces
 /// blurred over about one unit, HU-like values in `density` (all `constant` when given).
 fn write_plate_samples(path: &Path, constant: Option<f64>) {
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut body = String::new();
-    let mut count = 0;
-    for k in 0..16 {
-        for j in 0..20 {
-            for i in 0..20 {
-                let jitter = DVec3::new(uniform(), uniform(), uniform()) * 0.6 - 0.3;
-                let p = DVec3::new(i as f64, j as f64, k as f64) + jitter;
-                let inside = 2.0 - (p.z - 8.0).abs();
-                let v = constant.unwrap_or(-1000.0 + 1500.0 * (1.0 + (inside / 0.8).tanh()));
-                writeln!(body, "{} {} {} {}", p.x, p.y, p.z, v).unwrap();
-                count += 1;
-            }
-        }
-    }
-    let header = format!(
-        "ply\nformat ascii 1.0\nelement vertex {count}\nproperty double x\nproperty double y\nproperty double z\nproperty double density\nend_header\n"
-    );
-    std::fs::write(path, header + &body).unwrap();
+    write_jittered_samples(path, [20, 20, 16], 0x9e37_79b9_7f4a_7c15, |p, _| {
+        let inside = 2.0 - (p.z - 8.0).abs();
+        constant.unwrap_or(-1000.0 + 1500.0 * (1.0 + (inside / 0.8).tanh()))
+    });
 }
 
 #[test]

@@ -131,3 +131,37 @@ pub fn files_in(dir: &Path) -> Vec<String> {
     names.sort();
     names
 }
+
+/// Writes an ascii PLY of samples on the lattice `0..dims` jittered by up to ±0.3 (seeded
+/// xorshift, so the file is the same on every run), with `value(position, sample)` as the
+/// `density` property.
+pub fn write_jittered_samples(
+    path: &Path,
+    dims: [usize; 3],
+    seed: u64,
+    value: impl Fn(DVec3, usize) -> f64,
+) {
+    let mut state = seed;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut body = String::new();
+    let mut count = 0;
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let jitter = DVec3::new(uniform(), uniform(), uniform()) * 0.6 - 0.3;
+                let p = DVec3::new(i as f64, j as f64, k as f64) + jitter;
+                writeln!(body, "{} {} {} {}", p.x, p.y, p.z, value(p, count)).unwrap();
+                count += 1;
+            }
+        }
+    }
+    let header = format!(
+        "ply\nformat ascii 1.0\nelement vertex {count}\nproperty double x\nproperty double y\nproperty double z\nproperty double density\nend_header\n"
+    );
+    std::fs::write(path, header + &body).unwrap();
+}
