@@ -273,16 +273,22 @@ fn invalid_input_is_reported_with_its_index() {
     ));
 }
 
+/// [`sample_cover`] with 200 more points on the spheres of radius 1.5 r around the first
+/// supports, where the support set at σ = 1.5 is decided by rounding.
+fn sample_cover_with_sphere_points(kernel: Kernel) -> (Cover, Vec<DVec3>) {
+    let (cover, mut points) = sample_cover(kernel);
+    for i in 0..200 {
+        let c = cover.centers()[i];
+        let r = 1.5 * cover.radii()[i];
+        points.push(c + DVec3::new(0.6, -0.48, 0.64) * r);
+    }
+    (cover, points)
+}
+
 #[test]
 fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
     for kernel in Kernel::ALL {
-        let (cover, mut points) = sample_cover(kernel);
-        // Points on spheres, where the support set is decided by rounding.
-        for i in 0..200 {
-            let c = cover.centers()[i];
-            let r = 1.5 * cover.radii()[i];
-            points.push(c + DVec3::new(0.6, -0.48, 0.64) * r);
-        }
+        let (cover, points) = sample_cover_with_sphere_points(kernel);
         let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).sin()).collect();
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
@@ -323,12 +329,7 @@ fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
 #[test]
 fn fused_gradient_and_blend_equal_the_separate_queries() {
     for kernel in Kernel::ALL {
-        let (cover, mut points) = sample_cover(kernel);
-        for i in 0..200 {
-            let c = cover.centers()[i];
-            let r = 1.5 * cover.radii()[i];
-            points.push(c + DVec3::new(0.6, -0.48, 0.64) * r);
-        }
+        let (cover, points) = sample_cover_with_sphere_points(kernel);
         let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).cos()).collect();
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
