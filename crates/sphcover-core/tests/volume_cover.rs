@@ -9,7 +9,7 @@ use sphcover_core::{
     CentreOrder, Cover, DVec3, Elimination, Threshold, Volume, VolumeCoverError, VolumeCoverParams,
     VolumeCoverStats, VolumeCoverVariant, VoxelValues, build_volume_cover,
 };
-use volume_common::{AIR, MATERIAL, test_phantom};
+use volume_common::{AIR, MATERIAL, in_open_ball, test_phantom};
 
 /// Normalised value of voxel `idx`.
 fn normalised(volume: &Volume, stats: &VolumeCoverStats, idx: usize) -> f64 {
@@ -24,12 +24,12 @@ fn assert_all_inside(cover: &Cover, points: impl Iterator<Item = DVec3>) {
             .centers()
             .iter()
             .zip(cover.radii())
-            .any(|(c, &r)| x.distance(*c) < r);
+            .any(|(c, &r)| in_open_ball(x, *c, r));
         assert!(inside, "point {x} lies in no support");
     }
 }
 
-/// RMS residual of every support over all finite samples within its radius, recomputed from
+/// RMS residual of every support over all finite samples strictly inside its ball, recomputed from
 /// the volume and the cover alone; returns the largest.
 fn max_support_rms(volume: &Volume, cover: &Cover, stats: &VolumeCoverStats) -> f64 {
     let mut worst: f64 = 0.0;
@@ -39,7 +39,7 @@ fn max_support_rms(volume: &Volume, cover: &Cover, stats: &VolumeCoverStats) -> 
         let (mut sum, mut n) = (0.0, 0);
         for idx in 0..volume.len() {
             let x = volume.voxel_center(volume.ijk(idx));
-            if x.distance(c) <= r {
+            if in_open_ball(x, c, r) {
                 let v = normalised(volume, stats, idx);
                 if v.is_finite() {
                     sum += (g.value(x - c) - v).powi(2);
@@ -104,7 +104,7 @@ fn plate(thickness: f64) -> Volume {
 
 /// The points of `points` that lie in support `i` of `cover` and in no other (brute force).
 fn private_points(cover: &Cover, points: &[DVec3], i: usize) -> usize {
-    let inside = |x: DVec3, j: usize| x.distance(cover.centers()[j]) < cover.radii()[j];
+    let inside = |x: DVec3, j: usize| in_open_ball(x, cover.centers()[j], cover.radii()[j]);
     points
         .iter()
         .filter(|&&x| inside(x, i) && (0..cover.len()).all(|j| j == i || !inside(x, j)))
@@ -138,7 +138,7 @@ fn outside_every_ball(cover: &Cover, points: &[DVec3]) -> usize {
                 .centers()
                 .iter()
                 .zip(cover.radii())
-                .any(|(c, &r)| x.distance(*c) < r)
+                .any(|(c, &r)| in_open_ball(x, *c, r))
         })
         .count()
 }

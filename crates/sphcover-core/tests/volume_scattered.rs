@@ -8,7 +8,7 @@ use sphcover_core::{
     Cover, DVec3, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
     build_scattered_cover, build_volume_cover,
 };
-use volume_common::{AIR, MATERIAL, test_phantom};
+use volume_common::{AIR, MATERIAL, in_open_ball, test_phantom};
 
 /// Every object sample lies strictly inside some support's ball (brute force).
 fn assert_all_inside(cover: &Cover, points: &[DVec3], object: &[bool]) {
@@ -17,12 +17,12 @@ fn assert_all_inside(cover: &Cover, points: &[DVec3], object: &[bool]) {
             .centers()
             .iter()
             .zip(cover.radii())
-            .any(|(c, &r)| x.distance(*c) < r);
+            .any(|(c, &r)| in_open_ball(*x, *c, r));
         assert!(inside, "object sample {x} lies in no support");
     }
 }
 
-/// Largest RMS residual of a support over the samples within its radius, recomputed from
+/// Largest RMS residual of a support over the samples strictly inside its ball, recomputed from
 /// the samples and the cover alone.
 fn max_support_rms(
     points: &[DVec3],
@@ -37,7 +37,7 @@ fn max_support_rms(
         let g = cover.func(i).unwrap();
         let (mut sum, mut n) = (0.0, 0);
         for (x, v) in points.iter().zip(values) {
-            if x.distance(c) <= r {
+            if in_open_ball(*x, c, r) {
                 sum += (g.value(*x - c) - (v - lo) / (hi - lo)).powi(2);
                 n += 1;
             }

@@ -564,9 +564,6 @@ struct Support {
     shell_d2: f64,
     /// Number of offsets (in table order) inside the ball.
     offsets: usize,
-    /// Number of offsets strictly inside the ball's sphere (`offsets`, or the shells before
-    /// the last one when that lies on the sphere at `r_max`).
-    inner_offsets: usize,
     /// Coefficients in the frame `u = (x − c)/r`, constant term relative to `shift`.
     coef: [f64; QUADRATIC],
     shift: f64,
@@ -643,13 +640,16 @@ impl<'a> Grid<'a> {
         let rows = inv.transpose();
         let ext =
             [rows.x_axis, rows.y_axis, rows.z_axis].map(|row| (reach * row.length()).ceil() as i32);
+        // A ball's support is open (its weight vanishes on the sphere), so offsets on the
+        // sphere of radius r_max, up to rounding, are outside every ball: neither fitted nor
+        // covered. r_max is often a voxel distance (the thickness), so they are common.
         let mut offsets = Vec::new();
-        let r2 = reach * reach;
+        let r2 = reach * reach * (1.0 - 1e-9);
         for k in -ext[2]..=ext[2] {
             for j in -ext[1]..=ext[1] {
                 for i in -ext[0]..=ext[0] {
                     let p = linear * DVec3::new(i as f64, j as f64, k as f64);
-                    if p.length_squared() <= r2 {
+                    if p.length_squared() < r2 {
                         offsets.push(Offset {
                             step: [i, j, k],
                             p: p.to_array(),
@@ -850,20 +850,11 @@ impl<'a> Grid<'a> {
         coef[..N].copy_from_slice(&c);
         let end = self.shells[shell].1;
         let rms = self.direct_rms::<N>(base, end, &c, radius, shift);
-        // The last shell can lie on the sphere (r = r_max, e.g. the thickness, which is a
-        // voxel distance): its points are not strictly inside, up to rounding.
-        let on_sphere =
-            shell > 0 && self.shells[shell].0.sqrt() * self.unit >= radius * (1.0 - 1e-9);
         Support {
             center: center as u32,
             radius,
             shell_d2: self.shells[shell].0,
             offsets: end,
-            inner_offsets: if on_sphere {
-                self.shells[shell - 1].1
-            } else {
-                end
-            },
             coef,
             shift,
             rms,
@@ -968,7 +959,7 @@ impl<'a> Grid<'a> {
     #[inline]
     fn for_each_member(&self, s: &Support, f: &mut dyn FnMut(usize)) {
         let base = self.base(s.center as usize);
-        for o in &self.offsets[..s.inner_offsets] {
+        for o in &self.offsets[..s.offsets] {
             if let Some(idx) = self.neighbour(base, o.step)
                 && (self.bounding_box || self.object[idx])
             {

@@ -261,7 +261,8 @@ struct Neighbourhood<'s, 'a> {
     entries: Vec<(f64, u32)>,
     /// Every sample with frame distance² below this is in `entries`.
     complete_below: f64,
-    /// Frame distance² of `r_max` (inclusive bound, as the grid's offset table).
+    /// Frame distance² of `r_max`, less a relative 1e-9: samples on the sphere are outside
+    /// the open ball (as the grid's offset table).
     reach2: f64,
     /// Shells: `(largest distance² of the shell, end index in entries)`.
     shells: Vec<(f64, usize)>,
@@ -276,7 +277,7 @@ impl<'s, 'a> Neighbourhood<'s, 'a> {
             center,
             entries: Vec::new(),
             complete_below: 0.0,
-            reach2: reach * reach,
+            reach2: reach * reach * (1.0 - 1e-9),
             shells: Vec::new(),
             scratch: Vec::new(),
         }
@@ -288,8 +289,7 @@ impl<'s, 'a> Neighbourhood<'s, 'a> {
             return;
         }
         let target = (4.0 * d2).max(4.0 * self.complete_below).max(4.0);
-        // The new bound: entries with `previous ≤ fd2 < limit` are added (`fd2 ≤ reach2` on
-        // the last query). The k-d tree's world-unit ball is slightly larger than the limit
+        // The new bound: entries with `previous ≤ fd2 < limit` are added. The k-d tree's world-unit ball is slightly larger than the limit
         // so that no sample below it is missed by rounding.
         let last = target >= self.reach2;
         let limit = if last { self.reach2 } else { target };
@@ -306,8 +306,7 @@ impl<'s, 'a> Neighbourhood<'s, 'a> {
             |slot, _| {
                 let i = slot_order[slot];
                 let fd2 = ((positions[i as usize] - center) / h).length_squared();
-                let below = if last { fd2 <= limit } else { fd2 < limit };
-                if fd2 >= previous && below {
+                if fd2 >= previous && fd2 < limit {
                     scratch.push((fd2, i));
                 }
             },
@@ -461,8 +460,6 @@ impl Samples<'_> {
             radius,
             shell_d2,
             offsets: end,
-            // The grid's lattice bookkeeping; `members` tests the radius instead.
-            inner_offsets: end,
             coef,
             shift,
             rms: (sum / count.max(1) as f64).sqrt(),

@@ -8,6 +8,13 @@ pub const AIR: f64 = -1000.0;
 /// Hounsfield value of the plate material.
 pub const MATERIAL: f64 = 2000.0;
 
+/// Whether `x` lies in the open ball of centre `c` and radius `r` — a support, whose weight
+/// vanishes on its sphere. Points on the sphere up to rounding (a relative 1e-9) are out, as
+/// the cover builders count them.
+pub fn in_open_ball(x: DVec3, c: DVec3, r: f64) -> bool {
+    x.distance(c) < r * (1.0 - 1e-9)
+}
+
 /// A tilted plate of `thickness` voxels through the middle of a `dims` grid, in Hounsfield units (air −1000, material +2000): partial volume from 4×4×4
 /// supersampling of each voxel, then a separable Gaussian blur of `blur` voxels (the scanner's
 /// point spread; 0 for none). The plate normal is tilted by `tilt_degrees` from the z axis,
