@@ -28,11 +28,12 @@
 //! dual contouring. The star of such a vertex is the ring of quads around the polygon's
 //! edges, a disc. Where the meshed region ends (undefined `f`, trimming) a vertex can keep
 //! two separate fans; it is then split into one vertex per fan. One saddle configuration
-//! remains: when the polygons of both cells sharing a face each use both segments of that
-//! face, the edge between their vertices carries four triangles. Splitting fans (an edge
-//! with more than two triangles joins no fans) turns it into two manifold edges, or,
-//! depending on how the two polygons run, into a hole of four boundary edges; it was not met
-//! in the tests, and [`sphcover_core::mesh_topology::MeshTopology`] reports it if it occurs.
+//! needs more: when the polygons of both cells sharing a face each use both segments of that
+//! face, the surface runs through the face as a tube, and the edge between the two cells'
+//! vertices would carry four quads. Such a *tube face* gets one vertex per segment (the mean
+//! of its two crossings), inserted between the two cells' vertices in the quads of that
+//! segment's edges, so each of those edges is shared by two polygons. It is rare (no real
+//! scan measured has one) and leaves every other quad as it was.
 //!
 //! # Orientation and placement
 //!
@@ -187,6 +188,9 @@ pub struct PolygoniseStats {
     pub open_quads: usize,
     /// Triangles removed by trimming.
     pub trimmed_triangles: usize,
+    /// Faces where both cells' polygons use both crossing segments (a tube through the
+    /// face): each segment got a vertex of its own on the face.
+    pub tube_faces: usize,
     /// Vertices split because their triangles formed several fans.
     pub split_vertices: usize,
     /// Time spent evaluating `f` at grid vertices (part of the search).
@@ -562,6 +566,25 @@ fn inside(v: f64) -> bool {
     v > 0.0
 }
 
+/// Asymptotic decider on a face with four crossings and corner values `q` (in the order of
+/// [`FACE_CORNERS`]): whether corners 0 and 2 are joined through the face, i.e. the sign of
+/// the bilinear interpolant at its saddle is theirs. Its segments then cut off corners 1 and
+/// 3. The denominator cannot vanish: the corner pairs lie strictly on opposite sides of 0.
+fn joins_corners_0_and_2(q: [f64; 4]) -> bool {
+    let saddle = (q[0] * q[2] - q[1] * q[3]) / (q[0] + q[2] - q[1] - q[3]);
+    inside(saddle) == inside(q[0])
+}
+
+/// The segment (0 or 1) of face edge `k` on a face with four crossings: segments join face
+/// edges 0–1 and 2–3 when corners 0 and 2 are joined, 3–0 and 1–2 otherwise.
+fn face_segment(joins_0_and_2: bool, k: usize) -> usize {
+    if joins_0_and_2 {
+        k / 2
+    } else {
+        ((k + 1) % 4) / 2
+    }
+}
+
 /// Groups the crossing edges of a cell with corner values `f` into the closed polygons of
 /// marching cubes (see the module notes): the sheet of each cube edge (or [`NO_SHEET`]) and
 /// the number of sheets.
@@ -585,11 +608,7 @@ fn cell_sheets(f: &[f64; 8]) -> ([u8; 12], u8) {
                 link(edges[a], edges[b]);
             }
             4 => {
-                // The bilinear interpolant's value at its saddle: corners 0 and 2 are joined
-                // through the face when it has their side. The denominator cannot vanish:
-                // the corner pairs lie strictly on opposite sides of 0 in sum.
-                let saddle = (q[0] * q[2] - q[1] * q[3]) / (q[0] + q[2] - q[1] - q[3]);
-                if inside(saddle) == inside(q[0]) {
+                if joins_corners_0_and_2(q) {
                     // Cut off corners 1 and 3.
                     link(edges[0], edges[1]);
                     link(edges[2], edges[3]);
@@ -978,15 +997,30 @@ fn extract(
         )
         .flatten_iter()
         .collect();
-
-    let mut normals = None;
-    let mut blended = None;
+    let tubes = tube_faces(search, grid, &keys, &cells, total);
+    stats.tube_faces = tubes.len();
+    let mut owner: Vec<Index3> = Vec::new();
     if params.project || params.normals {
-        let owner: Vec<Index3> = keys
+        owner = keys
             .iter()
             .zip(&cells)
             .flat_map(|(&k, cell)| std::iter::repeat_n(unpack(k), usize::from(cell.sheets)))
             .collect();
+    }
+    let mut tube_map: KeyMap<[Option<TubeFace>; 3]> = KeyMap::default();
+    for &(key, axis, t) in &tubes {
+        let c = unpack(key);
+        vertices.extend(t.positions.map(|p| grid.position(c) + p * grid.step));
+        if !owner.is_empty() {
+            owner.extend([c; 2]);
+        }
+        tube_map.entry(key).or_default()[axis] = Some(t);
+    }
+    let tubes = tube_map;
+
+    let mut normals = None;
+    let mut blended = None;
+    if params.project || params.normals {
         let fg: Vec<Option<ValueGradient>> = match blend {
             // Lengths were checked on entry.
             Some(values) => match search.eval.values_gradients_blends(&vertices, values) {
@@ -1069,16 +1103,16 @@ fn extract(
                         continue;
                     }
                     let (a, _) = edge_ends(e);
-                    if cell.inside >> a & 1 == 0 {
-                        quad.reverse();
-                    }
-                    let p = quad.map(|v| vertices[v as usize]);
-                    if p[0].distance_squared(p[2]) <= p[1].distance_squared(p[3]) {
-                        tris.push([quad[0], quad[1], quad[2]]);
-                        tris.push([quad[0], quad[2], quad[3]]);
+                    let outward = cell.inside >> a & 1 == 1;
+                    if tubes.is_empty() {
+                        if !outward {
+                            quad.reverse();
+                        }
+                        split_quad(&mut tris, quad, &vertices);
                     } else {
-                        tris.push([quad[0], quad[1], quad[3]]);
-                        tris.push([quad[1], quad[2], quad[3]]);
+                        push_polygon_through_tubes(
+                            &mut tris, quad, around, outward, &tubes, &vertices,
+                        );
                     }
                 }
                 (tris, open)
@@ -1104,6 +1138,172 @@ fn extract(
     mesh.values = blended;
     remove_unused_vertices(&mut mesh);
     mesh
+}
+
+/// Splits a quad into two triangles along its shorter diagonal.
+fn split_quad(tris: &mut Vec<[u32; 3]>, q: [u32; 4], vertices: &[DVec3]) {
+    let x = q.map(|v| vertices[v as usize]);
+    if x[0].distance_squared(x[2]) <= x[1].distance_squared(x[3]) {
+        tris.extend([[q[0], q[1], q[2]], [q[0], q[2], q[3]]]);
+    } else {
+        tris.extend([[q[0], q[1], q[3]], [q[1], q[2], q[3]]]);
+    }
+}
+
+/// A face where the polygons of both cells sharing it use both of its crossing segments: a
+/// tube of surface through the face, which one vertex per cell sheet would pinch into an
+/// edge of four quads. Each segment gets a vertex of its own on the face.
+#[derive(Clone, Copy, Debug)]
+struct TubeFace {
+    /// The vertex of segment 0; segment 1's follows it.
+    first_vertex: u32,
+    /// The decider's pairing on the face, as the lower cell sees it (its face `2a + 1`).
+    joins_0_and_2: bool,
+    /// Mean of each segment's two edge crossings, in cell units from the lower cell's origin.
+    positions: [DVec3; 2],
+}
+
+/// The tube faces among the active cells (sorted by `keys`): the key of the lower cell, the
+/// face's normal axis, and the face, numbered in that order from vertex `first`.
+fn tube_faces(
+    search: &Search,
+    grid: &Grid,
+    keys: &[u64],
+    cells: &[&ActiveCell],
+    first: u32,
+) -> Vec<(u64, usize, TubeFace)> {
+    // One sheet through all four edges of a face (a four-crossing face pairs them into two
+    // segments, so the sheet uses both).
+    let one_sheet = |cell: &ActiveCell, face: usize| {
+        let s = FACE_EDGES[face].map(|e| cell.sheet[e]);
+        s[0] != NO_SHEET && s.iter().all(|&x| x == s[0])
+    };
+    let found: Vec<(u64, usize, TubeFace)> = keys
+        .par_iter()
+        .zip(cells)
+        .map_init(
+            || search.reader(),
+            |reader, (&key, cell)| {
+                let c = unpack(key);
+                let mut out = Vec::new();
+                for axis in 0..3 {
+                    let face = 2 * axis + 1;
+                    if !one_sheet(cell, face) {
+                        continue;
+                    }
+                    let mut n = c;
+                    n[axis] += 1;
+                    let neighbour_one_sheet = grid.in_range(n)
+                        && reader.active_slot(n).is_some_and(|slot| {
+                            one_sheet(&search.cells[slot as usize].1, 2 * axis)
+                        });
+                    if !neighbour_one_sheet {
+                        continue;
+                    }
+                    let mut q = [0.0; 4];
+                    for (v, &k) in q.iter_mut().zip(&FACE_CORNERS[face]) {
+                        let o = corner_offset(k);
+                        *v = reader
+                            .value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
+                            .unwrap_or(f64::NAN);
+                    }
+                    let joins_0_and_2 = joins_corners_0_and_2(q);
+                    let mut sums = [DVec3::ZERO; 2];
+                    for (k, &e) in FACE_EDGES[face].iter().enumerate() {
+                        let (a, b) = edge_ends(e);
+                        let (fa, fb) = (q[corner_slot(face, a)], q[corner_slot(face, b)]);
+                        let t = fa / (fa - fb);
+                        let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
+                        let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
+                        sums[face_segment(joins_0_and_2, k)] += 0.5 * (pa + (pb - pa) * t);
+                    }
+                    out.push((
+                        key,
+                        axis,
+                        TubeFace {
+                            first_vertex: 0,
+                            joins_0_and_2,
+                            positions: sums,
+                        },
+                    ));
+                }
+                out
+            },
+        )
+        .flatten_iter()
+        .collect();
+    found
+        .into_iter()
+        .enumerate()
+        .map(|(i, (key, axis, t))| {
+            let first_vertex = first + 2 * i as u32;
+            (key, axis, TubeFace { first_vertex, ..t })
+        })
+        .collect()
+}
+
+/// Position of cube corner `corner` in the corner list of `face`.
+fn corner_slot(face: usize, corner: usize) -> usize {
+    FACE_CORNERS[face]
+        .iter()
+        .position(|&k| k == corner)
+        .expect("an edge of the face joins two of its corners")
+}
+
+/// Emits the triangles of the quad `quad` around a crossing edge (cells and their edge
+/// indices `around`, counter-clockwise), with the segment vertex of every tube face between
+/// two consecutive cells inserted between their vertices; wound outward when `outward`,
+/// else reversed.
+fn push_polygon_through_tubes(
+    tris: &mut Vec<[u32; 3]>,
+    quad: [u32; 4],
+    around: [(Index3, usize); 4],
+    outward: bool,
+    tubes: &KeyMap<[Option<TubeFace>; 3]>,
+    vertices: &[DVec3],
+) {
+    let mut polygon: Vec<u32> = Vec::with_capacity(8);
+    let mut apex = None;
+    for k in 0..4 {
+        polygon.push(quad[k]);
+        let (c0, e0) = around[k];
+        let (c1, e1) = around[(k + 1) % 4];
+        let axis = (0..3)
+            .find(|&d| c0[d] != c1[d])
+            .expect("neighbouring cells");
+        let (lower, lower_edge) = if c0[axis] < c1[axis] {
+            (c0, e0)
+        } else {
+            (c1, e1)
+        };
+        if let Some(t) = tubes.get(&pack(lower)).and_then(|faces| faces[axis]) {
+            let k_face = FACE_EDGES[2 * axis + 1]
+                .iter()
+                .position(|&e| e == lower_edge)
+                .expect("the crossing edge lies on the face");
+            let v = t.first_vertex + face_segment(t.joins_0_and_2, k_face) as u32;
+            apex.get_or_insert(v);
+            polygon.push(v);
+        }
+    }
+    if !outward {
+        polygon.reverse();
+    }
+    let Some(apex) = apex else {
+        split_quad(
+            tris,
+            [polygon[0], polygon[1], polygon[2], polygon[3]],
+            vertices,
+        );
+        return;
+    };
+    // A fan from a segment vertex: it belongs to this polygon and one other only, so its
+    // diagonals are edges of no other triangle.
+    let at = polygon.iter().position(|&v| v == apex).unwrap_or(0);
+    polygon.rotate_left(at);
+    for i in 1..polygon.len() - 1 {
+        tris.push([polygon[0], polygon[i], polygon[i + 1]]);
+    }
 }
 
 /// Drops triangles whose centroid is farther than `limit` from every seed; returns how many.
@@ -1859,7 +2059,11 @@ mod tests {
 
     /// Polygonises the zero set of [`random_cover`] with `funcs` from every support centre;
     /// `None` when no surface is near them.
-    fn zero_set_topology(funcs: &[(DVec3, f64)], step: f64, project: bool) -> Option<MeshTopology> {
+    fn zero_set_topology(
+        funcs: &[(DVec3, f64)],
+        step: f64,
+        project: bool,
+    ) -> Option<(MeshTopology, PolygoniseStats)> {
         let cover = random_cover(funcs);
         let eval = PuEvaluator::new(&cover, 1.0).unwrap();
         let p = PolygoniseParams {
@@ -1869,27 +2073,29 @@ mod tests {
             ..PolygoniseParams::default()
         };
         match polygonise(&eval, cover.centers(), &p) {
-            Ok((mesh, _)) => Some(MeshTopology::of(&mesh)),
+            Ok((mesh, stats)) => Some((MeshTopology::of(&mesh), stats)),
             Err(PolygoniseError::NoSurfaceNearSeeds { .. }) => None,
             Err(e) => panic!("{e}"),
         }
     }
 
-    /// Known failure, found by `arbitrary_zero_sets_give_oriented_manifolds` on 2026-12-01:
-    /// two neighbouring cells that each hold a single sheet through all four crossings of
-    /// their shared, ambiguous face (cells [17, 12, 9] and [18, 12, 9] here) are joined by
-    /// one dual edge in four quads. `split_fans` then leaves one edge traversed twice in the
-    /// same direction. Surface nets with one vertex per cell sheet cannot represent that
-    /// tube; the fix needs a vertex per face pairing in such cells.
+    /// Found by `arbitrary_zero_sets_give_oriented_manifolds` on 2026-12-01: two
+    /// neighbouring cells ([17, 12, 9] and [18, 12, 9]) each hold a single sheet through all
+    /// four crossings of their shared, ambiguous face, a tube through it. With one vertex
+    /// per cell sheet the dual edge between them carried four quads and one edge ended up
+    /// traversed twice in the same direction; each segment of the face now has a vertex.
     #[test]
-    #[ignore = "known polygonisation defect, see the comment"]
     fn one_sheet_cells_sharing_an_ambiguous_face() {
         let funcs: Vec<(DVec3, f64)> = TANGLE
             .iter()
             .map(|&[x, y, z, b]| (DVec3::new(x, y, z), b))
             .collect();
-        let topo = zero_set_topology(&funcs, 0.1972754302209973, false).expect("a surface");
+        let (topo, stats) =
+            zero_set_topology(&funcs, 0.1972754302209973, false).expect("a surface");
+        assert!(stats.tube_faces > 0);
+        assert!(topo.is_manifold(), "{topo:?}");
         assert_eq!(topo.inconsistent_edges, 0);
+        assert_eq!(topo.invalid_triangles, 0);
     }
 
     proptest! {
@@ -1906,7 +2112,7 @@ mod tests {
         ) {
             let funcs: Vec<(DVec3, f64)> =
                 funcs.into_iter().map(|(a, b)| (DVec3::from_array(a), b)).collect();
-            if let Some(topo) = zero_set_topology(&funcs, step, project) {
+            if let Some((topo, _)) = zero_set_topology(&funcs, step, project) {
                 prop_assert!(topo.is_manifold(), "{:?}", topo);
                 prop_assert_eq!(topo.inconsistent_edges, 0);
                 prop_assert_eq!(topo.invalid_triangles, 0);
