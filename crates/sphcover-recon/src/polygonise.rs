@@ -997,8 +997,8 @@ fn extract(
         )
         .flatten_iter()
         .collect();
-    let tubes = tube_faces(search, grid, &keys, &cells, total);
-    stats.tube_faces = tubes.len();
+    let tube_list = tube_faces(search, grid, &keys, &cells, total);
+    stats.tube_faces = tube_list.len();
     let mut owner: Vec<Index3> = Vec::new();
     if params.project || params.normals {
         owner = keys
@@ -1007,16 +1007,16 @@ fn extract(
             .flat_map(|(&k, cell)| std::iter::repeat_n(unpack(k), usize::from(cell.sheets)))
             .collect();
     }
-    let mut tube_map: KeyMap<[Option<TubeFace>; 3]> = KeyMap::default();
-    for &(key, axis, t) in &tubes {
+    // Each tube face's two vertices follow the cells' (numbered so by `tube_faces`).
+    let mut tubes: KeyMap<[Option<TubeFace>; 3]> = KeyMap::default();
+    for &(key, axis, t) in &tube_list {
         let c = unpack(key);
         vertices.extend(t.positions.map(|p| grid.position(c) + p * grid.step));
         if !owner.is_empty() {
             owner.extend([c; 2]);
         }
-        tube_map.entry(key).or_default()[axis] = Some(t);
+        tubes.entry(key).or_default()[axis] = Some(t);
     }
-    let tubes = tube_map;
 
     let mut normals = None;
     let mut blended = None;
