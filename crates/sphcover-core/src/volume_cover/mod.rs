@@ -642,7 +642,7 @@ impl<'a> Grid<'a> {
             [rows.x_axis, rows.y_axis, rows.z_axis].map(|row| (reach * row.length()).ceil() as i32);
         // A ball's support is open (its weight vanishes on the sphere), so offsets on the
         // sphere of radius r_max, up to rounding, are outside every ball: neither fitted nor
-        // covered. r_max is often a voxel distance (the thickness), so they are common.
+        // covered. r_max is often a voxel distance (the thickness), so they occur.
         let mut offsets = Vec::new();
         let r2 = reach * reach * (1.0 - 1e-9);
         for k in -ext[2]..=ext[2] {
