@@ -122,9 +122,10 @@ impl Default for DiffusionParams {
     /// pipeline, 1, 2 and 3 rounds gave the same scores on every case of the 100K-bunny
     /// benchmark within 0.0004% of the diagonal, and each round costs about 0.15 s at 362K
     /// points; one round leaves the 2K-point noisy sphere in 3 pieces without the graph cut,
-    /// and a sphere with a fifth of its normals flipped 0.064 radii off), relative fitting μ_n = 64 gated by the normal coherence with exponent
-    /// 32 down to 1, μ_p = 8, both gated by the mean confidence (power 1), anisotropic, converged
-    /// Poisson step to a relative residual of 1e-6 (module docs: how these were chosen).
+    /// and a sphere with a fifth of its normals flipped 0.064 radii off), relative fitting
+    /// μ_n = 64 gated by the normal coherence with exponent 32 down to 1, μ_p = 8, both gated
+    /// by the mean confidence (power 1), anisotropic, converged Poisson step to a relative
+    /// residual of 1e-6 (module docs: how these were chosen).
     fn default() -> Self {
         DiffusionParams {
             rounds: 2,

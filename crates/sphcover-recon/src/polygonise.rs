@@ -1262,10 +1262,13 @@ fn push_polygon_through_tubes(
     tubes: &KeyMap<[Option<TubeFace>; 3]>,
     vertices: &[DVec3],
 ) {
-    let mut polygon: Vec<u32> = Vec::with_capacity(8);
+    // Four cell vertices and at most one segment vertex between each consecutive two.
+    let mut polygon = [0u32; 8];
+    let mut len = 0;
     let mut apex = None;
     for k in 0..4 {
-        polygon.push(quad[k]);
+        polygon[len] = quad[k];
+        len += 1;
         let (c0, e0) = around[k];
         let (c1, e1) = around[(k + 1) % 4];
         let axis = (0..3)
@@ -1283,9 +1286,11 @@ fn push_polygon_through_tubes(
                 .expect("the crossing edge lies on the face");
             let v = t.first_vertex + face_segment(t.joins_0_and_2, k_face) as u32;
             apex.get_or_insert(v);
-            polygon.push(v);
+            polygon[len] = v;
+            len += 1;
         }
     }
+    let polygon = &mut polygon[..len];
     if !outward {
         polygon.reverse();
     }
@@ -1301,7 +1306,7 @@ fn push_polygon_through_tubes(
     // diagonals are edges of no other triangle.
     let at = polygon.iter().position(|&v| v == apex).unwrap_or(0);
     polygon.rotate_left(at);
-    for i in 1..polygon.len() - 1 {
+    for i in 1..len - 1 {
         tris.push([polygon[0], polygon[i], polygon[i + 1]]);
     }
 }
