@@ -45,7 +45,7 @@ use crate::polygonise::{
     GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise_blending,
 };
 use crate::scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
-use crate::small_components::{SmallComponentsError, remove_small_components};
+use crate::small_components::{SmallComponentsError, remove_small_components_of};
 use crate::vertex_refinement::{
     RefinementSamples, RefinementScale, VertexRefinementError, VertexRefinementParams,
     VertexRefinementStats, refine_vertices,
@@ -512,8 +512,13 @@ pub fn reconstruct(
                 .collect(),
         );
     }
-    stats.dropped_components =
-        remove_small_components(&mut mesh, params.min_component_fraction)?.components_removed;
+    let topology = MeshTopology::of(&mesh);
+    let removal = remove_small_components_of(&mut mesh, &topology, params.min_component_fraction)?;
+    stats.dropped_components = removal.components_removed;
+    // Neither the refinement nor the change of frame below touches the triangles, so the
+    // topology stays valid unless triangles or vertices went here.
+    let unchanged_topology =
+        (removal.triangles_removed == 0 && removal.vertices_removed == 0).then_some(topology);
     if mesh.triangles.is_empty() {
         return Err(ReconError::Empty(
             "no surface was found near the confident samples",
@@ -542,7 +547,7 @@ pub fn reconstruct(
     }
     clock.start("topology");
     mesh.to_input(&normalisation);
-    let topology = MeshTopology::of(&mesh);
+    let topology = unchanged_topology.unwrap_or_else(|| MeshTopology::of(&mesh));
     stats.triangles = mesh.triangles.len();
     stats.vertices = mesh.vertices.len();
     stats.components = topology.components;

@@ -975,7 +975,8 @@ fn extract(
                         .value([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
                         .unwrap_or(f64::NAN)
                 };
-                let mut sums = vec![(DVec3::ZERO, 0u32); usize::from(cell.sheets)];
+                // A sheet crosses at least three of the twelve cube edges.
+                let mut sums = [(DVec3::ZERO, 0u32); 4];
                 for e in 0..12 {
                     let s = cell.sheet[e];
                     if s == NO_SHEET {
@@ -990,9 +991,10 @@ fn extract(
                     slot.0 += pa + (pb - pa) * t;
                     slot.1 += 1;
                 }
+                let step = grid.step;
                 sums.into_iter()
-                    .map(|(sum, n)| base + sum / f64::from(n) * grid.step)
-                    .collect::<Vec<DVec3>>()
+                    .take(usize::from(cell.sheets))
+                    .map(move |(sum, n)| base + sum / f64::from(n) * step)
             },
         )
         .flatten_iter()
@@ -1065,62 +1067,66 @@ fn extract(
     }
 
     // Quads: each crossing grid edge is emitted by the cell where it is cube edge 0, 4 or 8.
-    let per_cell: Vec<(Vec<[u32; 3]>, usize)> = keys
-        .par_iter()
-        .zip(&cells)
+    // In runs of cells, one triangle list per run rather than per cell.
+    const RUN: usize = 256;
+    let per_run: Vec<(Vec<[u32; 3]>, usize)> = keys
+        .par_chunks(RUN)
+        .zip(cells.par_chunks(RUN))
         .map_init(
             || search.reader(),
-            |reader, (&key, cell)| {
-                let c = unpack(key);
-                let mut tris = Vec::new();
+            |reader, (run_keys, run_cells)| {
+                let mut tris = Vec::with_capacity(4 * run_keys.len());
                 let mut open = 0;
-                for d in 0..3 {
-                    let e = 4 * d;
-                    if cell.sheet[e] == NO_SHEET {
-                        continue;
-                    }
-                    let around = cells_and_edges_around(c, e);
-                    let mut quad = [0u32; 4];
-                    let mut complete = true;
-                    for (slot, (n, ne)) in quad.iter_mut().zip(around) {
-                        let found = grid
-                            .in_range(n)
-                            .then(|| reader.active_slot(n))
-                            .flatten()
-                            .map(|slot| {
-                                let i = rank[slot as usize];
-                                (i, cells[i as usize].sheet[ne])
-                            });
-                        match found {
-                            Some((i, s)) if s != NO_SHEET => {
-                                *slot = first_vertex[i as usize] + u32::from(s)
+                for (&key, cell) in run_keys.iter().zip(run_cells) {
+                    let c = unpack(key);
+                    for d in 0..3 {
+                        let e = 4 * d;
+                        if cell.sheet[e] == NO_SHEET {
+                            continue;
+                        }
+                        let around = cells_and_edges_around(c, e);
+                        let mut quad = [0u32; 4];
+                        let mut complete = true;
+                        for (slot, (n, ne)) in quad.iter_mut().zip(around) {
+                            let found = grid
+                                .in_range(n)
+                                .then(|| reader.active_slot(n))
+                                .flatten()
+                                .map(|slot| {
+                                    let i = rank[slot as usize];
+                                    (i, cells[i as usize].sheet[ne])
+                                });
+                            match found {
+                                Some((i, s)) if s != NO_SHEET => {
+                                    *slot = first_vertex[i as usize] + u32::from(s)
+                                }
+                                _ => complete = false,
                             }
-                            _ => complete = false,
                         }
-                    }
-                    if !complete {
-                        open += 1;
-                        continue;
-                    }
-                    let (a, _) = edge_ends(e);
-                    let outward = cell.inside >> a & 1 == 1;
-                    if tubes.is_empty() {
-                        if !outward {
-                            quad.reverse();
+                        if !complete {
+                            open += 1;
+                            continue;
                         }
-                        split_quad(&mut tris, quad, &vertices);
-                    } else {
-                        push_polygon_through_tubes(
-                            &mut tris, quad, around, outward, &tubes, &vertices,
-                        );
+                        let (a, _) = edge_ends(e);
+                        let outward = cell.inside >> a & 1 == 1;
+                        if tubes.is_empty() {
+                            if !outward {
+                                quad.reverse();
+                            }
+                            split_quad(&mut tris, quad, &vertices);
+                        } else {
+                            push_polygon_through_tubes(
+                                &mut tris, quad, around, outward, &tubes, &vertices,
+                            );
+                        }
                     }
                 }
                 (tris, open)
             },
         )
         .collect();
-    let mut triangles = Vec::with_capacity(per_cell.iter().map(|(t, _)| t.len()).sum());
-    for (tris, open) in per_cell {
+    let mut triangles = Vec::with_capacity(per_run.iter().map(|(t, _)| t.len()).sum());
+    for (tris, open) in per_run {
         triangles.extend(tris);
         stats.open_quads += open;
     }

@@ -47,12 +47,21 @@ pub fn remove_small_components(
     mesh: &mut TriMesh,
     min_fraction: f64,
 ) -> Result<SmallComponentsStats, SmallComponentsError> {
+    remove_small_components_of(mesh, &MeshTopology::of(mesh), min_fraction)
+}
+
+/// As [`remove_small_components`], with the mesh's topology already computed (`topo` must be
+/// `MeshTopology::of(mesh)`). When nothing is removed, `topo` stays the mesh's topology.
+pub(crate) fn remove_small_components_of(
+    mesh: &mut TriMesh,
+    topo: &MeshTopology,
+    min_fraction: f64,
+) -> Result<SmallComponentsStats, SmallComponentsError> {
     if !(0.0..=1.0).contains(&min_fraction) {
         return Err(SmallComponentsError::InvalidFraction {
             value: min_fraction,
         });
     }
-    let topo = MeshTopology::of(mesh);
     let triangle_areas: Vec<f64> = mesh
         .triangles
         .par_iter()
