@@ -71,6 +71,7 @@ pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
 pub use surface_cover::{
     SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings,
     build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,
+    build_surface_cover_with_index,
 };
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{

@@ -3,8 +3,8 @@
 //! sample; the same seed gives a bit-identical cover on 1 and 2 threads.
 
 use sphcover_core::{
-    Cover, DVec3, PointCloud, PuEvaluator, SurfaceCoverParams, build_surface_cover,
-    build_surface_cover_from_cloud,
+    Cover, DVec3, PointCloud, PointIndex, PuEvaluator, SurfaceCoverParams, build_surface_cover,
+    build_surface_cover_from_cloud, build_surface_cover_with_index,
 };
 
 const SPHERE_R: f64 = 0.5;
@@ -331,4 +331,32 @@ fn sampling_stop_changes_nothing_where_the_sampling_supports_eps() {
     assert_eq!(stats.sampling_limited_octants, 0);
     assert_eq!(stats.supports_over_eps, 0);
     assert_eq!(plain, cover);
+}
+
+#[test]
+fn a_given_index_gives_the_same_cover_and_a_wrong_one_is_ignored() {
+    let (points, mut normals) = sphere(3000);
+    let params = SurfaceCoverParams {
+        eps: 5e-3,
+        ..SurfaceCoverParams::default()
+    };
+    let (plain, _) = build_surface_cover(&points, &normals, &params).unwrap();
+    let own = PointIndex::new(&points).unwrap();
+    let (reused, _) =
+        build_surface_cover_with_index(&points, &normals, None, &own, &params).unwrap();
+    assert!(plain == reused, "covers differ");
+    // An index over other points (same count, one moved) is not used.
+    let mut moved = points.clone();
+    moved[17] *= 0.9;
+    let other = PointIndex::new(&moved).unwrap();
+    let (ignored, _) =
+        build_surface_cover_with_index(&points, &normals, None, &other, &params).unwrap();
+    assert!(plain == ignored, "covers differ");
+    // With a point left out (zero normal) the index cannot serve either.
+    normals[5] = DVec3::ZERO;
+    let (filtered, stats) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (filtered_given, _) =
+        build_surface_cover_with_index(&points, &normals, None, &own, &params).unwrap();
+    assert_eq!(stats.skipped_normals, 1);
+    assert!(filtered == filtered_given, "covers differ");
 }

@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use sphcover_core::{
     Cover, CoverError, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex,
     PointIndexError, PuEvaluator, SigError, SphereIntersectionGraph, SurfaceCoverError,
-    SurfaceCoverParams, SurfaceCoverStats, TriMesh, build_surface_cover_with_confidence,
+    SurfaceCoverParams, SurfaceCoverStats, TriMesh, build_surface_cover_with_index,
 };
 use sphcover_ops::{OpsError, PairGeometry};
 use thiserror::Error;
@@ -412,10 +412,12 @@ pub fn reconstruct(
     let cover_trust: Option<Vec<f64>> = scanner
         .as_ref()
         .map(|c| in_cover.iter().map(|&s| c[s]).collect());
-    let (mut cover, cover_stats) = build_surface_cover_with_confidence(
+    // The scan statistics' index serves the cover too when every sample is in it.
+    let (mut cover, cover_stats) = build_surface_cover_with_index(
         &pick(&points),
         &pick(&normals),
         cover_trust.as_deref(),
+        &index,
         &cover_params,
     )?;
     stats.cover = cover_stats;

@@ -50,7 +50,7 @@ pub(crate) struct Grown {
 /// Grows every support (in parallel; see the module docs).
 pub(crate) fn grow_all(
     leaves: &[Leaf],
-    samples: &Samples,
+    samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
 ) -> Vec<Grown> {
@@ -66,7 +66,7 @@ pub(crate) fn grow_all(
 fn grow(
     cand: &mut Candidates,
     leaf: &Leaf,
-    samples: &Samples,
+    samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
 ) -> Grown {

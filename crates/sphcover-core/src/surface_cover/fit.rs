@@ -16,12 +16,14 @@ use crate::kernel::Kernel;
 use crate::local_function::LinearFunction;
 use crate::point_index::PointIndex;
 use glam::DVec3;
+use std::borrow::Cow;
 
 /// The oriented points of the build, in the slot order of the point index.
 #[derive(Debug)]
-pub(crate) struct Samples {
-    /// The point index (owns the positions in slot order).
-    pub index: PointIndex,
+pub(crate) struct Samples<'i> {
+    /// The point index (holds the positions in slot order): the caller's when it indexes
+    /// exactly the points used, else the build's own.
+    pub index: Cow<'i, PointIndex>,
     /// Unit normals in slot order.
     pub normals: Vec<DVec3>,
     /// Confidences in slot order, when given.
@@ -66,7 +68,7 @@ impl Candidates {
     }
 
     /// Gathers the points with `‖p − c‖² < r²`, in tree order.
-    pub fn gather(&mut self, samples: &Samples, c: DVec3, r: f64) {
+    pub fn gather(&mut self, samples: &Samples<'_>, c: DVec3, r: f64) {
         self.clear();
         let points = samples.index.slot_points();
         samples.index.for_each_slot_within(c, r, |s, d2| {
@@ -107,7 +109,7 @@ impl Candidates {
     }
 
     #[inline]
-    fn push(&mut self, samples: &Samples, s: usize, offset: DVec3, d2: f64) {
+    fn push(&mut self, samples: &Samples<'_>, s: usize, offset: DVec3, d2: f64) {
         self.offsets.push(offset);
         self.normals.push(samples.normals[s]);
         self.dist2.push(d2);

@@ -61,6 +61,7 @@ use crate::point_cloud::PointCloud;
 use crate::point_index::{PointIndex, PointIndexError};
 use fit::Samples;
 use glam::DVec3;
+use std::borrow::Cow;
 use std::time::{Duration, Instant};
 
 pub use octree::MAX_DEPTH;
@@ -268,6 +269,30 @@ pub fn build_surface_cover_with_confidence(
     confidence: Option<&[f64]>,
     params: &SurfaceCoverParams,
 ) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
+    build(points, normals, confidence, None, params)
+}
+
+/// As [`build_surface_cover_with_confidence`], with `index` a point index the caller has
+/// built over `points` already ([`PointIndex::new`] of exactly these points): the build uses
+/// it instead of indexing the points again whenever it uses every point (no zero normal, no
+/// zero confidence). Any other index is ignored; the cover is the same either way.
+pub fn build_surface_cover_with_index(
+    points: &[DVec3],
+    normals: &[DVec3],
+    confidence: Option<&[f64]>,
+    index: &PointIndex,
+    params: &SurfaceCoverParams,
+) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
+    build(points, normals, confidence, Some(index), params)
+}
+
+fn build(
+    points: &[DVec3],
+    normals: &[DVec3],
+    confidence: Option<&[f64]>,
+    given_index: Option<&PointIndex>,
+    params: &SurfaceCoverParams,
+) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
     let start = Instant::now();
     check_params(params)?;
     let n = points.len();
@@ -338,7 +363,21 @@ pub fn build_surface_cover_with_confidence(
             skipped_normals: stats.skipped_normals,
         });
     }
-    let index = PointIndex::new(&kept_points)?;
+    // Every point is used: an index over exactly these points (checked slot by slot, far
+    // cheaper than building one) serves as it is.
+    let indexes_kept = |index: &PointIndex| {
+        index.input_len() == kept_points.len()
+            && index.len() == kept_points.len()
+            && index
+                .order()
+                .iter()
+                .zip(index.slot_points())
+                .all(|(&i, &p)| kept_points[i as usize] == p)
+    };
+    let index = match given_index {
+        Some(index) if kept_points.len() == n && indexes_kept(index) => Cow::Borrowed(index),
+        _ => Cow::Owned(PointIndex::new(&kept_points)?),
+    };
     let samples = Samples {
         normals: index
             .order()

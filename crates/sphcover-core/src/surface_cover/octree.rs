@@ -186,7 +186,7 @@ type KeySet = HashSet<u64, BuildHasherDefault<KeyHasher>>;
 type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
 
 struct Octree<'a> {
-    samples: &'a Samples,
+    samples: &'a Samples<'a>,
     params: &'a SurfaceCoverParams,
     geometry: Geometry,
     /// Subdivided cells, per level.
@@ -197,7 +197,7 @@ struct Octree<'a> {
 
 /// Builds the balanced adaptive octree and returns its leaves in Morton order.
 pub(crate) fn build(
-    samples: &Samples,
+    samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     geometry: Geometry,
     stats: &mut SurfaceCoverStats,
