@@ -255,7 +255,7 @@ mod tests {
         assert!(false_alarms <= 20, "{false_alarms} surface samples flagged");
     }
 
-    /// Mean distance to the `k` nearest other samples, by sorting all distances.
+    /// Mean distance to the `k` nearest other samples, selected among all distances.
     fn brute_mean_distance(points: &[DVec3], i: usize, k: usize) -> f64 {
         let mut d: Vec<f64> = points.iter().map(|&q| (q - points[i]).length()).collect();
         d.select_nth_unstable_by(k, f64::total_cmp);
