@@ -983,12 +983,8 @@ fn extract(
                         continue;
                     }
                     let (a, b) = edge_ends(e);
-                    let (fa, fb) = (value(reader, a), value(reader, b));
-                    let t = fa / (fa - fb);
-                    let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
-                    let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
                     let slot = &mut sums[usize::from(s)];
-                    slot.0 += pa + (pb - pa) * t;
+                    slot.0 += edge_crossing(a, b, value(reader, a), value(reader, b));
                     slot.1 += 1;
                 }
                 let step = grid.step;
@@ -1146,6 +1142,15 @@ fn extract(
     mesh
 }
 
+/// Where `f` crosses 0 on the cube edge from corner `a` (value `fa`) to corner `b` (value
+/// `fb`), by linear interpolation, in cell units from the cell's origin.
+fn edge_crossing(a: usize, b: usize, fa: f64, fb: f64) -> DVec3 {
+    let t = fa / (fa - fb);
+    let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
+    let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
+    pa + (pb - pa) * t
+}
+
 /// Splits a quad into two triangles along its shorter diagonal.
 fn split_quad(tris: &mut Vec<[u32; 3]>, q: [u32; 4], vertices: &[DVec3]) {
     let x = q.map(|v| vertices[v as usize]);
@@ -1218,10 +1223,7 @@ fn tube_faces(
                     for (k, &e) in FACE_EDGES[face].iter().enumerate() {
                         let (a, b) = edge_ends(e);
                         let (fa, fb) = (q[corner_slot(face, a)], q[corner_slot(face, b)]);
-                        let t = fa / (fa - fb);
-                        let pa = DVec3::from_array(corner_offset(a).map(|x| x as f64));
-                        let pb = DVec3::from_array(corner_offset(b).map(|x| x as f64));
-                        sums[face_segment(joins_0_and_2, k)] += 0.5 * (pa + (pb - pa) * t);
+                        sums[face_segment(joins_0_and_2, k)] += 0.5 * edge_crossing(a, b, fa, fb);
                     }
                     out.push((
                         key,

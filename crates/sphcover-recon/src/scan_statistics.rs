@@ -97,15 +97,11 @@ pub fn scan_statistics(
     let stride = params.noise_stride.max(n / 12_500).max(1);
     let slots = index.slot_points();
     let sampled: Vec<f64> = (0..slots.len())
+        .into_par_iter()
         .step_by(stride)
-        .collect::<Vec<_>>()
-        .par_chunks(64)
-        .flat_map_iter(|chunk| {
-            let mut buf = Vec::new();
-            chunk
-                .iter()
-                .map(|&s| mean_neighbour_distance(index, slots[s], k, &mut buf))
-                .collect::<Vec<_>>()
+        .with_min_len(64)
+        .map_init(Vec::new, |buf, s| {
+            mean_neighbour_distance(index, slots[s], k, buf)
         })
         .collect();
     let spacing = median(sampled);

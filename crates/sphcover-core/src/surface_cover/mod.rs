@@ -363,8 +363,8 @@ fn build(
             skipped_normals: stats.skipped_normals,
         });
     }
-    // Every point is used: an index over exactly these points (checked slot by slot, far
-    // cheaper than building one) serves as it is.
+    // An index over exactly the points kept (checked slot by slot, far cheaper than building
+    // one; an index over all the input fails the check when any was left out) serves as it is.
     let indexes_kept = |index: &PointIndex| {
         index.input_len() == kept_points.len()
             && index.len() == kept_points.len()
@@ -375,7 +375,7 @@ fn build(
                 .all(|(&i, &p)| kept_points[i as usize] == p)
     };
     let index = match given_index {
-        Some(index) if kept_points.len() == n && indexes_kept(index) => Cow::Borrowed(index),
+        Some(index) if indexes_kept(index) => Cow::Borrowed(index),
         _ => Cow::Owned(PointIndex::new(&kept_points)?),
     };
     let samples = Samples {

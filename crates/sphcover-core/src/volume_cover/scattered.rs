@@ -289,8 +289,9 @@ impl<'s, 'a> Neighbourhood<'s, 'a> {
             return;
         }
         let target = (4.0 * d2).max(4.0 * self.complete_below).max(4.0);
-        // The new bound: entries with `previous ≤ fd2 < limit` are added. The k-d tree's world-unit ball is slightly larger than the limit
-        // so that no sample below it is missed by rounding.
+        // The new bound: entries with `previous ≤ fd2 < limit` are added. The k-d tree's
+        // world-unit ball is slightly larger than the limit so that no sample below it is
+        // missed by rounding.
         let last = target >= self.reach2;
         let limit = if last { self.reach2 } else { target };
         let h = self.samples.unit;
