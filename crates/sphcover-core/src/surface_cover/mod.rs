@@ -199,9 +199,9 @@ pub struct SurfaceCoverTimings {
     pub index: Duration,
     /// The adaptive, balanced octree with its fits.
     pub octree: Duration,
-    /// Growing every support (parallel).
+    /// Growing the supports and finding the ones inside each grown ball (parallel).
     pub growth: Duration,
-    /// The sequential elimination pass.
+    /// Indexing the centres and the sequential elimination passes.
     pub elimination: Duration,
     /// Everything.
     pub total: Duration,
@@ -408,27 +408,25 @@ fn build(
     let mut fits: Vec<fit::Fit> = leaves.iter().map(|l| l.fit).collect();
     if params.expansion {
         let max_radius = 2.0 * half_side * 3f64.sqrt();
-        let grown = expansion::grow_all(&leaves, &samples, params, max_radius);
-        stats.fits += grown.iter().map(|g| u64::from(g.fits)).sum::<u64>();
-        let t_growth = Instant::now();
-        stats.timings.growth = t_growth - t_octree;
-        let (alive, radius) = expansion::eliminate(&centers, &radii, &grown, params.seed)?;
+        let expanded = expansion::expand(&leaves, &samples, params, max_radius)?;
+        stats.fits += expanded.fits;
+        stats.timings.growth = expanded.growth;
+        stats.timings.elimination = expanded.elimination;
         let mut kept = 0;
         for i in 0..leaves.len() {
-            if alive[i] {
-                if radius[i] > radii[i] {
+            if expanded.alive[i] {
+                if expanded.radius[i] > radii[i] {
                     stats.grown_supports += 1;
                 }
                 centers[kept] = centers[i];
-                radii[kept] = radius[i];
-                fits[kept] = grown[i].fit;
+                radii[kept] = expanded.radius[i];
+                fits[kept] = expanded.fit[i];
                 kept += 1;
             }
         }
         centers.truncate(kept);
         radii.truncate(kept);
         fits.truncate(kept);
-        stats.timings.elimination = t_growth.elapsed();
     }
     stats.supports_after_expansion = centers.len();
     stats.supports_over_eps = fits.iter().filter(|f| f.error > params.eps).count();
