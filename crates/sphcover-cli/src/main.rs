@@ -1,5 +1,6 @@
 //! The `sphcover` command: processing of scanned geometry with spherically supported functions.
 
+mod allocator;
 mod args;
 mod byte_size;
 mod commands;
@@ -31,6 +32,9 @@ fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
+    if matches!(cli.command, Command::Recon(_)) {
+        allocator::keep_freed_memory();
+    }
     let reporter = Reporter::new(cli.global.verbose, cli.global.quiet);
     if let Err(e) = configure_threads(cli.global.threads) {
         reporter.error(&e);
