@@ -7,12 +7,13 @@
 //! whenever more than 128 KiB is free at its top. Each stage then faults its pages in afresh:
 //! 0.27–0.32 s of system time in a 362K-point run. Serving blocks below 32 MiB from the heap
 //! and trimming only past 1 GiB lets later stages reuse the pages earlier ones freed.
-//! Measured on the 2-core machine with the same settings given through the environment
-//! (`MALLOC_MMAP_THRESHOLD_`, `MALLOC_TRIM_THRESHOLD_`), 362K points: wall 3.31–3.49 s
-//! instead of 3.40–3.75 s, system time 0.12–0.22 s instead of 0.27–0.32 s, peak resident
-//! set 273–278 MB instead of 256–260 MB (docs/benchmarks.md, *Allocator*). Either setting
-//! alone gained nothing: the trim threshold alone was slower, the mmap threshold alone
-//! faulted as much.
+//! Measured on the 2-core machine, 362K points, with the same settings given through the
+//! environment (`MALLOC_MMAP_THRESHOLD_`, `MALLOC_TRIM_THRESHOLD_`): wall 3.31–3.49 s
+//! instead of 3.40–3.75 s, system time 0.12–0.22 s instead of 0.27–0.32 s. Set here: system
+//! time 0.19–0.23 s instead of 0.34–0.41 s, peak resident set 264–274 MiB instead of
+//! 248–257 MiB (`docs/benchmarks.md`, *Batched expansion and the allocator's thresholds*).
+//! The trim threshold alone was slower; the mmap threshold alone raised the system time to
+//! 0.61–0.73 s.
 //!
 //! Only `recon` asks for it: the other commands' memory budgets were calibrated without it.
 
