@@ -97,6 +97,9 @@ pub struct PuEvaluator<'a> {
     sigma: f64,
     supports: PackedSupports,
     index: BallIndex,
+    /// The longest bounding-box diagonal of a batch block ([`BLOCK_SPAN_PER_RADIUS`] times
+    /// the median expanded radius).
+    block_span: f64,
 }
 
 thread_local! {
@@ -127,11 +130,18 @@ impl<'a> PuEvaluator<'a> {
         let inv_radii: Vec<f64> = expanded.iter().map(|&r| 1.0 / r).collect();
         let supports = PackedSupports::new(cover, &inv_radii);
         let index = BallIndex::new(cover.centers(), &expanded);
+        let block_span = if expanded.is_empty() {
+            0.0
+        } else {
+            let mid = expanded.len() / 2;
+            BLOCK_SPAN_PER_RADIUS * *expanded.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
         Ok(PuEvaluator {
             cover,
             sigma,
             supports,
             index,
+            block_span,
         })
     }
 
@@ -251,9 +261,10 @@ impl<'a> PuEvaluator<'a> {
     /// `eval(x, supports at x)` at every point, in parallel, in input order, bitwise equal to
     /// the single-point queries.
     ///
-    /// Large batches run in Morton order in blocks of [`BLOCK_LEN`] neighbouring points: the
-    /// index is asked once per block for the balls within reach of the block's bounding
-    /// sphere, and every point of the block runs its sum over that ascending candidate list.
+    /// Large batches run in Morton order in blocks of up to [`BLOCK_LEN`] neighbouring points
+    /// (see [`BLOCK_SPAN_PER_RADIUS`]): the index is asked once per block for the balls within
+    /// reach of the block's bounding sphere, and every point of the block runs its sum over
+    /// that ascending candidate list.
     /// The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so each point sums
     /// over exactly the supports of a single-point query, in the same order. This amortises
     /// the index traversal, which otherwise dominates the cost, over the block, and spares a
@@ -272,10 +283,12 @@ impl<'a> PuEvaluator<'a> {
                 .collect();
         }
         let order = spatial_order::morton_order(points);
-        let in_order: Vec<R> = order
-            .par_chunks(BLOCK_LEN)
+        let blocks = self.blocks(points, &order);
+        let in_order: Vec<R> = blocks
+            .par_windows(2)
             .with_min_len(BATCH_MIN_LEN / BLOCK_LEN)
-            .flat_map_iter(|block| {
+            .flat_map_iter(|w| {
+                let block = &order[w[0] as usize..w[1] as usize];
                 let mut bounds = Aabb::EMPTY;
                 for &i in block {
                     let x = points[i as usize];
@@ -314,6 +327,37 @@ impl<'a> PuEvaluator<'a> {
             rank[i as usize] = k as u32;
         }
         rank.par_iter().map(|&k| in_order[k as usize]).collect()
+    }
+
+    /// The blocks of a batch, as the starts of runs of `order` followed by its length: at most
+    /// [`BLOCK_LEN`] consecutive points, and a block closes early where the next point would
+    /// stretch its bounding box to a diagonal over `block_span` (a finite point after only
+    /// non-finite ones never does).
+    fn blocks(&self, points: &[DVec3], order: &[u32]) -> Vec<u32> {
+        let span2 = self.block_span * self.block_span;
+        let mut starts = Vec::with_capacity(order.len() / BLOCK_LEN + 2);
+        let mut bounds = Aabb::EMPTY;
+        let mut len = 0;
+        for (k, &i) in order.iter().enumerate() {
+            let x = points[i as usize];
+            let mut grown = bounds;
+            if x.is_finite() {
+                grown.add(x);
+            }
+            if len == 0 || len == BLOCK_LEN || grown.extent().length_squared() > span2 {
+                starts.push(k as u32);
+                bounds = Aabb::EMPTY;
+                if x.is_finite() {
+                    bounds.add(x);
+                }
+                len = 1;
+            } else {
+                bounds = grown;
+                len += 1;
+            }
+        }
+        starts.push(order.len() as u32);
+        starts
     }
 
     /// Runs `body` on a superset of the supports whose expanded ball holds `x` (none for a
@@ -360,8 +404,18 @@ const BATCH_MIN_LEN: usize = 256;
 /// than the cache misses it saves.
 const SPATIAL_ORDER_MIN_LEN: usize = 4096;
 
-/// Neighbouring points (in Morton order) that share one index query in batch evaluation.
+/// Neighbouring points (in Morton order) that share one index query in batch evaluation, at
+/// most.
 const BLOCK_LEN: usize = 16;
+
+/// A batch block's bounding box has a diagonal of at most this many times the cover's median
+/// expanded radius. Sixteen consecutive points of a scattered set (the support centres of a
+/// surface cover: small supports on the surface, large ones in empty space) can span many
+/// radii, and then every point of the block sums over the candidates of the whole span: at
+/// the 67K centres of the 362K-point bunny's cover, 542 candidates per point. Closing such
+/// blocks early made the three evaluations at the centres 35–45% faster (100–120 → 57–70 ms
+/// each at two threads); spans of 2 and 4 radii measured the same, 1.5 slower.
+const BLOCK_SPAN_PER_RADIUS: f64 = 3.0;
 
 /// [`value_gradient_sum`] and [`blend_sum`] of `values` in one pass over `ids`, each summed
 /// exactly as in its own function.

@@ -103,8 +103,9 @@ proptest! {
     }
 }
 
-/// A fixed random cover big enough that rayon splits the batch.
-fn sample_cover(kernel: Kernel) -> (Cover, Vec<DVec3>) {
+/// A fixed random cover big enough that rayon splits the batch, with points spread over its
+/// box enlarged by `spread` on every side (about 5000 over the box with `spread` 0).
+fn sample_cover(kernel: Kernel, spread: f64) -> (Cover, Vec<DVec3>) {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
     let n = 400;
@@ -118,16 +119,19 @@ fn sample_cover(kernel: Kernel) -> (Cover, Vec<DVec3>) {
         k: rng.random(),
     }));
     let cover = Cover::new(centers, radii, funcs, kernel).unwrap();
+    let side = 1.0 + 2.0 * spread;
     let points = (0..5000)
-        .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()) * 1.4 - 0.2)
+        .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()) * side - spread)
         .collect();
     (cover, points)
 }
 
+/// Spread 0.2: blocks of 16 points, each within the span of a few radii. Spread 3: points
+/// a few radii apart, so most blocks close early (`BLOCK_SPAN_PER_RADIUS`).
 #[test]
 fn batch_equals_single_and_is_independent_of_thread_count() {
-    for kernel in Kernel::ALL {
-        let (cover, points) = sample_cover(kernel);
+    for (kernel, spread) in Kernel::ALL.into_iter().flat_map(|k| [(k, 0.2), (k, 3.0)]) {
+        let (cover, points) = sample_cover(kernel, spread);
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
             rayon::ThreadPoolBuilder::new()
@@ -144,7 +148,7 @@ fn batch_equals_single_and_is_independent_of_thread_count() {
         };
         let one = run(1);
         let three = run(3);
-        assert_eq!(one, three, "{kernel}");
+        assert_eq!(one, three, "{kernel}, spread {spread}");
         let (values, vgs, vghs) = one;
         assert!(values.iter().any(Option::is_none) && values.iter().any(Option::is_some));
         for (i, &x) in points.iter().enumerate() {
@@ -276,7 +280,7 @@ fn invalid_input_is_reported_with_its_index() {
 /// [`sample_cover`] with 200 more points on the spheres of radius 1.5 r around the first
 /// supports, where the support set at σ = 1.5 is decided by rounding.
 fn sample_cover_with_sphere_points(kernel: Kernel) -> (Cover, Vec<DVec3>) {
-    let (cover, mut points) = sample_cover(kernel);
+    let (cover, mut points) = sample_cover(kernel, 0.2);
     for i in 0..200 {
         let c = cover.centers()[i];
         let r = 1.5 * cover.radii()[i];
@@ -314,7 +318,7 @@ fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
         let few = eval.blend(&points[..100], &values).unwrap();
         assert_eq!(few, one[..100]);
     }
-    let (cover, points) = sample_cover(Kernel::default());
+    let (cover, points) = sample_cover(Kernel::default(), 0.2);
     let eval = PuEvaluator::new(&cover, 1.0).unwrap();
     assert_eq!(
         eval.blend(&points, &[1.0]),
@@ -354,7 +358,7 @@ fn fused_gradient_and_blend_equal_the_separate_queries() {
             .unwrap();
         assert_eq!(few, fused[..100]);
     }
-    let (cover, points) = sample_cover(Kernel::default());
+    let (cover, points) = sample_cover(Kernel::default(), 0.2);
     let eval = PuEvaluator::new(&cover, 1.0).unwrap();
     assert!(matches!(
         eval.values_gradients_blends(&points, &[1.0]),

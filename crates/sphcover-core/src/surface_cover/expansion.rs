@@ -74,17 +74,18 @@ pub(crate) struct Expanded {
     pub elimination: Duration,
 }
 
-/// Expands the octree's supports (see the module docs).
+/// Expands the octree's supports `leaves` (see the module docs), whose centres, radii and
+/// fits are `centers`, `initial` and `fit`.
 pub(crate) fn expand(
     leaves: &[Leaf],
+    centers: &[DVec3],
+    initial: &[f64],
+    fit: Vec<Fit>,
     samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
 ) -> Result<Expanded, PointIndexError> {
-    let centers: Vec<DVec3> = leaves.iter().map(|l| l.center).collect();
-    let initial: Vec<f64> = leaves.iter().map(|l| l.radius).collect();
-    let fits: Vec<Fit> = leaves.iter().map(|l| l.fit).collect();
-    expand_with(&centers, &initial, fits, params.seed, BATCH, |cand, i| {
+    expand_with(centers, initial, fit, params.seed, BATCH, |cand, i| {
         grow(cand, &leaves[i], samples, params, max_radius)
     })
 }

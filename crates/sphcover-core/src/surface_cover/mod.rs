@@ -408,7 +408,10 @@ fn build(
     let mut fits: Vec<fit::Fit> = leaves.iter().map(|l| l.fit).collect();
     if params.expansion {
         let max_radius = 2.0 * half_side * 3f64.sqrt();
-        let expanded = expansion::expand(&leaves, &samples, params, max_radius)?;
+        let expanded = expansion::expand(
+            &leaves, &centers, &radii, fits, &samples, params, max_radius,
+        )?;
+        fits = expanded.fit;
         stats.fits += expanded.fits;
         stats.timings.growth = expanded.growth;
         stats.timings.elimination = expanded.elimination;
@@ -420,7 +423,7 @@ fn build(
                 }
                 centers[kept] = centers[i];
                 radii[kept] = expanded.radius[i];
-                fits[kept] = expanded.fit[i];
+                fits[kept] = fits[i];
                 kept += 1;
             }
         }
