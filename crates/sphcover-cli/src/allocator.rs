@@ -11,7 +11,8 @@
 //! environment (`MALLOC_MMAP_THRESHOLD_`, `MALLOC_TRIM_THRESHOLD_`): wall 3.31–3.49 s
 //! instead of 3.40–3.75 s, system time 0.12–0.22 s instead of 0.27–0.32 s. Set here: system
 //! time 0.19–0.23 s instead of 0.34–0.41 s, peak resident set 264–274 MiB instead of
-//! 248–257 MiB (`docs/benchmarks.md`, *Batched expansion and the allocator's thresholds*).
+//! 248–257 MiB (`docs/benchmarks.md`, *Batched expansion, allocator thresholds, PU block
+//! limit*).
 //! The trim threshold alone was slower; the mmap threshold alone raised the system time to
 //! 0.61–0.73 s.
 //!
