@@ -34,6 +34,7 @@ use glam::{DMat3, DVec3};
 use packed::{PackedSupport, PackedSupports};
 use rayon::prelude::*;
 use std::cell::RefCell;
+use std::ops::Range;
 
 /// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type and packed
 /// supports of the evaluator.
@@ -285,17 +286,10 @@ impl<'a> PuEvaluator<'a> {
         let order = spatial_order::morton_order(points);
         let blocks = self.blocks(points, &order);
         let in_order: Vec<R> = blocks
-            .par_windows(2)
+            .par_iter()
             .with_min_len(BATCH_MIN_LEN / BLOCK_LEN)
-            .flat_map_iter(|w| {
-                let block = &order[w[0] as usize..w[1] as usize];
-                let mut bounds = Aabb::EMPTY;
-                for &i in block {
-                    let x = points[i as usize];
-                    if x.is_finite() {
-                        bounds.add(x);
-                    }
-                }
+            .flat_map_iter(|(range, bounds)| {
+                let block = &order[range.clone()];
                 let mut candidates = Vec::new();
                 if !bounds.is_empty() {
                     let reach = 0.5 * bounds.diagonal();
@@ -329,35 +323,37 @@ impl<'a> PuEvaluator<'a> {
         rank.par_iter().map(|&k| in_order[k as usize]).collect()
     }
 
-    /// The blocks of a batch, as the starts of runs of `order` followed by its length: at most
-    /// [`BLOCK_LEN`] consecutive points, and a block closes early where the next point would
-    /// stretch its bounding box to a diagonal over `block_span` (a finite point after only
-    /// non-finite ones never does).
-    fn blocks(&self, points: &[DVec3], order: &[u32]) -> Vec<u32> {
+    /// The blocks of a batch, as ranges of `order` with the bounding box of their finite
+    /// points: at most [`BLOCK_LEN`] consecutive points, and a block closes early where the
+    /// next point would stretch its box to a diagonal over `block_span` (a finite point after
+    /// only non-finite ones never does).
+    fn blocks(&self, points: &[DVec3], order: &[u32]) -> Vec<(Range<usize>, Aabb)> {
         let span2 = self.block_span * self.block_span;
-        let mut starts = Vec::with_capacity(order.len() / BLOCK_LEN + 2);
+        let mut blocks = Vec::with_capacity(order.len() / BLOCK_LEN + 1);
+        let mut start = 0;
         let mut bounds = Aabb::EMPTY;
-        let mut len = 0;
         for (k, &i) in order.iter().enumerate() {
             let x = points[i as usize];
             let mut grown = bounds;
             if x.is_finite() {
                 grown.add(x);
             }
-            if len == 0 || len == BLOCK_LEN || grown.extent().length_squared() > span2 {
-                starts.push(k as u32);
+            let len = k - start;
+            if len == BLOCK_LEN || (len > 0 && grown.extent().length_squared() > span2) {
+                blocks.push((start..k, bounds));
+                start = k;
                 bounds = Aabb::EMPTY;
                 if x.is_finite() {
                     bounds.add(x);
                 }
-                len = 1;
             } else {
                 bounds = grown;
-                len += 1;
             }
         }
-        starts.push(order.len() as u32);
-        starts
+        if start < order.len() {
+            blocks.push((start..order.len(), bounds));
+        }
+        blocks
     }
 
     /// Runs `body` on a superset of the supports whose expanded ball holds `x` (none for a
