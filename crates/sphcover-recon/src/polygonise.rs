@@ -268,22 +268,31 @@ pub fn polygonise_blending(
     // crawling over the whole surface. Seeds left away from the meshed cells (noise) are
     // pulled onto the surface below.
     let mut seed_cells: Vec<u64> = finite_seeds
-        .iter()
+        .par_iter()
         .map(|&p| pack_clamped(grid.cell_of(p)))
         .collect();
-    seed_cells.sort_unstable();
+    seed_cells.par_sort_unstable();
     seed_cells.dedup();
     search.run(seed_cells.into_iter().filter_map(unpack_clamped).collect())?;
     // Noisy seeds that met no surface: one per brick of 4×4×4 cells is pulled onto `f = 0`
     // (more would find the same surface again), all in one batch.
+    let away: Vec<bool> = finite_seeds
+        .par_iter()
+        .map_init(
+            || search.reader(),
+            |reader, &p| !search.near_active(reader, grid.cell_of(p)),
+        )
+        .collect();
     let mut bricks_seen = KeyMap::<()>::default();
     let unmet: Vec<DVec3> = finite_seeds
         .iter()
-        .copied()
-        .filter(|&p| {
-            let cell = grid.cell_of(p);
-            !search.near_active(cell) && bricks_seen.insert(brick_of(cell).0, ()).is_none()
+        .zip(away)
+        .filter(|&(&p, away)| {
+            away && bricks_seen
+                .insert(brick_of(grid.cell_of(p)).0, ())
+                .is_none()
         })
+        .map(|(&p, _)| p)
         .collect();
     stats.seeds_projected = unmet.len();
     for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
@@ -292,7 +301,7 @@ pub fn polygonise_blending(
                 let cell = grid.cell_of(q);
                 // The search from an earlier seed may have reached it already, or started
                 // from the same place and found nothing.
-                if !search.near_active(cell) && !search.visited(cell) {
+                if !search.near_active(&mut search.reader(), cell) && !search.visited(cell) {
                     stats.seeds_searched += 1;
                     search.run(grid.block_around(cell).collect())?;
                 }
@@ -690,26 +699,35 @@ fn brick_of(v: Index3) -> (u64, usize) {
     (key, local as usize)
 }
 
-/// Read access to bricks that remembers the last brick found, since queries come in
-/// neighbourhoods.
+/// The parities of the brick coordinates of grid index `v`. The bricks holding one cell's
+/// corners, or the cells around one of its edges, all differ in class, so a cache with one
+/// entry per class holds all of them at once (one remembering only the last brick went back
+/// to the hash map at every step across a brick boundary).
+fn brick_class(v: Index3) -> usize {
+    let bit = |a: usize| ((v[a] >> BRICK_SHIFT) & 1) as usize;
+    bit(0) | bit(1) << 1 | bit(2) << 2
+}
+
+/// The last brick key met in each [`brick_class`] and what it maps to. No brick key is
+/// `u64::MAX` (the keys of in-range indices use 63 bits).
+type BrickCache<T> = [(u64, T); 8];
+
+/// Read access to bricks that remembers the last brick found in each class, since queries
+/// come in neighbourhoods.
 struct BrickReader<'s> {
     index: &'s KeyMap<u32>,
     bricks: &'s [Brick],
-    last: Option<(u64, Option<&'s Brick>)>,
+    cache: BrickCache<Option<&'s Brick>>,
 }
 
 impl<'s> BrickReader<'s> {
     fn get(&mut self, v: Index3) -> Option<(&'s Brick, usize)> {
         let (key, local) = brick_of(v);
-        let brick = match self.last {
-            Some((k, b)) if k == key => b,
-            _ => {
-                let b = self.index.get(&key).map(|&i| &self.bricks[i as usize]);
-                self.last = Some((key, b));
-                b
-            }
-        };
-        brick.map(|b| (b, local))
+        let entry = &mut self.cache[brick_class(v)];
+        if entry.0 != key {
+            *entry = (key, self.index.get(&key).map(|&i| &self.bricks[i as usize]));
+        }
+        entry.1.map(|b| (b, local))
     }
 
     fn value(&mut self, v: Index3) -> Option<f64> {
@@ -758,27 +776,28 @@ impl<'e, 'c> Search<'e, 'c> {
         BrickReader {
             index: &self.brick_index,
             bricks: &self.bricks,
-            last: None,
+            cache: [(u64::MAX, None); 8],
         }
     }
 
     /// The brick holding `v` (created if needed) and `v`'s position in it; `cache` holds the
-    /// last brick key and slot.
-    fn brick_mut(&mut self, v: Index3, cache: &mut (u64, u32)) -> (&mut Brick, usize) {
+    /// slots of the last brick keys met.
+    fn brick_mut(&mut self, v: Index3, cache: &mut BrickCache<u32>) -> (&mut Brick, usize) {
         let (key, local) = brick_of(v);
-        if cache.0 != key {
+        let entry = &mut cache[brick_class(v)];
+        if entry.0 != key {
             let next = self.bricks.len() as u32;
             let slot = *self.brick_index.entry(key).or_insert(next);
             if slot == next {
                 self.bricks.push(Brick::EMPTY);
             }
-            *cache = (key, slot);
+            *entry = (key, slot);
         }
-        (&mut self.bricks[cache.1 as usize], local)
+        (&mut self.bricks[entry.1 as usize], local)
     }
 
     /// Marks cell `c` visited; true when it was not before.
-    fn visit(&mut self, c: Index3, cache: &mut (u64, u32)) -> bool {
+    fn visit(&mut self, c: Index3, cache: &mut BrickCache<u32>) -> bool {
         let (brick, l) = self.brick_mut(c, cache);
         let fresh = brick.visited >> l & 1 == 0;
         brick.visited |= 1 << l;
@@ -796,11 +815,10 @@ impl<'e, 'c> Search<'e, 'c> {
     }
 
     /// Whether the cell or one of its 26 neighbours is active.
-    fn near_active(&self, c: Index3) -> bool {
-        let mut reader = self.reader();
-        self.grid
-            .block_around(c)
-            .any(|n| self.grid.in_range(n) && reader.active_slot(n).is_some())
+    fn near_active(&self, reader: &mut BrickReader<'_>, c: Index3) -> bool {
+        let mut active = |n: Index3| self.grid.in_range(n) && reader.active_slot(n).is_some();
+        // A seed's own cell is nearly always active: ask it first.
+        active(c) || self.grid.block_around(c).any(active)
     }
 
     /// A cell needs its far corner in range too.
@@ -810,7 +828,7 @@ impl<'e, 'c> Search<'e, 'c> {
 
     /// Visits the cells `starts` not yet visited and everything reachable from them.
     fn run(&mut self, starts: Vec<Index3>) -> Result<(), PolygoniseError> {
-        let mut cache = (u64::MAX, 0);
+        let mut cache = [(u64::MAX, 0); 8];
         let mut frontier: Vec<Index3> = Vec::new();
         for c in starts {
             if self.cell_in_range(c) && self.visit(c, &mut cache) {
@@ -825,33 +843,43 @@ impl<'e, 'c> Search<'e, 'c> {
                 });
             }
             self.evaluate_corners(&frontier);
-            let classified: Vec<Option<ActiveCell>> = frontier
+            // Classified in parallel, each run with the neighbours its active cells reach
+            // that were not visited before this wave: the sequential pass below would
+            // reject the others, so it only walks these, in the same order.
+            let classified: Vec<(Vec<Option<ActiveCell>>, Vec<Index3>)> = frontier
                 .par_chunks(256)
-                .flat_map_iter(|chunk| {
+                .map(|chunk| {
                     let mut reader = self.reader();
-                    chunk
-                        .iter()
-                        .map(|&c| classify(&mut reader, c))
-                        .collect::<Vec<_>>()
+                    let cells: Vec<Option<ActiveCell>> =
+                        chunk.iter().map(|&c| classify(&mut reader, c)).collect();
+                    let mut reached = Vec::new();
+                    for (&c, cell) in chunk.iter().zip(&cells) {
+                        let Some(cell) = cell else { continue };
+                        for e in (0..12).filter(|&e| cell.sheet[e] != NO_SHEET) {
+                            reached.extend(cells_around_edge(c, e).into_iter().filter(|&n| {
+                                n != c
+                                    && self.cell_in_range(n)
+                                    && reader.get(n).is_none_or(|(b, l)| b.visited >> l & 1 == 0)
+                            }));
+                        }
+                    }
+                    (cells, reached)
                 })
                 .collect();
             let mut next = Vec::new();
-            for (&c, cell) in frontier.iter().zip(classified) {
-                let Some(cell) = cell else { continue };
-                for e in 0..12 {
-                    if cell.sheet[e] == NO_SHEET {
-                        continue;
-                    }
-                    for n in cells_around_edge(c, e) {
-                        if n != c && self.cell_in_range(n) && self.visit(n, &mut cache) {
-                            next.push(n);
-                        }
+            for (chunk, (cells, reached)) in frontier.chunks(256).zip(classified) {
+                for n in reached {
+                    if self.visit(n, &mut cache) {
+                        next.push(n);
                     }
                 }
-                let slot = self.cells.len() as u32;
-                let (brick, l) = self.brick_mut(c, &mut cache);
-                brick.active[l] = slot;
-                self.cells.push((pack(c), cell));
+                for (&c, cell) in chunk.iter().zip(cells) {
+                    let Some(cell) = cell else { continue };
+                    let slot = self.cells.len() as u32;
+                    let (brick, l) = self.brick_mut(c, &mut cache);
+                    brick.active[l] = slot;
+                    self.cells.push((pack(c), cell));
+                }
             }
             frontier = next;
         }
@@ -859,7 +887,7 @@ impl<'e, 'c> Search<'e, 'c> {
     }
 
     fn evaluate_corners(&mut self, cells: &[Index3]) {
-        let mut cache = (u64::MAX, 0);
+        let mut cache = [(u64::MAX, 0); 8];
         let mut targets = Vec::new();
         let mut points = Vec::new();
         for &c in cells {
@@ -869,7 +897,7 @@ impl<'e, 'c> Search<'e, 'c> {
                 let (brick, l) = self.brick_mut(v, &mut cache);
                 if brick.evaluated >> l & 1 == 0 {
                     brick.evaluated |= 1 << l;
-                    targets.push((cache.1, l));
+                    targets.push((cache[brick_class(v)].1, l));
                     points.push(self.grid.position(v));
                 }
             }
