@@ -192,7 +192,7 @@ fn grow(
         let trial = (2.0 * lo).min(cap);
         cand.gather(samples, leaf.center, trial);
         best.fits += 1;
-        match cand.fit(trial, params.kernel, eps) {
+        match cand.fit(samples, trial, params.kernel, eps) {
             Some(fit) if fit.error <= eps => {
                 lo = trial;
                 best.radius = trial;
@@ -216,7 +216,7 @@ fn grow(
             break;
         }
         best.fits += 1;
-        match cand.fit(mid, params.kernel, eps) {
+        match cand.fit(samples, mid, params.kernel, eps) {
             Some(fit) if fit.error <= eps => {
                 lo = mid;
                 best.radius = mid;

@@ -342,7 +342,7 @@ impl Octree<'_> {
         };
         let refinable = !empty && radius <= REFINABLE_GROWTH * natural;
         let limit = if refinable { limit } else { f64::INFINITY };
-        let mut fit = cand.fit(radius, self.params.kernel, limit)?;
+        let mut fit = cand.fit(samples, radius, self.params.kernel, limit)?;
         if empty && fit.error > self.params.eps {
             radius = natural;
             grown = false;
