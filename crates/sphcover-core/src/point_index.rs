@@ -181,15 +181,17 @@ impl PointIndex {
             return;
         }
         // `out` is kept sorted ascending; k is small in every use (tens), so insertion into a
-        // sorted vector beats a heap and yields the final order directly.
-        let mut stack = [0u32; 64];
+        // sorted vector beats a heap and yields the final order directly. The stack holds
+        // each node with the squared distance to its box.
+        let mut stack = [(0u32, 0.0f64); 64];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
-            let n = stack[top] as usize;
+            let (n, box_d2) = stack[top];
+            let n = n as usize;
             let node = &self.nodes[n];
             // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
-            if out.len() == k && node.box_distance2(x) > out[k - 1].0 {
+            if out.len() == k && box_d2 > out[k - 1].0 {
                 continue;
             }
             if node.right == 0 {
@@ -207,11 +209,23 @@ impl PointIndex {
                 }
                 continue;
             }
-            let (near, far) = node.children_near_far(n, x);
-            stack[top] = far as u32;
-            top += 1;
-            stack[top] = near as u32;
-            top += 1;
+            // The child whose box is nearer first (not the one on `x`'s side of the split:
+            // from a query off the data, as the octree's empty cells are, that child's box
+            // may be the farther one, and the first `k` points found bound the search
+            // poorly). The answer does not depend on the order.
+            let (left, right) = (n + 1, n + node.right as usize);
+            let (dl, dr) = (
+                self.nodes[left].box_distance2(x),
+                self.nodes[right].box_distance2(x),
+            );
+            let (near, far) = if dl <= dr {
+                ((left, dl), (right, dr))
+            } else {
+                ((right, dr), (left, dl))
+            };
+            stack[top] = (far.0 as u32, far.1);
+            stack[top + 1] = (near.0 as u32, near.1);
+            top += 2;
         }
     }
 

@@ -57,7 +57,12 @@ proptest! {
     }
 
     #[test]
-    fn nearest_k_matches_brute_force(points in cloud(), x in any_point(), k in 0usize..40) {
+    fn nearest_k_matches_brute_force(
+        points in cloud(),
+        // Also queries well off the data, as from the empty cells of a cover's octree.
+        x in prop_oneof![any_point(), any_point().prop_map(|p| 4.0 * p)],
+        k in 0usize..40,
+    ) {
         let index = PointIndex::new(&points).unwrap();
         let mut got = Vec::new();
         index.nearest_k(x, k, &mut got);
