@@ -17,6 +17,8 @@
 //! * Non-finite points are not indexed: no query ever reports them.
 
 use glam::DVec3;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
 
 /// Points per leaf bucket at most.
 const BUCKET: usize = 12;
@@ -180,9 +182,23 @@ impl PointIndex {
         if k == 0 || self.nodes.is_empty() || !x.is_finite() {
             return;
         }
-        // `out` is kept sorted ascending; k is small in every use (tens), so insertion into a
-        // sorted vector beats a heap and yields the final order directly. The stack holds
-        // each node with the squared distance to its box.
+        if k <= SORTED_INSERTION_MAX {
+            // Kept sorted as found: the final order directly.
+            self.search_nearest(x, &mut SortedNearest { out, k });
+        } else {
+            let mut set = HeapNearest {
+                heap: BinaryHeap::with_capacity(k + 1),
+                k,
+            };
+            self.search_nearest(x, &mut set);
+            out.extend(set.heap.into_sorted_vec().iter().map(|p| (p.0, p.1)));
+        }
+    }
+
+    /// The branch-and-bound search behind [`PointIndex::nearest_k_with_distances`], offering
+    /// every point that may belong to the answer to `set`.
+    fn search_nearest(&self, x: DVec3, set: &mut impl NearestSet) {
+        // The stack holds each node with the squared distance to its box.
         let mut stack = [(0u32, 0.0f64); 64];
         let mut top = 1usize;
         while top > 0 {
@@ -191,21 +207,16 @@ impl PointIndex {
             let n = n as usize;
             let node = &self.nodes[n];
             // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
-            if out.len() == k && box_d2 > out[k - 1].0 {
+            if set.bound().is_some_and(|b| box_d2 > b.0) {
                 continue;
             }
             if node.right == 0 {
                 for s in node.lo as usize..node.hi as usize {
                     let d2 = (self.points[s] - x).length_squared();
                     let key = (d2, self.order[s]);
-                    if out.len() == k && !less(key, out[k - 1]) {
-                        continue;
+                    if set.bound().is_none_or(|b| less(key, b)) {
+                        set.insert(NearKey(d2, key.1, s as u32));
                     }
-                    let at = out.partition_point(|&e| less(e, key));
-                    if out.len() == k {
-                        out.pop();
-                    }
-                    out.insert(at, key);
                 }
                 continue;
             }
@@ -249,6 +260,7 @@ impl PointIndex {
         // The current answer, as (distance², index, slot).
         let mut answer: Vec<(f64, u32, u32)> = Vec::with_capacity(k_eff);
         let mut seed_d2: Vec<f64> = Vec::with_capacity(k_eff);
+        let mut heap: Vec<NearKey> = Vec::with_capacity(k_eff + 1);
         let key =
             |a: &(f64, u32, u32), b: &(f64, u32, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
         for (q, &x) in queries.iter().enumerate() {
@@ -273,25 +285,30 @@ impl PointIndex {
                     bound = seeded;
                 }
             }
-            if bound == f64::INFINITY {
-                // A plain search gives the bound, and the collection below the slots that
-                // the next query's bound needs.
-                self.nearest_k_with_distances(x, k_eff, &mut found);
-                bound = found[k_eff - 1].0;
-                found.clear();
-            }
             answer.clear();
-            self.for_each_slot_within_closed(x, bound, |s, d2| {
-                answer.push((d2, self.order[s], s as u32));
-            });
-            // At least `k_eff` points lie in the closed ball, so its `k_eff` smallest pairs
-            // are the answer.
-            debug_assert!(answer.len() >= k_eff);
-            if answer.len() > k_eff {
-                answer.select_nth_unstable_by(k_eff - 1, key);
-                answer.truncate(k_eff);
+            if bound == f64::INFINITY {
+                // A plain search, which also gives the slots the next query's bound needs.
+                let mut set = HeapNearest {
+                    heap: BinaryHeap::from(std::mem::take(&mut heap)),
+                    k: k_eff,
+                };
+                set.heap.clear();
+                self.search_nearest(x, &mut set);
+                heap = set.heap.into_sorted_vec();
+                answer.extend(heap.iter().map(|p| (p.0, p.1, p.2)));
+            } else {
+                self.for_each_slot_within_closed(x, bound, |s, d2| {
+                    answer.push((d2, self.order[s], s as u32));
+                });
+                // At least `k_eff` points lie in the closed ball, so its `k_eff` smallest
+                // pairs are the answer.
+                debug_assert!(answer.len() >= k_eff);
+                if answer.len() > k_eff {
+                    answer.select_nth_unstable_by(k_eff - 1, key);
+                    answer.truncate(k_eff);
+                }
+                answer.sort_unstable_by(key);
             }
-            answer.sort_unstable_by(key);
             found.extend(answer.iter().map(|&(d2, i, _)| (d2, i)));
             visit(q, &found);
         }
@@ -350,6 +367,89 @@ impl PointIndex {
 #[inline]
 fn less(a: (f64, u32), b: (f64, u32)) -> bool {
     a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
+}
+
+/// Up to this many nearest points are kept in a sorted vector during a search, more in a
+/// heap: inserting into the vector moves half of it, which for the hundreds of neighbours
+/// of a scan's noise estimate cost more than the search itself.
+const SORTED_INSERTION_MAX: usize = 48;
+
+/// The best `(distance², index)` pairs a nearest-point search has met, at most `k`.
+trait NearestSet {
+    /// The worst pair kept, once `k` are kept (no later pair can enter unless below it).
+    fn bound(&self) -> Option<(f64, u32)>;
+    /// Keeps `key`, dropping the worst pair when `k` are kept. Called only for a pair below
+    /// the bound.
+    fn insert(&mut self, key: NearKey);
+}
+
+/// The pairs in ascending order.
+struct SortedNearest<'a> {
+    out: &'a mut Vec<(f64, u32)>,
+    k: usize,
+}
+
+impl NearestSet for SortedNearest<'_> {
+    #[inline]
+    fn bound(&self) -> Option<(f64, u32)> {
+        (self.out.len() == self.k).then(|| self.out[self.k - 1])
+    }
+
+    #[inline]
+    fn insert(&mut self, key: NearKey) {
+        let key = (key.0, key.1);
+        let at = self.out.partition_point(|&e| less(e, key));
+        if self.out.len() == self.k {
+            self.out.pop();
+        }
+        self.out.insert(at, key);
+    }
+}
+
+/// The pairs in a max-heap.
+struct HeapNearest {
+    heap: BinaryHeap<NearKey>,
+    k: usize,
+}
+
+impl NearestSet for HeapNearest {
+    #[inline]
+    fn bound(&self) -> Option<(f64, u32)> {
+        (self.heap.len() == self.k).then(|| self.heap.peek().map(|p| (p.0, p.1)))?
+    }
+
+    #[inline]
+    fn insert(&mut self, key: NearKey) {
+        if self.heap.len() == self.k {
+            self.heap.pop();
+        }
+        self.heap.push(key);
+    }
+}
+
+/// A point met by a search: `(distance², index, slot)`, ordered by `(distance², index)` as
+/// [`less`] orders them (distances are never NaN).
+#[derive(Clone, Copy, Debug)]
+struct NearKey(f64, u32, u32);
+
+impl PartialEq for NearKey {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for NearKey {}
+
+impl PartialOrd for NearKey {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for NearKey {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+    }
 }
 
 /// Builds the subtree over `items` (slots `base..base + items.len()`), returning its nodes in
