@@ -187,7 +187,7 @@ impl PointIndex {
             self.search_nearest(x, &mut SortedNearest { out, k });
         } else {
             let mut set = HeapNearest {
-                heap: BinaryHeap::with_capacity(k + 1),
+                heap: BinaryHeap::with_capacity(k.min(self.len()) + 1),
                 k,
             };
             self.search_nearest(x, &mut set);

@@ -146,6 +146,9 @@ fn identical_points_and_large_clouds_are_handled() {
     let mut out = Vec::new();
     index.nearest_k(DVec3::ZERO, 5, &mut out);
     assert_eq!(out, [0, 1, 2, 3, 4]);
+    // A `k` past the number of points (here past any allocation) asks for all of them.
+    index.nearest_k(DVec3::ZERO, usize::MAX / 2, &mut out);
+    assert_eq!(out, (0..1000).collect::<Vec<u32>>());
     index.within(DVec3::splat(0.3), 1e-9, &mut out);
     assert_eq!(out.len(), 1000);
 
