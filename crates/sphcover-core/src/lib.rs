@@ -51,6 +51,7 @@ pub mod partition_of_unity;
 pub mod point_cloud;
 pub mod point_index;
 pub mod sphere_intersection_graph;
+pub mod support_samples;
 pub mod surface_cover;
 pub mod synthetic;
 pub mod volume;
@@ -68,6 +69,7 @@ pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};
 pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
+pub use support_samples::SupportSamples;
 pub use surface_cover::{
     SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings,
     build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,

@@ -33,7 +33,9 @@
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, CoverError, DVec3, PointIndex, PointIndexError, PuEvaluator};
+use sphcover_core::{
+    Cover, CoverError, DVec3, PointIndex, PointIndexError, PuEvaluator, SupportSamples,
+};
 use thiserror::Error;
 
 use crate::pca::{Pca, RANK_TOLERANCE};
@@ -132,20 +134,22 @@ pub fn support_confidence(
     samples: &[DVec3],
 ) -> Result<(Vec<f64>, usize), ConfidenceError> {
     let index = PointIndex::new(samples)?;
-    Ok(support_confidence_in(cover, &index))
+    Ok(support_confidence_in(&SupportSamples::gather(
+        cover, &index,
+    )))
 }
 
-/// As [`support_confidence`], over the samples of `index`.
-fn support_confidence_in(cover: &Cover, index: &PointIndex) -> (Vec<f64>, usize) {
-    let tau: Vec<(f64, bool)> = cover
-        .centers()
-        .par_iter()
-        .zip(cover.radii())
+/// As [`support_confidence`], over the samples of `incidence`.
+fn support_confidence_in(incidence: &SupportSamples<'_>) -> (Vec<f64>, usize) {
+    let cover = incidence.cover();
+    let points = incidence.index().slot_points();
+    let tau: Vec<(f64, bool)> = (0..cover.len())
+        .into_par_iter()
         .with_min_len(256)
-        .map_init(Vec::new, |buf, (&c, &r)| {
+        .map_init(Vec::new, |buf, i| {
             buf.clear();
-            index.for_each_within(c, r, |_, p| buf.push(p));
-            tau_of(c, r, buf)
+            incidence.for_each_slot_within(i, |s, _| buf.push(points[s]));
+            tau_of(cover.centers()[i], cover.radii()[i], buf)
         })
         .collect();
     let degenerate = tau.iter().filter(|t| t.1).count();
@@ -203,24 +207,27 @@ pub fn sample_confidence_with(
     distrusted: impl Fn(usize) -> bool,
 ) -> Result<SampleConfidence, ConfidenceError> {
     let index = PointIndex::new(samples)?;
-    sample_confidence_indexed(cover, samples, &index, scanner, params, distrusted)
+    let incidence = SupportSamples::gather(cover, &index);
+    sample_confidence_indexed(&incidence, samples, scanner, params, distrusted)
 }
 
-/// As [`sample_confidence_with`], with `index` a point index over `samples` (built by
-/// [`PointIndex::new`] from exactly these samples), so a caller that has one already saves
-/// building it again. The result is the same.
+/// As [`sample_confidence_with`], over `incidence`: the samples of the cover's supports,
+/// gathered from a point index over exactly `samples` (built by [`PointIndex::new`]). A
+/// caller that needs the incidences again (the diffusion's fitting terms) gathers them once.
+/// The result is the same.
 pub fn sample_confidence_indexed(
-    cover: &Cover,
+    incidence: &SupportSamples<'_>,
     samples: &[DVec3],
-    index: &PointIndex,
     scanner: Option<&[f64]>,
     params: &ConfidenceParams,
     distrusted: impl Fn(usize) -> bool,
 ) -> Result<SampleConfidence, ConfidenceError> {
-    if index.input_len() != samples.len() {
+    let cover = incidence.cover();
+    let found = incidence.index().input_len();
+    if found != samples.len() {
         return Err(ConfidenceError::IndexMismatch {
             expected: samples.len(),
-            found: index.input_len(),
+            found,
         });
     }
     let t = params.outlier_threshold;
@@ -248,7 +255,7 @@ pub fn sample_confidence_indexed(
         ..Default::default()
     };
     let start = Instant::now();
-    let (mut tau, degenerate) = support_confidence_in(cover, index);
+    let (mut tau, degenerate) = support_confidence_in(incidence);
     for (i, t) in tau.iter_mut().enumerate() {
         if distrusted(i) {
             *t = 0.0;
@@ -264,7 +271,7 @@ pub fn sample_confidence_indexed(
             s.to_vec()
         }
         None => {
-            let blended = blend_over_supports(cover, samples, &tau)?;
+            let blended = incidence.blend(&tau)?;
             stats.uncovered_samples = blended.iter().filter(|v| v.is_none()).count();
             blended.into_iter().map(|v| v.unwrap_or(0.0)).collect()
         }
@@ -424,16 +431,16 @@ mod tests {
         let index = PointIndex::new(&samples).unwrap();
         let params = ConfidenceParams::default();
         let with = sample_confidence_with(&cover, &samples, None, &params, |i| i % 3 == 0).unwrap();
+        let incidence = SupportSamples::gather(&cover, &index);
         let indexed =
-            sample_confidence_indexed(&cover, &samples, &index, None, &params, |i| i % 3 == 0)
-                .unwrap();
+            sample_confidence_indexed(&incidence, &samples, None, &params, |i| i % 3 == 0).unwrap();
         assert_eq!(with.confidence, indexed.confidence);
         assert_eq!(with.support_confidence, indexed.support_confidence);
         assert_eq!(with.outliers, indexed.outliers);
         let short = PointIndex::new(&samples[1..]).unwrap();
+        let short = SupportSamples::gather(&cover, &short);
         assert_eq!(
-            sample_confidence_indexed(&cover, &samples, &short, None, &params, |_| false)
-                .unwrap_err(),
+            sample_confidence_indexed(&short, &samples, None, &params, |_| false).unwrap_err(),
             ConfidenceError::IndexMismatch {
                 expected: samples.len(),
                 found: samples.len() - 1

@@ -61,7 +61,7 @@
 //! of threads.
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, CoverError, DVec3, LocalFunctions, PointIndex, PuEvaluator};
+use sphcover_core::{Cover, CoverError, DVec3, LocalFunctions, PuEvaluator, SupportSamples};
 use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -198,12 +198,12 @@ pub struct FittingTerms {
 }
 
 impl FittingTerms {
-    /// Gathers the sums of every support of `cover` over the samples `points` (with outward
-    /// `normals` and a `confidence` σ_k each), in parallel. Samples with a zero or
+    /// Gathers the sums of every support of the incidences' cover over its samples `points`
+    /// (with outward `normals` and a `confidence` σ_k each; `incidence` was gathered from a
+    /// point index over exactly `points`), in parallel. Samples with a zero or
     /// non-finite normal contribute to `W` and `P` but not to `N`.
     pub fn gather(
-        cover: &Cover,
-        index: &PointIndex,
+        incidence: &SupportSamples<'_>,
         points: &[DVec3],
         normals: &[DVec3],
         confidence: &[f64],
@@ -217,6 +217,7 @@ impl FittingTerms {
                 });
             }
         }
+        let (cover, index) = (incidence.cover(), incidence.index());
         if index.input_len() != points.len() {
             return Err(DiffusionError::LengthMismatch {
                 array: "point index",
@@ -238,9 +239,10 @@ impl FittingTerms {
             .centers()
             .par_iter()
             .zip(cover.radii().par_iter())
-            .map(|(&c, &r)| {
+            .enumerate()
+            .map(|(i, (&c, &r))| {
                 let mut sum = (0.0, DVec3::ZERO, DVec3::ZERO, 0.0);
-                index.for_each_slot_within(c, r, |s, _| {
+                incidence.for_each_slot_within(i, |s, _| {
                     let p = slot_points[s];
                     let kw = kernel.weight(p, c, r);
                     sum.3 += kw;

@@ -25,8 +25,9 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 use sphcover_core::{
     Cover, CoverError, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex,
-    PointIndexError, PuEvaluator, SigError, SphereIntersectionGraph, SurfaceCoverError,
-    SurfaceCoverParams, SurfaceCoverStats, TriMesh, build_surface_cover_with_index,
+    PointIndexError, PuEvaluator, SigError, SphereIntersectionGraph, SupportSamples,
+    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, TriMesh,
+    build_surface_cover_with_index,
 };
 use sphcover_ops::{OpsError, PairGeometry};
 use thiserror::Error;
@@ -457,10 +458,11 @@ pub fn reconstruct(
                 zero_functions(&mut cover, &zeroed)?;
             }
             clock.start("confidence");
+            // The confidence and the fitting terms visit the same samples of each support.
+            let incidence = SupportSamples::gather(&cover, &index);
             let conf = sample_confidence_indexed(
-                &cover,
+                &incidence,
                 &points,
-                &index,
                 scanner.as_deref(),
                 &params.confidence,
                 |i| zeroed[i],
@@ -468,7 +470,8 @@ pub fn reconstruct(
 
             clock.start("diffusion");
             let conf = without_isolated(conf, &scan, params);
-            let terms = FittingTerms::gather(&cover, &index, &points, &normals, &conf.confidence)?;
+            let terms = FittingTerms::gather(&incidence, &points, &normals, &conf.confidence)?;
+            drop(incidence);
             let pairs = PairGeometry::build(cover.centers(), cover.radii(), &graph)?;
             drop(graph);
             stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
