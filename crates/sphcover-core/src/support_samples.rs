@@ -83,7 +83,6 @@ impl<'a> SupportSamples<'a> {
         let mut offsets = Vec::with_capacity(cover.len() + 1);
         offsets.push(0);
         let mut slots: Vec<u32> = Vec::new();
-        let n = cover.len();
         for (centers, radii) in cover
             .centers()
             .chunks(GATHER_CHUNK)
@@ -102,13 +101,6 @@ impl<'a> SupportSamples<'a> {
             for row in rows {
                 slots.extend_from_slice(&row);
                 offsets.push(slots.len());
-            }
-            if offsets.len() == centers.len() + 1 && n > centers.len() {
-                // Room for the rest at the first chunk's rate and a quarter more, so the list
-                // does not grow by doubling through the allocator's small-block heap, which
-                // keeps the outgrown blocks.
-                let rest = (n - centers.len()) as f64 * slots.len() as f64 / centers.len() as f64;
-                slots.reserve((1.25 * rest) as usize);
             }
         }
         SupportSamples {
