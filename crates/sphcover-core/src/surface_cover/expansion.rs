@@ -108,6 +108,10 @@ fn expand_with(
     let mut fits = 0u64;
     let mut growth = Duration::ZERO;
     let mut live = Vec::with_capacity(batch);
+    // A support `k` inside the grown ball has `‖c_k − c_i‖ ≤ r_i − r_k ≤ r_i − r_min`, so the
+    // range query reaches that far (plus a relative 1e-9 for the rounding of both tests),
+    // not over the whole grown ball; the deletions are the same.
+    let r_min = initial.iter().copied().fold(f64::INFINITY, f64::min);
     for visits in shuffled(n, seed).chunks(batch) {
         // Grown in index (Morton) order, so that neighbouring supports gather from the same
         // points while they are in cache; visited below in the random order.
@@ -128,7 +132,8 @@ fn expand_with(
                 let g = grow(cand, i);
                 let mut near = Vec::new();
                 let ci = centers[i];
-                index.for_each_within(ci, g.radius, |k, ck| {
+                let reach = (g.radius - r_min).max(0.0) + 1e-9 * g.radius;
+                index.for_each_within(ci, reach, |k, ck| {
                     let d = ck.distance(ci);
                     if k as usize != i && d + initial[k as usize] <= g.radius {
                         near.push((k, d));
