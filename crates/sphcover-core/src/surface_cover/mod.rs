@@ -96,8 +96,9 @@ pub struct SurfaceCoverParams {
     /// Largest factor by which expansion may grow a radius (≥ 1). The root cube's diagonal
     /// bounds every grown radius too.
     pub max_growth: f64,
-    /// Relative width at which the bisection for a grown radius stops (in `(0, 1]`): the
-    /// radius found is within this factor of the largest radius with `E ≤ ε`.
+    /// Relative width at which the bisection for a grown radius stops (in `(0, 1]`): unless
+    /// the radius reached its cap, a trial at most this factor above the radius found
+    /// failed (`E > ε`).
     pub growth_tolerance: f64,
 }
 
