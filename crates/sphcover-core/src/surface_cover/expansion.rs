@@ -228,8 +228,9 @@ fn grow(
                 break;
             }
             best.fits += 1;
-            // The first trial of a bracket gathers its own ball (it fails more often than
-            // not); once it passed, the doubled ball serves every later trial.
+            // The first trial of a bracket gathers its own ball: when it fails, every later
+            // trial is smaller and needs no other point. Once it passed, the doubled ball
+            // serves every later trial.
             let reach = if first { mid } else { top };
             first = false;
             match passes(cand, &mut held, mid, reach) {
