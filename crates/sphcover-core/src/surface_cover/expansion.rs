@@ -181,6 +181,19 @@ fn expand_with(
     })
 }
 
+/// The support `leaf` as the octree left it, and the largest radius it may grow to; `None`
+/// for a support that keeps its radius (see the module docs).
+fn growth_start(leaf: &Leaf, params: &SurfaceCoverParams, max_radius: f64) -> (Grown, Option<f64>) {
+    let unchanged = Grown {
+        radius: leaf.radius,
+        fit: leaf.fit,
+        fits: 0,
+    };
+    let growable = !(leaf.fit.error > params.eps || leaf.grown);
+    let cap = growable.then(|| (leaf.radius * params.max_growth).min(max_radius));
+    (unchanged, cap)
+}
+
 /// Grows one support (see the module docs).
 fn grow(
     cand: &mut Candidates,
@@ -189,15 +202,8 @@ fn grow(
     params: &SurfaceCoverParams,
     max_radius: f64,
 ) -> Grown {
-    let mut best = Grown {
-        radius: leaf.radius,
-        fit: leaf.fit,
-        fits: 0,
-    };
-    if leaf.fit.error > params.eps || leaf.grown {
-        return best;
-    }
-    let cap = (leaf.radius * params.max_growth).min(max_radius);
+    let (mut best, cap) = growth_start(leaf, params, max_radius);
+    let Some(cap) = cap else { return best };
     let eps = params.eps;
     let ratio = 1.0 + params.growth_tolerance;
     // Every later trial below a failed radius `hi` has a squared radius below `hi² / ratio`,
@@ -323,15 +329,8 @@ mod tests {
         params: &SurfaceCoverParams,
         max_radius: f64,
     ) -> Grown {
-        let mut best = Grown {
-            radius: leaf.radius,
-            fit: leaf.fit,
-            fits: 0,
-        };
-        if leaf.fit.error > params.eps || leaf.grown {
-            return best;
-        }
-        let cap = (leaf.radius * params.max_growth).min(max_radius);
+        let (mut best, cap) = growth_start(leaf, params, max_radius);
+        let Some(cap) = cap else { return best };
         let mut cand = Candidates::default();
         cand.gather(samples, leaf.center, cap);
         let passes = |r: f64, best: &mut Grown| {
