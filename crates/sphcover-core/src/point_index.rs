@@ -70,6 +70,14 @@ impl Node {
         }
     }
 
+    /// Squared distance from `x` to the farthest corner of the node's bounding box. Rounding
+    /// is monotonic, so no point below is at a larger computed squared distance: when this is
+    /// below `r²`, so is every point's.
+    #[inline]
+    fn box_farthest2(&self, x: DVec3) -> f64 {
+        (x - self.min).abs().max((self.max - x).abs()).length_squared()
+    }
+
     /// Squared distance from `x` to the node's bounding box (0 inside). Rounding is
     /// monotonic, so it never exceeds the computed squared distance to a point below.
     #[inline]
@@ -314,6 +322,74 @@ impl PointIndex {
         }
     }
 
+    /// The number of indexed points with `‖p − x‖² < r²` (exactly those
+    /// [`PointIndex::for_each_slot_within`] reports), with `visit(slot)` called for a sample
+    /// of them spread over the ball: one slot of each subtree that lies wholly in the ball
+    /// and is a leaf or has a bounding box of diagonal at most `grain`, and the first slot in
+    /// the ball of every other leaf met. A subtree wholly in the ball is counted without
+    /// reading its points, so for a ball holding many points this costs a small part of
+    /// gathering them.
+    pub(crate) fn count_within_sampled(
+        &self,
+        x: DVec3,
+        r: f64,
+        grain: f64,
+        mut visit: impl FnMut(usize),
+    ) -> usize {
+        let r2 = r * r;
+        if self.nodes.is_empty() || !x.is_finite() || r.is_nan() || r <= 0.0 {
+            return 0;
+        }
+        // `x` is finite and the boxes are, so the distance is never NaN.
+        if self.nodes[0].box_distance2(x) >= r2 {
+            return 0;
+        }
+        let grain2 = grain * grain;
+        let mut count = 0;
+        // Each node with whether an ancestor already lies wholly in the ball.
+        let mut stack = [(0u32, false); 64];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let (n, contained) = stack[top];
+            let n = n as usize;
+            let node = &self.nodes[n];
+            if contained || node.box_farthest2(x) < r2 {
+                if !contained {
+                    count += (node.hi - node.lo) as usize;
+                }
+                if node.right == 0 || (node.max - node.min).length_squared() <= grain2 {
+                    visit(node.lo as usize);
+                } else {
+                    stack[top] = ((n + node.right as usize) as u32, true);
+                    stack[top + 1] = ((n + 1) as u32, true);
+                    top += 2;
+                }
+                continue;
+            }
+            if node.right == 0 {
+                let mut first = true;
+                for s in node.lo as usize..node.hi as usize {
+                    if (self.points[s] - x).length_squared() < r2 {
+                        count += 1;
+                        if first {
+                            visit(s);
+                            first = false;
+                        }
+                    }
+                }
+                continue;
+            }
+            for child in [n + node.right as usize, n + 1] {
+                if self.nodes[child].box_distance2(x) < r2 {
+                    stack[top] = (child as u32, false);
+                    top += 1;
+                }
+            }
+        }
+        count
+    }
+
     /// Calls `visit(slot, distance²)` for every indexed point with `‖p − x‖² ≤ bound`, in
     /// tree order (the closed ball, unlike [`PointIndex::for_each_slot_within`]).
     fn for_each_slot_within_closed(&self, x: DVec3, bound: f64, visit: impl FnMut(usize, f64)) {
@@ -513,4 +589,52 @@ fn build(items: &mut [(DVec3, u32)], base: usize) -> Vec<Node> {
     nodes.extend(left_nodes);
     nodes.extend(right_nodes);
     nodes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The count is that of the open ball, brute force; the sample holds distinct points
+        /// of the ball, at least one when the ball holds any.
+        #[test]
+        fn sampled_count_matches_brute_force(
+            points in prop::collection::vec(
+                (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64)
+                    .prop_map(|(x, y, z)| DVec3::new(x, y, z)),
+                0..400,
+            ),
+            center in (-1.2..1.2f64, -1.2..1.2f64, -1.2..1.2f64),
+            radius in 0.0..2.5f64,
+            grain in 0.0..1.0f64,
+            on_a_point in any::<prop::sample::Index>(),
+        ) {
+            let index = PointIndex::new(&points).unwrap();
+            // Half the time the ball passes exactly through a point: the open ball leaves
+            // it out.
+            let x = DVec3::new(center.0, center.1, center.2);
+            let r = if points.is_empty() || radius < 1.0 {
+                radius
+            } else {
+                (points[on_a_point.index(points.len())] - x).length()
+            };
+            let brute = points.iter().filter(|p| (**p - x).length_squared() < r * r).count();
+            let mut sample = Vec::new();
+            let count = index.count_within_sampled(x, r, grain * r, |s| sample.push(s));
+            prop_assert_eq!(count, brute);
+            let mut gathered = Vec::new();
+            index.for_each_slot_within(x, r, |s, _| gathered.push(s));
+            prop_assert_eq!(gathered.len(), brute);
+            for &s in &sample {
+                prop_assert!(gathered.contains(&s));
+            }
+            let total = sample.len();
+            sample.sort_unstable();
+            sample.dedup();
+            prop_assert_eq!(sample.len(), total);
+            prop_assert_eq!(sample.is_empty(), brute == 0);
+        }
+    }
 }

@@ -288,6 +288,7 @@ pub(crate) fn shuffled(n: usize, seed: u64) -> Vec<u32> {
 mod tests {
     use super::*;
     use crate::kernel::Kernel;
+    use crate::surface_cover::fit::tests::bumpy_sphere;
     use proptest::prelude::*;
     use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -367,32 +368,6 @@ mod tests {
             lo = top;
         }
         best
-    }
-
-    /// Points on a bumpy sphere (so the fit error is not monotone in the radius), with
-    /// radial normals, as the build's samples.
-    fn bumpy_sphere(n: usize, bump: f64) -> Samples<'static> {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let a = golden * i as f64;
-                let u = DVec3::new(
-                    (1.0 - z * z).sqrt() * a.cos(),
-                    (1.0 - z * z).sqrt() * a.sin(),
-                    z,
-                );
-                let r = 0.3 + bump * (7.0 * u.x).sin() * (5.0 * u.y).cos();
-                (r * u, u)
-            })
-            .unzip();
-        let index = PointIndex::new(&points).unwrap();
-        let normals = index.order().iter().map(|&i| normals[i as usize]).collect();
-        Samples {
-            index: std::borrow::Cow::Owned(index),
-            normals,
-            confidence: None,
-        }
     }
 
     proptest! {

@@ -174,3 +174,172 @@ impl Candidates {
         })
     }
 }
+
+/// A lower bound on the error `E` of every fit whose ball holds all of `sample` (points of
+/// positive confidence): half the minimum width of a tetrahedron of four of them, spread
+/// far apart (each the farthest from what the earlier ones span). Any plane through a point
+/// of their convex hull — the weighted centroid, or a sample point in the fallback of
+/// [`Candidates::fit`] — lies farther than half the width in its normal's direction from one
+/// of them, so `E` is at least this. 0 for fewer than four points or a flat tetrahedron.
+pub(crate) fn error_lower_bound(sample: &[DVec3]) -> f64 {
+    let Some(&a) = sample.first() else {
+        return 0.0;
+    };
+    let farthest = |key: &dyn Fn(DVec3) -> f64| {
+        sample
+            .iter()
+            .map(|&p| (key(p - a), p))
+            .fold((f64::NEG_INFINITY, a), |best, cand| {
+                if cand.0 > best.0 { cand } else { best }
+            })
+            .1
+    };
+    let b = farthest(&|v| v.length_squared());
+    let ab = b - a;
+    let c = farthest(&|v| v.cross(ab).length_squared());
+    let normal = ab.cross(c - a);
+    let d = farthest(&|v| v.dot(normal).abs());
+    tetrahedron_width(a, b, c, d) * 0.5
+}
+
+/// The minimum width of the tetrahedron `abcd`: the smallest distance between two parallel
+/// planes enclosing it. For a convex polytope it is attained with a face in one plane and a
+/// vertex in the other, or with an edge in each; a tetrahedron has four of the first kind
+/// and three (its pairs of opposite edges) of the second. 0 when the tetrahedron is flat.
+pub(crate) fn tetrahedron_width(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
+    // The width in direction `w` of two sets of vertices each level in it: `|w·v| / |w|` for
+    // `v` from one set to the other.
+    let across = |w: DVec3, v: DVec3| {
+        let length = w.length();
+        if length > 0.0 { w.dot(v).abs() / length } else { 0.0 }
+    };
+    let (ab, ac, ad) = (b - a, c - a, d - a);
+    let (bc, bd) = (c - b, d - b);
+    [
+        across(ab.cross(ac), ad),
+        across(ab.cross(ad), ac),
+        across(ac.cross(ad), ab),
+        across(bc.cross(bd), -ab),
+        across(ab.cross(d - c), ac),
+        across(ac.cross(bd), ab),
+        across(ad.cross(bc), ab),
+    ]
+    .into_iter()
+    .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Points on a bumpy sphere (so the fit error is not monotone in the radius), with
+    /// radial normals, as the build's samples.
+    pub(crate) fn bumpy_sphere(n: usize, bump: f64) -> Samples<'static> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let a = golden * i as f64;
+                let u = DVec3::new(
+                    (1.0 - z * z).sqrt() * a.cos(),
+                    (1.0 - z * z).sqrt() * a.sin(),
+                    z,
+                );
+                let r = 0.3 + bump * (7.0 * u.x).sin() * (5.0 * u.y).cos();
+                (r * u, u)
+            })
+            .unzip();
+        let index = PointIndex::new(&points).unwrap();
+        let normals = index.order().iter().map(|&i| normals[i as usize]).collect();
+        Samples {
+            index: Cow::Owned(index),
+            normals,
+            confidence: None,
+        }
+    }
+
+    fn vec3() -> impl Strategy<Value = DVec3> {
+        (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    /// The extent of `points` along unit direction `u`.
+    fn width_along(points: &[DVec3], u: DVec3) -> f64 {
+        let (lo, hi) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.dot(u)), hi.max(p.dot(u)))
+        });
+        hi - lo
+    }
+
+    proptest! {
+        /// The minimum width is a minimum: no direction finds the tetrahedron thinner (so
+        /// the seven candidate directions include the minimising one), and it is attained.
+        #[test]
+        fn tetrahedron_width_is_the_minimum_over_directions(
+            (a, b, c, d) in (vec3(), vec3(), vec3(), vec3()),
+            directions in prop::collection::vec(vec3(), 1..64),
+        ) {
+            let width = tetrahedron_width(a, b, c, d);
+            let vertices = [a, b, c, d];
+            for u in directions {
+                let Some(u) = u.try_normalize() else { continue };
+                prop_assert!(width_along(&vertices, u) >= width * (1.0 - 1e-9) - 1e-12);
+            }
+            // Directions near the minimising one find nearly the same width: a random
+            // search from the face normals and edge cross products gets within a hair.
+            let (ab, ac, ad, bc, bd, cd) = (b - a, c - a, d - a, c - b, d - b, d - c);
+            let candidates = [
+                ab.cross(ac), ab.cross(ad), ac.cross(ad), bc.cross(bd),
+                ab.cross(cd), ac.cross(bd), ad.cross(bc),
+            ];
+            let attained = candidates
+                .iter()
+                .filter_map(|w| w.try_normalize())
+                .map(|u| width_along(&vertices, u))
+                .fold(f64::INFINITY, f64::min);
+            prop_assert!((attained - width).abs() <= 1e-9 * (1.0 + attained));
+        }
+
+        /// The bound never exceeds the error of a fit over any ball holding its sample: on
+        /// the bumpy sphere, the points of a ball, a sample of them, the fit's exact error.
+        #[test]
+        fn the_error_bound_is_below_every_fit(
+            bump in 0.0..0.05f64,
+            center in vec3(),
+            radius in 0.02..0.6f64,
+            stride in 1usize..40,
+            kernel in prop::sample::select(vec![
+                Kernel::QuadraticBSpline, Kernel::WendlandC2, Kernel::TruncatedGaussian,
+            ]),
+        ) {
+            let samples = bumpy_sphere(2000, bump);
+            let center = center * 0.4;
+            let mut cand = Candidates::default();
+            cand.gather(&samples, center, radius);
+            let points = samples.index.slot_points();
+            let sample: Vec<DVec3> =
+                cand.slots.iter().step_by(stride).map(|&s| points[s as usize]).collect();
+            let bound = error_lower_bound(&sample);
+            if let Some(fit) = cand.fit(&samples, radius, kernel, f64::INFINITY) {
+                prop_assert!(bound <= fit.error * (1.0 + 1e-9) + 1e-15, "{bound} > {}", fit.error);
+            } else {
+                prop_assert_eq!(bound, 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn a_flat_or_short_sample_bounds_nothing() {
+        assert_eq!(error_lower_bound(&[]), 0.0);
+        let three = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        assert_eq!(error_lower_bound(&three), 0.0);
+        let square = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 0.0)];
+        assert_eq!(error_lower_bound(&square), 0.0);
+        // The unit cube's corners: width 1, so every plane misses one by at least 1/2.
+        let cube: Vec<DVec3> = (0..8)
+            .map(|i| DVec3::new((i & 1) as f64, (i >> 1 & 1) as f64, (i >> 2) as f64))
+            .collect();
+        let bound = error_lower_bound(&cube);
+        assert!(bound > 0.0 && bound <= 0.5 + 1e-12, "{bound}");
+    }
+}
