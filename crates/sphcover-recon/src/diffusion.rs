@@ -507,29 +507,16 @@ pub fn diffuse(
 
 /// `φ_ij ψ_ij` for every stored entry, `ψ_ij = 1 / (1 + θ_ij²)`.
 fn edge_weights(pairs: &PairGeometry, gradients: &[DVec3], anisotropic: bool, out: &mut [f64]) {
-    let offsets = pairs.offsets();
-    out.par_chunks_mut(4096)
-        .enumerate()
-        .for_each(|(block, chunk)| {
-            let first = block * 4096;
-            // The row of entry `first`, then advanced entry by entry.
-            let mut row = offsets.partition_point(|&o| o as usize <= first) - 1;
-            for (local, w) in chunk.iter_mut().enumerate() {
-                let k = first + local;
-                while offsets[row + 1] as usize <= k {
-                    row += 1;
-                }
-                let j = pairs.neighbor_array()[k] as usize;
-                let phi = pairs.phi()[k];
-                *w = if anisotropic {
-                    let (a, b) = (gradients[row], gradients[j]);
-                    let theta = a.cross(b).length().atan2(a.dot(b));
-                    phi / (1.0 + theta * theta)
-                } else {
-                    phi
-                };
-            }
-        });
+    crate::csr::fill_entries(pairs.offsets(), out, |row, k| {
+        let phi = pairs.phi()[k];
+        if anisotropic {
+            let (a, b) = (gradients[row], gradients[pairs.neighbor_array()[k] as usize]);
+            let theta = a.cross(b).length().atan2(a.dot(b));
+            phi / (1.0 + theta * theta)
+        } else {
+            phi
+        }
+    });
 }
 
 /// `(Σ_j w_ij value(j), Σ_j w_ij)` over row `i`, in row order.

@@ -343,7 +343,10 @@ pub fn graph_cut_csr(
             found: offsets.len(),
         });
     }
-    if offsets[n] as usize != neighbors.len() || offsets.windows(2).any(|w| w[0] > w[1]) {
+    if offsets[0] != 0
+        || offsets[n] as usize != neighbors.len()
+        || offsets.windows(2).any(|w| w[0] > w[1])
+    {
         return Err(GraphCutError::MaxFlow(MaxFlowError::MalformedCsr(
             "offsets",
         )));
@@ -352,32 +355,22 @@ pub fn graph_cut_csr(
         return Err(GraphCutError::NodeOutOfRange { edge, nodes: n });
     }
     let start = Instant::now();
-    // Per entry: the length, evaluated with the lower index first so both directions of an
-    // edge get the same bits.
-    let lengths: Vec<f64> = (0..n)
-        .into_par_iter()
-        .with_min_len(1024)
-        .flat_map_iter(|v| {
-            neighbors[offsets[v] as usize..offsets[v + 1] as usize]
-                .iter()
-                .map(move |&j| {
-                    let (a, b) = if (v as u32) < j {
-                        (v, j as usize)
-                    } else {
-                        (j as usize, v)
-                    };
-                    positions[a].distance(positions[b])
-                })
-        })
-        .collect();
+    // The length of an entry, evaluated with the lower index first so both directions of an
+    // edge get the same bits; computed where needed rather than stored (a pass over the
+    // lengths cost more than the square roots).
+    let length = |v: usize, j: usize| {
+        let (a, b) = if v < j { (v, j) } else { (j, v) };
+        positions[a].distance(positions[b])
+    };
     let (length_sum, length_count): (Vec<f64>, Vec<u32>) = (0..n)
         .into_par_iter()
         .with_min_len(1024)
         .map(|v| {
-            let row = &lengths[offsets[v] as usize..offsets[v + 1] as usize];
-            row.iter()
-                .filter(|&&l| l > 0.0)
-                .fold((0.0, 0u32), |(s, c), &l| (s + l, c + 1))
+            neighbors[offsets[v] as usize..offsets[v + 1] as usize]
+                .iter()
+                .map(|&j| length(v, j as usize))
+                .filter(|&l| l > 0.0)
+                .fold((0.0, 0u32), |(s, c), l| (s + l, c + 1))
         })
         .unzip();
     // The mean over directed entries equals the mean over edges (each counted twice).
@@ -394,25 +387,11 @@ pub fn graph_cut_csr(
     let floor = ZERO_LENGTH * mean_length;
     let (source, sink) =
         terminal_capacities(values, &length_sum, &length_count, mean_length, params);
-    let capacities: Vec<f64> = (0..n)
-        .into_par_iter()
-        .with_min_len(1024)
-        .flat_map_iter(|v| {
-            let range = offsets[v] as usize..offsets[v + 1] as usize;
-            neighbors[range.clone()]
-                .iter()
-                .zip(&lengths[range])
-                .map(move |(&j, &l)| {
-                    let (a, b) = if (v as u32) < j {
-                        (v, j as usize)
-                    } else {
-                        (j as usize, v)
-                    };
-                    finite_capacity((values[a] + values[b]).abs() / l.max(floor))
-                })
-        })
-        .collect();
-    drop(lengths);
+    let mut capacities = vec![0.0; neighbors.len()];
+    crate::csr::fill_entries(offsets, &mut capacities, |v, k| {
+        let j = neighbors[k] as usize;
+        finite_capacity((values[v] + values[j]).abs() / length(v, j).max(floor))
+    });
     let graph = FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, &capacities)?;
     drop(capacities);
     Ok(solve(graph, values, neighbors.len() / 2, start))

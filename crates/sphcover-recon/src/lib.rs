@@ -38,6 +38,7 @@
 #![deny(missing_docs)]
 
 pub mod confidence;
+mod csr;
 pub mod diffusion;
 pub mod graph_cut;
 pub mod graphcut_reconstruction;

@@ -337,33 +337,34 @@ impl FlowGraph {
         }
         use rayon::prelude::*;
         let row = |v: usize| &neighbors[offsets[v] as usize..offsets[v + 1] as usize];
-        // Sister of each entry by binary search in the neighbour's row; one task per row.
-        let sisters: Result<Vec<Vec<u32>>, &'static str> = (0..n)
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|v| {
-                let r = row(v);
-                let mut out = Vec::with_capacity(r.len());
-                for (k, &j) in r.iter().enumerate() {
-                    if j as usize >= n {
-                        return Err("entry out of range");
-                    }
-                    if j as usize == v {
-                        return Err("self-loop");
-                    }
-                    if k > 0 && r[k - 1] >= j {
-                        return Err("row not strictly ascending");
-                    }
-                    let pos = row(j as usize)
-                        .binary_search(&(v as u32))
-                        .map_err(|_| "entry without a reverse entry")?;
-                    out.push(offsets[j as usize] + pos as u32);
-                }
-                Ok(out)
-            })
-            .collect();
-        let sisters = sisters.map_err(MaxFlowError::MalformedCsr)?;
-        graph.sister = sisters.into_iter().flatten().collect();
+        let malformed = (0..n).into_par_iter().with_min_len(1024).find_map_first(|v| {
+            let r = row(v);
+            if r.iter().any(|&j| j as usize >= n) {
+                Some("entry out of range")
+            } else if r.contains(&(v as u32)) {
+                Some("self-loop")
+            } else if r.windows(2).any(|w| w[0] >= w[1]) {
+                Some("row not strictly ascending")
+            } else {
+                None
+            }
+        });
+        if let Some(what) = malformed {
+            return Err(MaxFlowError::MalformedCsr(what));
+        }
+        // Sister of each entry by binary search in the neighbour's row (`u32::MAX` where the
+        // reverse entry is missing).
+        let mut sister = vec![0u32; neighbors.len()];
+        crate::csr::fill_entries(offsets, &mut sister, |v, k| {
+            let j = neighbors[k] as usize;
+            row(j)
+                .binary_search(&(v as u32))
+                .map_or(u32::MAX, |pos| offsets[j] + pos as u32)
+        });
+        if sister.par_iter().any(|&s| s == u32::MAX) {
+            return Err(MaxFlowError::MalformedCsr("entry without a reverse entry"));
+        }
+        graph.sister = sister;
         graph.first = offsets.to_vec();
         graph.head = neighbors.to_vec();
         graph.residual = capacities.to_vec();

@@ -238,12 +238,23 @@ pub(crate) fn build(
             break;
         }
     }
-    let mut leaves: Vec<Leaf> = tree
+    let unordered: Vec<Leaf> = tree
         .leaves
         .into_iter()
         .flat_map(|level| level.into_values())
         .collect();
-    leaves.sort_unstable_by_key(|l| (morton(l.level, l.key), l.level));
+    // Sorting the keys alone, each computed once: `(Morton code, level)` names a cell, so
+    // the order is total and independent of the maps' iteration order.
+    let mut order: Vec<(u64, u8, u32)> = unordered
+        .par_iter()
+        .enumerate()
+        .map(|(i, l)| (morton(l.level, l.key), l.level, i as u32))
+        .collect();
+    order.par_sort_unstable();
+    let leaves: Vec<Leaf> = order
+        .into_iter()
+        .map(|(_, _, i)| unordered[i as usize])
+        .collect();
     stats.leaves_per_level = vec![0; levels];
     for l in &leaves {
         stats.leaves_per_level[l.level as usize] += 1;
