@@ -126,8 +126,9 @@ fn sample_cover(kernel: Kernel, spread: f64) -> (Cover, Vec<DVec3>) {
     (cover, points)
 }
 
-/// Spread 0.2: blocks of 16 points, each within the span of a few radii. Spread 3: points
-/// a few radii apart, so most blocks close early (`BLOCK_SPAN_PER_RADIUS`).
+/// Spread 0.2: blocks of up to 256 points in runs of 16, each within the span of a few
+/// radii. Spread 3: points a few radii apart, so most blocks close early
+/// (`BLOCK_SPAN_PER_RADIUS`).
 #[test]
 fn batch_equals_single_and_is_independent_of_thread_count() {
     for (kernel, spread) in Kernel::ALL.into_iter().flat_map(|k| [(k, 0.2), (k, 3.0)]) {
