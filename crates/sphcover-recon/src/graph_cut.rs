@@ -266,7 +266,7 @@ fn terminal_capacities(
 }
 
 /// Solves the network and reads the labelling off the cut.
-fn solve(mut graph: FlowGraph, values: &[f64], edges: usize, start: Instant) -> GraphCut {
+fn solve(mut graph: FlowGraph<'_>, values: &[f64], edges: usize, start: Instant) -> GraphCut {
     let n = values.len();
     let build_time = start.elapsed();
     let solve_start = Instant::now();
@@ -392,8 +392,7 @@ pub fn graph_cut_csr(
         let j = neighbors[k] as usize;
         finite_capacity((values[v] + values[j]).abs() / length(v, j).max(floor))
     });
-    let graph = FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, &capacities)?;
-    drop(capacities);
+    let graph = FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, capacities)?;
     Ok(solve(graph, values, neighbors.len() / 2, start))
 }
 

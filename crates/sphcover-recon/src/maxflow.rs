@@ -23,6 +23,7 @@
 //! Determinism: the algorithm is sequential; the result (flow value bit for bit, and the cut)
 //! depends only on the input, in its order.
 
+use std::borrow::Cow;
 use std::collections::VecDeque;
 
 use thiserror::Error;
@@ -149,11 +150,13 @@ pub struct MaxFlowInfo {
 /// # Ok::<(), sphcover_recon::maxflow::MaxFlowError>(())
 /// ```
 #[derive(Clone, Debug)]
-pub struct FlowGraph {
+pub struct FlowGraph<'a> {
     /// Arcs of node `v` are `first[v]..first[v + 1]`.
-    first: Vec<u32>,
-    /// Head node of each arc.
-    head: Vec<u32>,
+    first: Cow<'a, [u32]>,
+    /// Head node of each arc: borrowed from the caller's adjacency by
+    /// [`FlowGraph::from_symmetric_csr`] (4 bytes per arc that a copy would add at the
+    /// reconstruction's peak of memory).
+    head: Cow<'a, [u32]>,
     /// The opposite arc of each arc.
     sister: Vec<u32>,
     /// Residual capacity of each arc.
@@ -172,7 +175,7 @@ pub struct FlowGraph {
     flow: f64,
 }
 
-impl FlowGraph {
+impl<'a> FlowGraph<'a> {
     /// Builds the network on `num_nodes` nodes. Node `v` has capacity `source_capacities[v]`
     /// from the source and `sink_capacities[v]` to the sink. Self-loops and edges with zero
     /// capacity both ways are dropped (they cross no cut). Every capacity must be finite and
@@ -182,7 +185,7 @@ impl FlowGraph {
         source_capacities: &[f64],
         sink_capacities: &[f64],
         edges: &[FlowEdge],
-    ) -> Result<FlowGraph, MaxFlowError> {
+    ) -> Result<FlowGraph<'a>, MaxFlowError> {
         for (array, len) in [
             ("source_capacities", source_capacities.len()),
             ("sink_capacities", sink_capacities.len()),
@@ -270,8 +273,8 @@ impl FlowGraph {
             })
             .collect();
         Ok(FlowGraph {
-            first,
-            head,
+            first: Cow::Owned(first),
+            head: Cow::Owned(head),
             sister,
             residual,
             terminal,
@@ -287,16 +290,17 @@ impl FlowGraph {
     /// `neighbors[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`, and `j` is
     /// in row `i` exactly when `i` is in row `j` (e.g. a
     /// [`sphcover_core::SphereIntersectionGraph`]). `capacities[a]` is the capacity of the
-    /// arc of entry `a` (from the row's node to the entry's node). The arcs are the entries
-    /// themselves, so no edge list is materialised: about half the memory and time of
-    /// [`FlowGraph::new`] on large graphs.
+    /// arc of entry `a` (from the row's node to the entry's node); the vector becomes the
+    /// residual capacities, so it is taken rather than copied. The arcs are the entries
+    /// themselves, so no edge list is materialised and the adjacency is borrowed: about half
+    /// the memory and time of [`FlowGraph::new`] on large graphs.
     pub fn from_symmetric_csr(
         source_capacities: &[f64],
         sink_capacities: &[f64],
-        offsets: &[u32],
-        neighbors: &[u32],
-        capacities: &[f64],
-    ) -> Result<FlowGraph, MaxFlowError> {
+        offsets: &'a [u32],
+        neighbors: &'a [u32],
+        capacities: Vec<f64>,
+    ) -> Result<FlowGraph<'a>, MaxFlowError> {
         let n = offsets.len().saturating_sub(1);
         let mut graph = FlowGraph::new(n, source_capacities, sink_capacities, &[])?;
         if offsets.is_empty() {
@@ -365,9 +369,9 @@ impl FlowGraph {
             return Err(MaxFlowError::MalformedCsr("entry without a reverse entry"));
         }
         graph.sister = sister;
-        graph.first = offsets.to_vec();
-        graph.head = neighbors.to_vec();
-        graph.residual = capacities.to_vec();
+        graph.first = Cow::Borrowed(offsets);
+        graph.head = Cow::Borrowed(neighbors);
+        graph.residual = capacities;
         Ok(graph)
     }
 
@@ -836,7 +840,7 @@ mod tests {
             for v in 0..n {
                 offsets[v + 1] += offsets[v];
             }
-            let mut g = FlowGraph::from_symmetric_csr(&source, &sink, &offsets, &neighbors, &capacities).unwrap();
+            let mut g = FlowGraph::from_symmetric_csr(&source, &sink, &offsets, &neighbors, capacities).unwrap();
             prop_assert_eq!(g.solve().flow, expected);
             prop_assert_eq!(cut_capacity(&source, &sink, &edges, &g.source_side()), expected);
         }
@@ -910,8 +914,10 @@ mod tests {
     #[test]
     fn malformed_csr_is_refused() {
         let z = [0.0; 3];
+        // The graph borrows the adjacency: only whether it was built matters here.
         let csr = |offsets: &[u32], neighbors: &[u32]| {
-            FlowGraph::from_symmetric_csr(&z, &z, offsets, neighbors, &vec![1.0; neighbors.len()])
+            FlowGraph::from_symmetric_csr(&z, &z, offsets, neighbors, vec![1.0; neighbors.len()])
+                .map(|_| ())
         };
         assert!(csr(&[0, 1, 2, 2], &[1, 0]).is_ok());
         for (offsets, neighbors) in [
@@ -928,11 +934,11 @@ mod tests {
             );
         }
         assert!(matches!(
-            FlowGraph::from_symmetric_csr(&z, &z, &[0, 1, 2, 2], &[1, 0], &[1.0]),
+            FlowGraph::from_symmetric_csr(&z, &z, &[0, 1, 2, 2], &[1, 0], vec![1.0]),
             Err(MaxFlowError::LengthMismatch { .. })
         ));
         assert!(matches!(
-            FlowGraph::from_symmetric_csr(&z, &z, &[0, 1, 2, 2], &[1, 0], &[1.0, -1.0]),
+            FlowGraph::from_symmetric_csr(&z, &z, &[0, 1, 2, 2], &[1, 0], vec![1.0, -1.0]),
             Err(MaxFlowError::InvalidCapacity { index: 1, .. })
         ));
     }
