@@ -75,13 +75,14 @@ fn main() -> ExitCode {
         stats.supports_before_expansion, stats.supports_after_expansion, stats.grown_supports
     );
     println!(
-        "  octants per level: {:?}\n  leaves per level:  {:?}\n  grown leaves: {}, empty leaves: {}, balance octants: {}, fits: {}, over eps: {}, max error {:.3e}",
+        "  octants per level: {:?}\n  leaves per level:  {:?}\n  grown leaves: {}, empty leaves: {}, balance octants: {}, fits: {} (and {} octants bounded unfitted), over eps: {}, max error {:.3e}",
         stats.octants_per_level,
         stats.leaves_per_level,
         stats.grown_leaves,
         stats.empty_leaves,
         stats.balance_octants,
         stats.fits,
+        stats.bounded_octants,
         stats.supports_over_eps,
         stats.max_error
     );

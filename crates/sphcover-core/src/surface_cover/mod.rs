@@ -239,6 +239,9 @@ pub struct SurfaceCoverStats {
     pub grown_supports: usize,
     /// Local fits computed (octants plus expansion trials).
     pub fits: u64,
+    /// Octants subdivided on a lower bound of their fit error alone, without a fit (see the
+    /// octree's module docs).
+    pub bounded_octants: usize,
     /// Supports of the cover whose fit error exceeds ε (leaves at the maximum depth, grown
     /// or sampling-limited octants).
     pub supports_over_eps: usize,

@@ -111,6 +111,13 @@ pub(crate) struct Leaf {
     pub own_points: usize,
 }
 
+impl Leaf {
+    /// Settled by [`Octree::bound_cell`], without a fit (whose normal it marks NaN).
+    fn bounded(&self) -> bool {
+        self.fit.normal.is_nan()
+    }
+}
+
 /// The root cube and its subdivision.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Geometry {
@@ -297,7 +304,9 @@ impl Octree<'_> {
                     },
                 )
                 .collect();
-            stats.fits += frontier.len() as u64;
+            let bounded = fitted.iter().flatten().filter(|l| l.bounded()).count();
+            stats.bounded_octants += bounded;
+            stats.fits += (frontier.len() - bounded) as u64;
             let eps = self.params.eps;
             let mut undone = vec![false; parents.len()];
             if self.params.sampling_stop {
@@ -347,7 +356,7 @@ impl Octree<'_> {
                     next.extend(children(key).map(|c| (level + 1, c)));
                     next_parents.push((level, key, leaf.own_points));
                 } else {
-                    debug_assert!(leaf.fit.normal.is_finite(), "a bounded cell is refined");
+                    debug_assert!(!leaf.bounded(), "a bounded cell is refined");
                     self.leaves[level as usize].insert(key, leaf);
                     new_leaves.push((level, key));
                 }
