@@ -332,7 +332,13 @@ impl<'a> PuEvaluator<'a> {
     /// rounding), `m` being the centre of the points' bounding box and `t` half its
     /// diagonal: for every point `x` of the box, `‖(x − c_j) / (σ r_j)‖ ≥ 1` then, so its
     /// sum skips the candidate anyway.
-    fn candidates_near(&self, points: &[DVec3], run: &[u32], candidates: &[u32], near: &mut Vec<u32>) {
+    fn candidates_near(
+        &self,
+        points: &[DVec3],
+        run: &[u32],
+        candidates: &[u32],
+        near: &mut Vec<u32>,
+    ) {
         near.clear();
         let mut bounds = Aabb::EMPTY;
         for &i in run {
@@ -345,8 +351,7 @@ impl<'a> PuEvaluator<'a> {
             return;
         }
         let m = bounds.center();
-        let reach =
-            0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * m.abs().max_element();
+        let reach = 0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * m.abs().max_element();
         near.extend(candidates.iter().copied().filter(|&j| {
             let (c, inv_r) = self.supports.center_inv_radius(j as usize);
             let t = 1.0 + reach * inv_r;

@@ -75,7 +75,10 @@ impl Node {
     /// below `r²`, so is every point's.
     #[inline]
     fn box_farthest2(&self, x: DVec3) -> f64 {
-        (x - self.min).abs().max((self.max - x).abs()).length_squared()
+        (x - self.min)
+            .abs()
+            .max((self.max - x).abs())
+            .length_squared()
     }
 
     /// Squared distance from `x` to the node's bounding box (0 inside). Rounding is

@@ -510,7 +510,10 @@ fn edge_weights(pairs: &PairGeometry, gradients: &[DVec3], anisotropic: bool, ou
     crate::csr::fill_entries(pairs.offsets(), out, |row, k| {
         let phi = pairs.phi()[k];
         if anisotropic {
-            let (a, b) = (gradients[row], gradients[pairs.neighbor_array()[k] as usize]);
+            let (a, b) = (
+                gradients[row],
+                gradients[pairs.neighbor_array()[k] as usize],
+            );
             let theta = a.cross(b).length().atan2(a.dot(b));
             phi / (1.0 + theta * theta)
         } else {

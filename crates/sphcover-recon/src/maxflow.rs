@@ -341,18 +341,21 @@ impl<'a> FlowGraph<'a> {
         }
         use rayon::prelude::*;
         let row = |v: usize| &neighbors[offsets[v] as usize..offsets[v + 1] as usize];
-        let malformed = (0..n).into_par_iter().with_min_len(1024).find_map_first(|v| {
-            let r = row(v);
-            if r.iter().any(|&j| j as usize >= n) {
-                Some("entry out of range")
-            } else if r.contains(&(v as u32)) {
-                Some("self-loop")
-            } else if r.windows(2).any(|w| w[0] >= w[1]) {
-                Some("row not strictly ascending")
-            } else {
-                None
-            }
-        });
+        let malformed = (0..n)
+            .into_par_iter()
+            .with_min_len(1024)
+            .find_map_first(|v| {
+                let r = row(v);
+                if r.iter().any(|&j| j as usize >= n) {
+                    Some("entry out of range")
+                } else if r.contains(&(v as u32)) {
+                    Some("self-loop")
+                } else if r.windows(2).any(|w| w[0] >= w[1]) {
+                    Some("row not strictly ascending")
+                } else {
+                    None
+                }
+            });
         if let Some(what) = malformed {
             return Err(MaxFlowError::MalformedCsr(what));
         }

@@ -211,7 +211,11 @@ pub(crate) fn tetrahedron_width(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
     // `v` from one set to the other.
     let across = |w: DVec3, v: DVec3| {
         let length = w.length();
-        if length > 0.0 { w.dot(v).abs() / length } else { 0.0 }
+        if length > 0.0 {
+            w.dot(v).abs() / length
+        } else {
+            0.0
+        }
     };
     let (ab, ac, ad) = (b - a, c - a, d - a);
     let (bc, bd) = (c - b, d - b);
@@ -265,9 +269,11 @@ pub(crate) mod tests {
 
     /// The extent of `points` along unit direction `u`.
     fn width_along(points: &[DVec3], u: DVec3) -> f64 {
-        let (lo, hi) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.dot(u)), hi.max(p.dot(u)))
-        });
+        let (lo, hi) = points
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p.dot(u)), hi.max(p.dot(u)))
+            });
         hi - lo
     }
 
