@@ -266,10 +266,10 @@ impl<'a> PuEvaluator<'a> {
     /// (see [`BLOCK_SPAN_PER_RADIUS`]): the index is asked once per block for the balls within
     /// reach of the block's bounding sphere, each run of [`SUB_BLOCK_LEN`] points keeps those
     /// that may reach its own bounding sphere, and every point of the run sums over that
-    /// ascending list. The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so each point sums
-    /// over exactly the supports of a single-point query, in the same order. This amortises
-    /// the index traversal, which otherwise dominates the cost, over the block, and spares a
-    /// containment pass (a square root per candidate) before the sum.
+    /// ascending list. The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so
+    /// each point sums over exactly the supports of a single-point query, in the same order.
+    /// This amortises the index traversal, which otherwise dominates the cost, over the
+    /// block, and spares a containment pass (a square root per candidate) before the sum.
     fn batch<R: Copy + Send + Sync>(
         &self,
         points: &[DVec3],
@@ -291,18 +291,9 @@ impl<'a> PuEvaluator<'a> {
             .flat_map_iter(|(range, bounds)| {
                 let block = &order[range.clone()];
                 let mut candidates = Vec::new();
-                if !bounds.is_empty() {
-                    let reach = 0.5 * bounds.diagonal();
-                    // Widen by a relative margin so rounding in the reach never drops a ball
-                    // that holds one of the points; the sums' own test `s < 1` decides.
-                    let reach =
-                        reach * (1.0 + 1e-9) + f64::EPSILON * bounds.center().abs().max_element();
-                    self.index.extend_within_loose(
-                        bounds.center(),
-                        GATHER_SCALE,
-                        reach,
-                        &mut candidates,
-                    );
+                if let Some((center, reach)) = bounding_sphere(bounds) {
+                    self.index
+                        .extend_within_loose(center, GATHER_SCALE, reach, &mut candidates);
                     candidates.sort_unstable();
                 }
                 // The sums skip every candidate with `s ≥ 1`, so a run's list serves as the
@@ -347,11 +338,9 @@ impl<'a> PuEvaluator<'a> {
                 bounds.add(x);
             }
         }
-        if bounds.is_empty() {
+        let Some((m, reach)) = bounding_sphere(&bounds) else {
             return;
-        }
-        let m = bounds.center();
-        let reach = 0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * m.abs().max_element();
+        };
         near.extend(candidates.iter().copied().filter(|&j| {
             let (c, inv_r) = self.supports.center_inv_radius(j as usize);
             let t = 1.0 + reach * inv_r;
@@ -432,6 +421,18 @@ impl<'a> PuEvaluator<'a> {
 /// all of them (the two tests differ by a few ulps), so single-point and batch queries,
 /// which gather differently, sum over the same supports in the same ascending order.
 const GATHER_SCALE: f64 = 1.0 + 1e-9;
+
+/// The centre and radius of a sphere holding the box `bounds` (`None` when it is empty),
+/// the radius widened by a relative margin so that rounding never drops a ball that holds
+/// one of the box's points: the sums' own test `s < 1` decides.
+fn bounding_sphere(bounds: &Aabb) -> Option<(DVec3, f64)> {
+    if bounds.is_empty() {
+        return None;
+    }
+    let center = bounds.center();
+    let reach = 0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * center.abs().max_element();
+    Some((center, reach))
+}
 
 /// Points per rayon task at least: one point costs about a microsecond, so smaller tasks would
 /// spend more on scheduling than on work.

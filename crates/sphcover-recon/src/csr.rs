@@ -2,9 +2,10 @@
 //! `offsets[v]..offsets[v + 1]`), in parallel over fixed blocks of entries.
 //!
 //! Collecting per-row results into one array (a `flat_map_iter` into a `Vec`) goes through a
-//! list of per-task vectors that are then copied into place; on the 3.5 million entries of
-//! a 362K-point scan's sphere intersection graph that copy took longer than the work. Filling
-//! a preallocated array block by block writes each entry once.
+//! list of per-task vectors that are then copied into place. Filling a preallocated array
+//! block by block writes each entry once: on the 3.5 million entries of a 362K-point scan's
+//! sphere intersection graph the graph cut stage went from 0.26–0.32 to 0.24–0.28 s at two
+//! threads.
 
 use rayon::prelude::*;
 
