@@ -475,6 +475,7 @@ pub fn reconstruct(
             let pairs = PairGeometry::build(cover.centers(), cover.radii(), &graph)?;
             drop(graph);
             stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
+            drop((pairs, terms));
             clock.start("polygonise");
             let mesh = polygonise_confident(
                 &cover,
