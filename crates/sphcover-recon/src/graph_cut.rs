@@ -234,7 +234,7 @@ pub fn graph_cut(
         .collect();
     let graph = FlowGraph::new(n, &source, &sink, &flow_edges)?;
     drop(flow_edges);
-    Ok(solve(graph, values, edges.len(), start))
+    Ok(solve(graph, values, edges.len(), start, || ()).0)
 }
 
 /// Terminal capacities of eq. 5.1 (with the optional degree normalisation) from the sums and
@@ -265,13 +265,25 @@ fn terminal_capacities(
         .unzip()
 }
 
-/// Solves the network and reads the labelling off the cut.
-fn solve(mut graph: FlowGraph<'_>, values: &[f64], edges: usize, start: Instant) -> GraphCut {
+/// Solves the network and reads the labelling off the cut, running `alongside` on the other
+/// threads meanwhile: the max-flow solve is sequential.
+fn solve<R: Send>(
+    mut graph: FlowGraph<'_>,
+    values: &[f64],
+    edges: usize,
+    start: Instant,
+    alongside: impl FnOnce() -> R + Send,
+) -> (GraphCut, R) {
     let n = values.len();
     let build_time = start.elapsed();
-    let solve_start = Instant::now();
-    let info = graph.solve();
-    let solve_time = solve_start.elapsed();
+    let ((info, solve_time), beside) = rayon::join(
+        || {
+            let solve_start = Instant::now();
+            let info = graph.solve();
+            (info, solve_start.elapsed())
+        },
+        alongside,
+    );
     let labels = graph.source_side();
     let inconsistent: Vec<u32> = (0..n)
         .filter(|&v| (labels[v] && values[v] < 0.0) || (!labels[v] && values[v] > 0.0))
@@ -287,12 +299,13 @@ fn solve(mut graph: FlowGraph<'_>, values: &[f64], edges: usize, start: Instant)
         build_time,
         solve_time,
     };
-    GraphCut {
+    let cut = GraphCut {
         labels,
         inconsistent,
         flow: info.flow,
         stats,
-    }
+    };
+    (cut, beside)
 }
 
 /// Checks the common inputs of the graph cuts.
@@ -334,6 +347,20 @@ pub fn graph_cut_csr(
     neighbors: &[u32],
     params: &GraphCutParams,
 ) -> Result<GraphCut, GraphCutError> {
+    graph_cut_csr_alongside(positions, values, offsets, neighbors, params, || ())
+        .map(|(cut, ())| cut)
+}
+
+/// [`graph_cut_csr`], running `alongside` on the other threads while the max-flow solve,
+/// which is sequential, runs on one.
+fn graph_cut_csr_alongside<R: Send>(
+    positions: &[DVec3],
+    values: &[f64],
+    offsets: &[u32],
+    neighbors: &[u32],
+    params: &GraphCutParams,
+    alongside: impl FnOnce() -> R + Send,
+) -> Result<(GraphCut, R), GraphCutError> {
     check_nodes(positions, values, params)?;
     let n = positions.len();
     if offsets.len() != n + 1 {
@@ -393,7 +420,7 @@ pub fn graph_cut_csr(
         finite_capacity((values[v] + values[j]).abs() / length(v, j).max(floor))
     });
     let graph = FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, capacities)?;
-    Ok(solve(graph, values, neighbors.len() / 2, start))
+    Ok(solve(graph, values, neighbors.len() / 2, start, alongside))
 }
 
 /// Keeps a capacity finite when a tiny length meets a large value.
@@ -420,6 +447,19 @@ pub fn graph_cut_sig(
     sig: &SphereIntersectionGraph,
     params: &GraphCutParams,
 ) -> Result<GraphCut, GraphCutError> {
+    graph_cut_sig_alongside(cover, sig, params, || ()).map(|(cut, ())| cut)
+}
+
+/// [`graph_cut_sig`], with `alongside` run on the other threads while the max-flow solve,
+/// which is sequential, occupies one: work the caller needs next and that does not depend
+/// on the cut. Its result comes back with the cut's; it is not run when the cut fails
+/// before the solve.
+pub fn graph_cut_sig_alongside<R: Send>(
+    cover: &Cover,
+    sig: &SphereIntersectionGraph,
+    params: &GraphCutParams,
+    alongside: impl FnOnce() -> R + Send,
+) -> Result<(GraphCut, R), GraphCutError> {
     if sig.len() != cover.len() {
         return Err(GraphCutError::LengthMismatch {
             array: "sphere intersection graph",
@@ -428,15 +468,16 @@ pub fn graph_cut_sig(
         });
     }
     let (values, undefined) = values_at(cover, cover.centers())?;
-    let mut cut = graph_cut_csr(
+    let (mut cut, beside) = graph_cut_csr_alongside(
         cover.centers(),
         &values,
         sig.offsets(),
         sig.neighbor_array(),
         params,
+        alongside,
     )?;
     cut.stats.undefined_values = undefined;
-    Ok(cut)
+    Ok((cut, beside))
 }
 
 /// Graph cut on the edges of a tetrahedral mesh (thesis §5.2.2). `positions` and `values`

@@ -286,7 +286,7 @@ mod tests {
         SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
     };
 
-    use crate::graph_cut::{graph_cut_sig, values_at};
+    use crate::graph_cut::{graph_cut_sig, graph_cut_sig_alongside, values_at};
 
     fn sphere_cover(outliers: usize) -> (Cover, Vec<DVec3>) {
         let mut cloud = sphcover_fixtures::sphere(DVec3::ZERO, 0.5, 3000);
@@ -357,6 +357,15 @@ mod tests {
         let sig = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 0.7).unwrap();
         let (values, _) = values_at(&cover, cover.centers()).unwrap();
         let cut = graph_cut_sig(&cover, &sig, &GraphCutParams::sig()).unwrap();
+        // Work run alongside the max-flow solve changes nothing and comes back.
+        let (beside, degree) =
+            graph_cut_sig_alongside(&cover, &sig, &GraphCutParams::sig(), || sig.mean_degree())
+                .unwrap();
+        assert_eq!(
+            (beside.labels.clone(), beside.flow),
+            (cut.labels.clone(), cut.flow)
+        );
+        assert_eq!(degree, sig.mean_degree());
         let (mut sign_wrong, mut label_wrong) = (0, 0);
         for (i, c) in cover.centers().iter().enumerate() {
             if (c.length() - 0.5).abs() > 0.05 {

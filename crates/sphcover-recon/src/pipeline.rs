@@ -37,7 +37,7 @@ use crate::confidence::{
     sample_confidence, sample_confidence_indexed,
 };
 use crate::diffusion::{DiffusionError, DiffusionParams, DiffusionStats, FittingTerms, diffuse};
-use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut_sig};
+use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut_sig_alongside};
 use crate::graphcut_reconstruction::{
     GraphCutReconstructionError, GraphCutReconstructionParams, reconstruct_graphcut,
 };
@@ -447,16 +447,25 @@ pub fn reconstruct(
                 params.graph_shrink,
             )?;
             stats.graph_mean_degree = graph.mean_degree();
-            if params.method == Method::Integrated {
+            let pairs = if params.method == Method::Integrated {
                 clock.start("graph cut");
-                let cut = graph_cut_sig(&cover, &graph, &params.graph_cut)?;
+                // The diffusion's pair geometry needs the graph, not the cut: built while the
+                // max-flow solve holds one thread, it keeps the others busy.
+                let (cut, pairs) =
+                    graph_cut_sig_alongside(&cover, &graph, &params.graph_cut, || {
+                        PairGeometry::build(cover.centers(), cover.radii(), &graph)
+                    })?;
                 stats.inconsistent_supports = cut.inconsistent.len();
                 for &i in &cut.inconsistent {
                     zeroed[i as usize] = true;
                 }
                 stats.cut = Some(cut.stats);
                 zero_functions(&mut cover, &zeroed)?;
-            }
+                pairs?
+            } else {
+                PairGeometry::build(cover.centers(), cover.radii(), &graph)?
+            };
+            drop(graph);
             clock.start("confidence");
             // The confidence and the fitting terms visit the same samples of each support.
             let incidence = SupportSamples::gather(&cover, &index);
@@ -472,8 +481,6 @@ pub fn reconstruct(
             let conf = without_isolated(conf, &scan, params);
             let terms = FittingTerms::gather(&incidence, &points, &normals, &conf.confidence)?;
             drop(incidence);
-            let pairs = PairGeometry::build(cover.centers(), cover.radii(), &graph)?;
-            drop(graph);
             stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
             drop((pairs, terms));
             clock.start("polygonise");
