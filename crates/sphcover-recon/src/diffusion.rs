@@ -66,6 +66,8 @@ use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator
 use std::time::{Duration, Instant};
 use thiserror::Error;
 
+use crate::angle::angle_between;
+
 /// How the Poisson step of each round is solved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PoissonStep {
@@ -510,11 +512,10 @@ fn edge_weights(pairs: &PairGeometry, gradients: &[DVec3], anisotropic: bool, ou
     crate::csr::fill_entries(pairs.offsets(), out, |row, k| {
         let phi = pairs.phi()[k];
         if anisotropic {
-            let (a, b) = (
+            let theta = angle_between(
                 gradients[row],
                 gradients[pairs.neighbor_array()[k] as usize],
             );
-            let theta = a.cross(b).length().atan2(a.dot(b));
             phi / (1.0 + theta * theta)
         } else {
             phi

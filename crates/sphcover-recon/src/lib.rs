@@ -37,6 +37,7 @@
 //! ```
 #![deny(missing_docs)]
 
+mod angle;
 pub mod confidence;
 mod csr;
 pub mod diffusion;
