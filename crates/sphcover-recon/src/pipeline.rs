@@ -447,28 +447,31 @@ pub fn reconstruct(
                 params.graph_shrink,
             )?;
             stats.graph_mean_degree = graph.mean_degree();
-            let pairs = if params.method == Method::Integrated {
+            // Neither the diffusion's pair geometry nor the samples of each support (which
+            // the confidence and the fitting terms visit) depend on the cut: built while the
+            // max-flow solve holds one thread, they keep the others busy.
+            let geometry = || {
+                rayon::join(
+                    || PairGeometry::build(cover.centers(), cover.radii(), &graph),
+                    || SupportSamples::gather(&cover, &index),
+                )
+            };
+            let (pairs, incidence) = if params.method == Method::Integrated {
                 clock.start("graph cut");
-                // The diffusion's pair geometry needs the graph, not the cut: built while the
-                // max-flow solve holds one thread, it keeps the others busy.
-                let (cut, pairs) =
-                    graph_cut_sig_alongside(&cover, &graph, &params.graph_cut, || {
-                        PairGeometry::build(cover.centers(), cover.radii(), &graph)
-                    })?;
+                let (cut, beside) =
+                    graph_cut_sig_alongside(&cover, &graph, &params.graph_cut, geometry)?;
                 stats.inconsistent_supports = cut.inconsistent.len();
                 for &i in &cut.inconsistent {
                     zeroed[i as usize] = true;
                 }
                 stats.cut = Some(cut.stats);
-                zero_functions(&mut cover, &zeroed)?;
-                pairs?
+                beside
             } else {
-                PairGeometry::build(cover.centers(), cover.radii(), &graph)?
+                geometry()
             };
+            let pairs = pairs?;
             drop(graph);
             clock.start("confidence");
-            // The confidence and the fitting terms visit the same samples of each support.
-            let incidence = SupportSamples::gather(&cover, &index);
             let conf = sample_confidence_indexed(
                 &incidence,
                 &points,
@@ -481,6 +484,11 @@ pub fn reconstruct(
             let conf = without_isolated(conf, &scan, params);
             let terms = FittingTerms::gather(&incidence, &points, &normals, &conf.confidence)?;
             drop(incidence);
+            // The supports the cut found inconsistent start the diffusion from zero; nothing
+            // above reads the local functions.
+            if zeroed.contains(&true) {
+                zero_functions(&mut cover, &zeroed)?;
+            }
             stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
             drop((pairs, terms));
             clock.start("polygonise");
