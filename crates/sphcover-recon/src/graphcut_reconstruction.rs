@@ -361,10 +361,8 @@ mod tests {
         let (beside, degree) =
             graph_cut_sig_alongside(&cover, &sig, &GraphCutParams::sig(), || sig.mean_degree())
                 .unwrap();
-        assert_eq!(
-            (beside.labels.clone(), beside.flow),
-            (cut.labels.clone(), cut.flow)
-        );
+        assert_eq!(beside.labels, cut.labels);
+        assert_eq!(beside.flow, cut.flow);
         assert_eq!(degree, sig.mean_degree());
         let (mut sign_wrong, mut label_wrong) = (0, 0);
         for (i, c) in cover.centers().iter().enumerate() {

@@ -486,9 +486,7 @@ pub fn reconstruct(
             drop(incidence);
             // The supports the cut found inconsistent start the diffusion from zero; nothing
             // above reads the local functions.
-            if zeroed.contains(&true) {
-                zero_functions(&mut cover, &zeroed)?;
-            }
+            zero_functions(&mut cover, &zeroed)?;
             stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
             drop((pairs, terms));
             clock.start("polygonise");
@@ -643,6 +641,9 @@ fn check_params(params: &ReconParams) -> Result<(), ReconError> {
 
 /// Sets the local functions of the `zeroed` supports to zero.
 fn zero_functions(cover: &mut Cover, zeroed: &[bool]) -> Result<(), ReconError> {
+    if !zeroed.contains(&true) {
+        return Ok(());
+    }
     if let LocalFunctions::Linear { alpha, beta } = cover.funcs() {
         let (mut alpha, mut beta) = (alpha.clone(), beta.clone());
         for (i, _) in zeroed.iter().enumerate().filter(|(_, z)| **z) {
