@@ -24,8 +24,9 @@ use std::collections::BinaryHeap;
 const BUCKET: usize = 12;
 /// Subtrees with at least this many points are built on two threads.
 const PARALLEL_BUILD: usize = 1 << 14;
-/// [`PointIndex::nearest_k_run`] bounds a search by the previous answer only while that bound
-/// is at most this factor times the previous `k`-th squared distance.
+/// [`PointIndex::nearest_k_run`] and [`PointIndex::nearest_k_run_at_slots`] bound a search by
+/// its seed points only while that bound is at most this factor times the previous `k`-th
+/// squared distance.
 const SEED_BOUND_GROWTH: f64 = 4.0;
 
 /// Why a point index could not be built.
@@ -264,37 +265,99 @@ impl PointIndex {
         &self,
         queries: &[DVec3],
         k: usize,
+        visit: impl FnMut(usize, &[(f64, u32)]),
+    ) {
+        self.nearest_k_run_by(queries.len(), |q| (queries[q], None), k, visit);
+    }
+
+    /// As [`PointIndex::nearest_k_run`], for the indexed points at `slots` (slot order
+    /// positions, see [`PointIndex::slot_points`]; each point is its own nearest, at distance
+    /// 0): `visit(q, neighbours)` gets exactly what [`PointIndex::nearest_k_with_distances`]
+    /// gives for the point at `slots[q]`. Each search is bounded by the `2k + 1` slots around
+    /// the query's own instead of the previous answer: slot order follows the tree, so `k` of
+    /// them nearly always lie close, even where slot order jumps between subtrees and the
+    /// previous query lies far. On the noise estimate of a 362K-point scan (12,929 queries of
+    /// 174 neighbours, every 28th sample) the previous answer left 4,038 plain searches, and
+    /// the scan statistics took 0.19–0.20 s instead of 0.21–0.23.
+    ///
+    /// # Panics
+    ///
+    /// When a slot is not below [`PointIndex::len`].
+    pub fn nearest_k_run_at_slots(
+        &self,
+        slots: &[u32],
+        k: usize,
+        visit: impl FnMut(usize, &[(f64, u32)]),
+    ) {
+        if let Some(&s) = slots.iter().find(|&&s| s as usize >= self.len()) {
+            panic!("slot {s} out of range for {} indexed points", self.len());
+        }
+        self.nearest_k_run_by(
+            slots.len(),
+            |q| {
+                let s = slots[q] as usize;
+                (self.points[s], Some(s))
+            },
+            k,
+            visit,
+        );
+    }
+
+    /// The runs of [`PointIndex::nearest_k_run`] and [`PointIndex::nearest_k_run_at_slots`]:
+    /// `query(q)` gives the position of query `q` and, for an indexed point, its slot.
+    fn nearest_k_run_by(
+        &self,
+        count: usize,
+        query: impl Fn(usize) -> (DVec3, Option<usize>),
+        k: usize,
         mut visit: impl FnMut(usize, &[(f64, u32)]),
     ) {
         let k_eff = k.min(self.len());
         let mut found: Vec<(f64, u32)> = Vec::with_capacity(k_eff);
         // The current answer, as (distance², index, slot).
         let mut answer: Vec<(f64, u32, u32)> = Vec::with_capacity(k_eff);
-        let mut seed_d2: Vec<f64> = Vec::with_capacity(k_eff);
+        let mut seed_d2: Vec<f64> = Vec::with_capacity(2 * k_eff + 1);
         let mut heap: Vec<NearKey> = Vec::with_capacity(k_eff + 1);
         let key =
             |a: &(f64, u32, u32), b: &(f64, u32, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-        for (q, &x) in queries.iter().enumerate() {
+        for q in 0..count {
+            let (x, slot) = query(q);
             found.clear();
             if k_eff == 0 || !x.is_finite() {
                 answer.clear();
                 visit(q, &found);
                 continue;
             }
-            let mut bound = f64::INFINITY;
-            if answer.len() == k_eff {
-                seed_d2.clear();
+            // Any `k` indexed points bound the answer by their `k`-th smallest squared
+            // distance (computed exactly as the search computes distances): the query's slot
+            // neighbours, or else the previous answer.
+            seed_d2.clear();
+            if let Some(s) = slot {
+                let width = (2 * k_eff + 1).min(self.len());
+                let start = s.saturating_sub(k_eff).min(self.len() - width);
+                seed_d2.extend(
+                    self.points[start..start + width]
+                        .iter()
+                        .map(|&p| (p - x).length_squared()),
+                );
+            } else if answer.len() == k_eff {
                 seed_d2.extend(
                     answer
                         .iter()
                         .map(|&(_, _, s)| (self.points[s as usize] - x).length_squared()),
                 );
-                let seeded = *seed_d2.select_nth_unstable_by(k_eff - 1, f64::total_cmp).1;
-                // A query far from the previous one (slot order jumps between subtrees) would
-                // collect a large ball: search it plainly instead.
-                if seeded <= SEED_BOUND_GROWTH * answer[k_eff - 1].0 {
-                    bound = seeded;
-                }
+            }
+            let previous = (answer.len() == k_eff).then(|| answer[k_eff - 1].0);
+            let mut bound = if seed_d2.len() >= k_eff {
+                *seed_d2.select_nth_unstable_by(k_eff - 1, f64::total_cmp).1
+            } else {
+                f64::INFINITY
+            };
+            // A bound far above the previous answer's (a query far from the previous one, or
+            // slot neighbours split between distant subtrees) would collect a large ball:
+            // search it plainly instead.
+            if previous.is_some_and(|kth| bound > SEED_BOUND_GROWTH * kth) {
+                bound = f64::INFINITY;
             }
             answer.clear();
             if bound == f64::INFINITY {

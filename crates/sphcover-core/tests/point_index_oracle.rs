@@ -100,6 +100,30 @@ proptest! {
     }
 
     #[test]
+    fn nearest_k_run_at_slots_matches_single_queries(
+        points in cloud(),
+        jumps in prop::collection::vec(any::<prop::sample::Index>(), 0..40),
+        k in 0usize..60,
+    ) {
+        let index = PointIndex::new(&points).unwrap();
+        // Every slot in order (the intended use), then arbitrary ones, repeats included.
+        let mut slots: Vec<u32> = (0..index.len() as u32).collect();
+        if index.len() > 0 {
+            slots.extend(jumps.iter().map(|j| j.index(index.len()) as u32));
+        }
+        let mut seen = 0;
+        index.nearest_k_run_at_slots(&slots, k, |q, got| {
+            assert_eq!(q, seen, "queries are visited in order");
+            seen += 1;
+            let x = index.slot_points()[slots[q] as usize];
+            let mut expected = Vec::new();
+            index.nearest_k_with_distances(x, k, &mut expected);
+            assert_eq!(got, &expected[..], "query {q} at slot {}", slots[q]);
+        });
+        prop_assert_eq!(seen, slots.len());
+    }
+
+    #[test]
     fn slot_order_is_a_permutation(points in cloud()) {
         let index = PointIndex::new(&points).unwrap();
         let mut order = index.order().to_vec();
@@ -109,6 +133,13 @@ proptest! {
         order.sort_unstable();
         prop_assert_eq!(order, (0..points.len() as u32).collect::<Vec<_>>());
     }
+}
+
+#[test]
+#[should_panic(expected = "slot 3 out of range for 3 indexed points")]
+fn nearest_k_run_at_slots_refuses_a_slot_out_of_range() {
+    let index = PointIndex::new(&[DVec3::ZERO, DVec3::X, DVec3::Y]).unwrap();
+    index.nearest_k_run_at_slots(&[0, 3], 2, |_, _| {});
 }
 
 #[test]

@@ -143,19 +143,24 @@ pub fn scan_statistics(
     for (s, &i) in index.order().iter().enumerate() {
         slot_of[i as usize] = s as u32;
     }
-    let mut subsample: Vec<usize> = (0..n).step_by(stride).filter(|&i| !isolated[i]).collect();
-    subsample.sort_unstable_by_key(|&i| slot_of[i]);
+    // Non-finite points are not indexed (they have no plane): left out.
+    let mut queries: Vec<u32> = (0..n)
+        .step_by(stride)
+        .filter(|&i| !isolated[i] && slot_of[i] != u32::MAX)
+        .map(|i| slot_of[i])
+        .collect();
+    queries.sort_unstable();
     // The noise pass asks for hundreds of neighbours (up to 1024), where inserting each
     // found point into a sorted list costs O(k): runs of queries bounded by the previous
-    // answer collect a ball and select instead (exact, so the median does not move).
-    // For the spacing pass (17 neighbours) runs measured no faster than single queries.
-    let queries: Vec<DVec3> = subsample.iter().map(|&i| points[i]).collect();
+    // answer and the query's slot neighbours collect a ball and select instead (exact, so
+    // the median does not move). For the spacing pass (17 neighbours) runs measured no
+    // faster than single queries.
     let residuals: Vec<f64> = queries
         .par_chunks(NOISE_RUN)
         .flat_map_iter(|run| {
             let mut rms = Vec::with_capacity(run.len());
             let mut pts = Vec::new();
-            index.nearest_k_run(run, noise_k + 1, |_, near| {
+            index.nearest_k_run_at_slots(run, noise_k + 1, |_, near| {
                 pts.clear();
                 pts.extend(near.iter().map(|&(_, j)| points[j as usize]));
                 rms.push(plane_rms(&pts));
