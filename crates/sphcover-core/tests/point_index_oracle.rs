@@ -108,7 +108,7 @@ proptest! {
         let index = PointIndex::new(&points).unwrap();
         // Every slot in order (the intended use), then arbitrary ones, repeats included.
         let mut slots: Vec<u32> = (0..index.len() as u32).collect();
-        if index.len() > 0 {
+        if !index.is_empty() {
             slots.extend(jumps.iter().map(|j| j.index(index.len()) as u32));
         }
         let mut seen = 0;
