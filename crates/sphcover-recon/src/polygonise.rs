@@ -886,15 +886,48 @@ impl<'e, 'c> Search<'e, 'c> {
         Ok(())
     }
 
+    /// Evaluates `f` at the corners of `cells` not evaluated before. The corners of each
+    /// run of [`CORNER_RUN`] cells are collected (a sequential walk over the bricks) while
+    /// those of the previous run are evaluated in parallel: on the 362K-point bunny the walk
+    /// over the first wave's 1.2M corners otherwise holds one thread for about 20 ms (the
+    /// search took 0.339 s instead of 0.350, means of 8 alternating runs).
     fn evaluate_corners(&mut self, cells: &[Index3]) {
         let mut cache = [(u64::MAX, 0); 8];
+        let eval = self.eval;
+        let mut runs = cells.chunks(CORNER_RUN);
+        let mut pending = runs.next().map(|run| self.new_corners(run, &mut cache));
+        while let Some((targets, points)) = pending.take() {
+            let next_run = runs.next();
+            let ((values, took), next) = rayon::join(
+                || {
+                    let start = Instant::now();
+                    (eval.values(&points), start.elapsed())
+                },
+                || next_run.map(|run| self.new_corners(run, &mut cache)),
+            );
+            self.evaluations += points.len();
+            self.evaluation_time += took;
+            for ((brick, l), v) in targets.into_iter().zip(values) {
+                self.bricks[brick as usize].values[l] = v.unwrap_or(f64::NAN);
+            }
+            pending = next;
+        }
+    }
+
+    /// The corners of `cells` not evaluated before, as (brick slot, position in the brick)
+    /// and grid position, marked evaluated.
+    fn new_corners(
+        &mut self,
+        cells: &[Index3],
+        cache: &mut BrickCache<u32>,
+    ) -> (Vec<(u32, usize)>, Vec<DVec3>) {
         let mut targets = Vec::new();
         let mut points = Vec::new();
         for &c in cells {
             for k in 0..8 {
                 let o = corner_offset(k);
                 let v = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                let (brick, l) = self.brick_mut(v, &mut cache);
+                let (brick, l) = self.brick_mut(v, cache);
                 if brick.evaluated >> l & 1 == 0 {
                     brick.evaluated |= 1 << l;
                     targets.push((cache[brick_class(v)].1, l));
@@ -902,15 +935,13 @@ impl<'e, 'c> Search<'e, 'c> {
                 }
             }
         }
-        self.evaluations += points.len();
-        let start = Instant::now();
-        let values = self.eval.values(&points);
-        self.evaluation_time += start.elapsed();
-        for ((brick, l), v) in targets.into_iter().zip(values) {
-            self.bricks[brick as usize].values[l] = v.unwrap_or(f64::NAN);
-        }
+        (targets, points)
     }
 }
+
+/// Cells whose new corners are collected while the previous run's are evaluated (see
+/// [`Search::evaluate_corners`]).
+const CORNER_RUN: usize = 16_384;
 
 /// The active-cell data of cell `c`, or `None` when it is not active or `f` is undefined at
 /// a corner.
