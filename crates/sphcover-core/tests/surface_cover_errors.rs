@@ -191,3 +191,41 @@ fn confidence_weights_the_fit() {
         build_surface_cover_with_confidence(&points, &normals, Some(&half), &params).unwrap();
     assert_eq!(stats.used_points, points.len() / 2);
 }
+
+#[test]
+fn points_left_out_are_as_if_never_given() {
+    // A curved patch, so that the fits depend on which points they see.
+    let (mut points, mut normals) = patch();
+    for (p, m) in points.iter_mut().zip(&mut normals) {
+        p.z = 0.8 * (p.x * p.x + p.y * p.y);
+        *m = DVec3::new(-1.6 * p.x, -1.6 * p.y, 1.0);
+    }
+    let params = SurfaceCoverParams {
+        eps: 1e-4,
+        ..Default::default()
+    };
+    let left_out = |i: usize| i % 7 == 3;
+    let kept = |v: &[DVec3]| -> Vec<DVec3> {
+        (0..v.len())
+            .filter(|&i| !left_out(i))
+            .map(|i| v[i])
+            .collect()
+    };
+    let (reference, _) = build_surface_cover(&kept(&points), &kept(&normals), &params).unwrap();
+    // Left out for their normal, or for zero confidence.
+    let mut broken = normals.clone();
+    let mut confidence = vec![1.0; points.len()];
+    for i in (0..points.len()).filter(|&i| left_out(i)) {
+        broken[i] = DVec3::ZERO;
+        confidence[i] = 0.0;
+    }
+    let (by_normal, _) = build_surface_cover(&points, &broken, &params).unwrap();
+    assert_eq!(by_normal, reference);
+    let (by_confidence, _) =
+        build_surface_cover_with_confidence(&points, &normals, Some(&confidence), &params).unwrap();
+    let unit = vec![1.0; kept(&points).len()];
+    let (reference_unit, _) =
+        build_surface_cover_with_confidence(&kept(&points), &kept(&normals), Some(&unit), &params)
+            .unwrap();
+    assert_eq!(by_confidence, reference_unit);
+}

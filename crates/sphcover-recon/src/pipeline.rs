@@ -405,19 +405,27 @@ pub fn reconstruct(
     };
 
     clock.start("cover");
-    // Isolated samples are left out of the cover.
-    let in_cover: Vec<usize> = (0..points.len())
-        .filter(|&s| !(drop_isolated && scan.isolated[s]))
-        .collect();
-    let pick = |v: &[DVec3]| -> Vec<DVec3> { in_cover.iter().map(|&s| v[s]).collect() };
-    let cover_trust: Option<Vec<f64>> = scanner
-        .as_ref()
-        .map(|c| in_cover.iter().map(|&s| c[s]).collect());
+    // Isolated samples are left out of the cover (copied only when there are some).
+    let picked: (Vec<DVec3>, Vec<DVec3>, Option<Vec<f64>>);
+    let (cover_points, cover_normals, cover_trust) = if drop_isolated {
+        let in_cover: Vec<usize> = (0..points.len()).filter(|&s| !scan.isolated[s]).collect();
+        let pick = |v: &[DVec3]| -> Vec<DVec3> { in_cover.iter().map(|&s| v[s]).collect() };
+        picked = (
+            pick(&points),
+            pick(&normals),
+            scanner
+                .as_ref()
+                .map(|c| in_cover.iter().map(|&s| c[s]).collect()),
+        );
+        (&picked.0[..], &picked.1[..], picked.2.as_deref())
+    } else {
+        (&points[..], &normals[..], scanner.as_deref())
+    };
     // The scan statistics' index serves the cover too when every sample is in it.
     let (mut cover, cover_stats) = build_surface_cover_with_index(
-        &pick(&points),
-        &pick(&normals),
-        cover_trust.as_deref(),
+        cover_points,
+        cover_normals,
+        cover_trust,
         &index,
         &cover_params,
     )?;
