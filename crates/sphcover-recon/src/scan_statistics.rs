@@ -23,8 +23,8 @@ use sphcover_core::{DVec3, PointIndex};
 
 use crate::pca::Pca;
 
-/// Queries per run of the noise pass (runs are searched in parallel; each search after the
-/// first of a run is bounded by the previous answer, see `PointIndex::nearest_k_run`).
+/// Queries per run of the noise pass (runs are searched in parallel, each search bounded by
+/// the query's slot neighbours, see `PointIndex::nearest_k_run_at_slots`).
 const NOISE_RUN: usize = 64;
 
 /// Slots on either side of a sample that the isolation test reads before it searches.
@@ -151,10 +151,9 @@ pub fn scan_statistics(
         .collect();
     queries.sort_unstable();
     // The noise pass asks for hundreds of neighbours (up to 1024), where inserting each
-    // found point into a sorted list costs O(k): runs of queries bounded by the previous
-    // answer and the query's slot neighbours collect a ball and select instead (exact, so
-    // the median does not move). For the spacing pass (17 neighbours) runs measured no
-    // faster than single queries.
+    // found point into a sorted list costs O(k): searches bounded by the query's slot
+    // neighbours collect a ball and select instead (exact, so the median does not move).
+    // For the spacing pass (17 neighbours) such runs measured no faster than single queries.
     let residuals: Vec<f64> = queries
         .par_chunks(NOISE_RUN)
         .flat_map_iter(|run| {
