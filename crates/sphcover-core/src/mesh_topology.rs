@@ -135,16 +135,10 @@ fn count_edges(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) {
             .filter(|&(_, &ok)| ok)
             .flat_map(|(tri, _)| (0..3).map(move |k| (tri[k], tri[(k + 1) % 3])))
     };
-    let lower = |(a, b): (u32, u32)| a.min(b) as usize;
-    let offsets = bucket_offsets(mesh.vertices.len(), half_edges().map(lower));
-    let mut fill = offsets.clone();
-    // Each half-edge as (upper vertex, runs from the lower to the upper).
-    let mut upper = vec![(0u32, false); offsets[mesh.vertices.len()] as usize];
-    for (a, b) in half_edges() {
-        let slot = &mut fill[lower((a, b))];
-        upper[*slot as usize] = (a.max(b), a < b);
-        *slot += 1;
-    }
+    // Each half-edge as (upper vertex, runs from the lower to the upper), by lower vertex.
+    let (offsets, upper) = bucketed(mesh.vertices.len(), || {
+        half_edges().map(|(a, b)| (a.min(b) as usize, (a.max(b), a < b)))
+    });
     let (edges, boundary, non_manifold, inconsistent) = offsets
         .par_windows(2)
         .with_min_len(1024)
@@ -203,16 +197,27 @@ fn label_components(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) {
     }
 }
 
-/// CSR offsets of `n` buckets holding the given bucket of each entry.
-fn bucket_offsets(n: usize, buckets: impl Iterator<Item = usize>) -> Vec<u32> {
+/// The values of `entries()` (bucket, value) grouped by bucket, in their order within each
+/// (a counting sort over `n` buckets): CSR offsets and the values. `entries` is called twice,
+/// to count and to fill.
+fn bucketed<T: Copy + Default, I: Iterator<Item = (usize, T)>>(
+    n: usize,
+    entries: impl Fn() -> I,
+) -> (Vec<u32>, Vec<T>) {
     let mut offsets = vec![0u32; n + 1];
-    for b in buckets {
+    for (b, _) in entries() {
         offsets[b + 1] += 1;
     }
     for i in 0..n {
         offsets[i + 1] += offsets[i];
     }
-    offsets
+    let mut fill = offsets.clone();
+    let mut values = vec![T::default(); offsets[n] as usize];
+    for (b, value) in entries() {
+        values[fill[b] as usize] = value;
+        fill[b] += 1;
+    }
+    (offsets, values)
 }
 
 /// Counts vertices whose incident triangles do not form one edge-connected fan.
@@ -225,13 +230,7 @@ fn count_non_manifold_vertices(mesh: &TriMesh, valid: &[bool]) -> usize {
             .filter(|&(t, _)| valid[t])
             .flat_map(|(t, tri)| tri.iter().map(move |&v| (v as usize, t as u32)))
     };
-    let offsets = bucket_offsets(nv, corners().map(|(v, _)| v));
-    let mut fill = offsets.clone();
-    let mut incident = vec![0u32; offsets[nv] as usize];
-    for (v, t) in corners() {
-        incident[fill[v] as usize] = t;
-        fill[v] += 1;
-    }
+    let (offsets, incident) = bucketed(nv, corners);
     (0..nv)
         .into_par_iter()
         .with_min_len(1024)
