@@ -57,9 +57,8 @@ use rayon::prelude::*;
 /// that separates the two ball tests (`‖p − c‖² < r²` and `‖(p − c) / r‖² < 1`).
 const MARGIN: f64 = 1e-9;
 
-/// Supports gathered together while building the incidence list: their rows are collected
-/// in parallel, then appended to the one list.
-const GATHER_CHUNK: usize = 4096;
+/// Supports gathered by one parallel task into a list of their own.
+const GATHER_BLOCK: usize = 256;
 
 /// Per support of a cover, the slots of a [`PointIndex`] in (a hair more than) its ball, as
 /// one compressed row list.
@@ -80,29 +79,45 @@ impl<'a> SupportSamples<'a> {
     /// Gathers the samples of every support of `cover` from `index`, in parallel. The result
     /// does not depend on the thread count.
     pub fn gather(cover: &'a Cover, index: &'a PointIndex) -> SupportSamples<'a> {
+        // Each block's slots are gathered into a list of its own, then all are copied into
+        // the one list at its exact size: appending to a growing list had a thread copy
+        // every slot about twice more and touch twice the memory, while the other waited.
+        let blocks: Vec<(Vec<u32>, Vec<u32>)> = cover
+            .centers()
+            .par_chunks(GATHER_BLOCK)
+            .zip(cover.radii().par_chunks(GATHER_BLOCK))
+            .map(|(centers, radii)| {
+                let mut lengths = Vec::with_capacity(centers.len());
+                let mut slots = Vec::new();
+                for (&c, &r) in centers.iter().zip(radii) {
+                    let before = slots.len();
+                    index.for_each_slot_within(c, r * (1.0 + MARGIN), |s, _| {
+                        slots.push(s as u32);
+                    });
+                    lengths.push((slots.len() - before) as u32);
+                }
+                (lengths, slots)
+            })
+            .collect();
         let mut offsets = Vec::with_capacity(cover.len() + 1);
         offsets.push(0);
-        let mut slots: Vec<u32> = Vec::new();
-        for (centers, radii) in cover
-            .centers()
-            .chunks(GATHER_CHUNK)
-            .zip(cover.radii().chunks(GATHER_CHUNK))
-        {
-            let rows: Vec<Vec<u32>> = centers
-                .par_iter()
-                .zip(radii)
-                .with_min_len(64)
-                .map_init(Vec::new, |buf, (&c, &r)| {
-                    buf.clear();
-                    index.for_each_slot_within(c, r * (1.0 + MARGIN), |s, _| buf.push(s as u32));
-                    buf.to_vec()
-                })
-                .collect();
-            for row in rows {
-                slots.extend_from_slice(&row);
-                offsets.push(slots.len());
+        for (lengths, _) in &blocks {
+            for &len in lengths {
+                offsets.push(offsets[offsets.len() - 1] + len as usize);
             }
         }
+        let mut slots = vec![0u32; offsets[cover.len()]];
+        let mut parts = Vec::with_capacity(blocks.len());
+        let mut rest = &mut slots[..];
+        for (_, block) in &blocks {
+            let (part, tail) = rest.split_at_mut(block.len());
+            parts.push(part);
+            rest = tail;
+        }
+        parts
+            .into_par_iter()
+            .zip(&blocks)
+            .for_each(|(part, (_, block))| part.copy_from_slice(block));
         SupportSamples {
             cover,
             index,
@@ -301,6 +316,47 @@ mod tests {
             let bits = |v: &[Option<f64>]| v.iter().map(|x| x.map(f64::to_bits)).collect::<Vec<_>>();
             prop_assert_eq!(bits(&blended), bits(&reference));
         }
+    }
+
+    #[test]
+    fn rows_stay_in_order_across_gather_blocks() {
+        // More supports than one gather block holds, some of them empty.
+        let points: Vec<DVec3> = (0..2000)
+            .map(|i| {
+                let t = i as f64 * 0.618_033_988_75;
+                DVec3::new(t.fract(), (t * 7.0).fract(), (t * 13.0).fract())
+            })
+            .collect();
+        let index = PointIndex::new(&points).unwrap();
+        let n = 3 * GATHER_BLOCK + 17;
+        let centers: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let t = i as f64 * 0.414_213_562_37;
+                DVec3::new(t.fract(), (t * 3.0).fract(), (t * 5.0).fract() * 1.5)
+            })
+            .collect();
+        let radii: Vec<f64> = (0..n)
+            .map(|i| 0.02 + 0.1 * ((i % 7) as f64 / 7.0))
+            .collect();
+        let cover = Cover::new(
+            centers.clone(),
+            radii.clone(),
+            LocalFunctions::zero_linear(n),
+            Kernel::QuadraticBSpline,
+        )
+        .unwrap();
+        let incidence = SupportSamples::gather(&cover, &index);
+        let mut total = 0;
+        for i in 0..n {
+            let mut direct = Vec::new();
+            index.for_each_slot_within(centers[i], radii[i], |s, d2| direct.push((s, d2)));
+            let mut stored = Vec::new();
+            incidence.for_each_slot_within(i, |s, d2| stored.push((s, d2)));
+            assert_eq!(stored, direct, "support {i}");
+            total += direct.len();
+        }
+        assert!(total > n, "{total}");
+        assert!(incidence.incidences() >= total);
     }
 
     #[test]
