@@ -40,6 +40,7 @@
 #![deny(missing_docs)]
 
 pub mod ball_index;
+mod concat;
 pub mod cover;
 pub mod geometry;
 pub mod io;

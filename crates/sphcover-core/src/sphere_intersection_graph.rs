@@ -35,6 +35,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::ball_index::{BallIndex, BallIndexError};
+use crate::concat::concat_in_parallel;
 
 /// Rows computed by one parallel task. Fixed, so the work split never depends on the pool.
 const ROWS_PER_CHUNK: usize = 2048;
@@ -221,18 +222,17 @@ impl SphereIntersectionGraph {
             return Err(SigError::TooManyEdges);
         }
 
-        let total = entries.load(Ordering::Relaxed) as usize;
         let mut offsets = Vec::with_capacity(n + 1);
-        let mut neighbors = Vec::with_capacity(total);
         offsets.push(0u32);
         let mut running = 0u32;
-        for (degrees, row_neighbors) in chunks {
+        for (degrees, _) in &chunks {
             for d in degrees {
                 running += d;
                 offsets.push(running);
             }
-            neighbors.extend_from_slice(&row_neighbors);
         }
+        let rows: Vec<&[u32]> = chunks.iter().map(|(_, rows)| &rows[..]).collect();
+        let neighbors = concat_in_parallel(&rows);
 
         Ok(SphereIntersectionGraph {
             offsets,

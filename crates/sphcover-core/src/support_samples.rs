@@ -48,6 +48,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+use crate::concat::concat_in_parallel;
 use crate::cover::{Cover, CoverError};
 use crate::kernel::Kernel;
 use crate::point_index::PointIndex;
@@ -81,7 +82,7 @@ impl<'a> SupportSamples<'a> {
     pub fn gather(cover: &'a Cover, index: &'a PointIndex) -> SupportSamples<'a> {
         // Each block's slots are gathered into a list of its own, then all are copied into
         // the one list at its exact size: appending to a growing list had a thread copy
-        // every slot about twice more and touch twice the memory, while the other waited.
+        // every slot about twice more, and touch twice the memory, while the others waited.
         let blocks: Vec<(Vec<u32>, Vec<u32>)> = cover
             .centers()
             .par_chunks(GATHER_BLOCK)
@@ -106,18 +107,8 @@ impl<'a> SupportSamples<'a> {
                 offsets.push(offsets[offsets.len() - 1] + len as usize);
             }
         }
-        let mut slots = vec![0u32; offsets[cover.len()]];
-        let mut parts = Vec::with_capacity(blocks.len());
-        let mut rest = &mut slots[..];
-        for (_, block) in &blocks {
-            let (part, tail) = rest.split_at_mut(block.len());
-            parts.push(part);
-            rest = tail;
-        }
-        parts
-            .into_par_iter()
-            .zip(&blocks)
-            .for_each(|(part, (_, block))| part.copy_from_slice(block));
+        let parts: Vec<&[u32]> = blocks.iter().map(|(_, slots)| &slots[..]).collect();
+        let slots = concat_in_parallel(&parts);
         SupportSamples {
             cover,
             index,
