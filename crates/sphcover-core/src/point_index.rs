@@ -17,6 +17,7 @@
 //! * Non-finite points are not indexed: no query ever reports them.
 
 use glam::DVec3;
+use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
@@ -118,14 +119,18 @@ impl PointIndex {
                 count: points.len(),
             });
         }
-        let mut items: Vec<(DVec3, u32)> = points
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.is_finite())
-            .map(|(i, &p)| (p, i as u32))
-            .collect();
+        // Sized up front: a filtered collect grows the list by doubling, copying it again
+        // each time.
+        let mut items: Vec<(DVec3, u32)> = Vec::with_capacity(points.len());
+        items.extend(
+            points
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.is_finite())
+                .map(|(i, &p)| (p, i as u32)),
+        );
         let nodes = build(&mut items, 0);
-        let (points_sorted, order) = items.into_iter().unzip();
+        let (points_sorted, order) = items.par_iter().copied().unzip();
         Ok(PointIndex {
             points: points_sorted,
             order,
