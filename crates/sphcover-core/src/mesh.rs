@@ -85,14 +85,28 @@ pub fn vertex_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3>
             if f.is_finite() { f } else { DVec3::ZERO }
         })
         .collect();
-    // One pass in triangle order: the sums are the same whatever the thread count.
+    // Each thread sums into its own range of vertices, walking all triangles in order: every
+    // vertex adds its triangles' normals in triangle order, whatever the thread count.
     let mut sums = vec![DVec3::ZERO; positions.len()];
-    for (t, f) in triangles.iter().zip(&faces) {
-        for &v in t {
-            sums[v as usize] += *f;
-        }
-    }
-    sums.par_iter_mut().for_each(|s| *s = s.normalize_or_zero());
+    let part_len = positions
+        .len()
+        .div_ceil(rayon::current_num_threads().max(1))
+        .max(1);
+    sums.par_chunks_mut(part_len)
+        .enumerate()
+        .for_each(|(part, sums)| {
+            let lo = part * part_len;
+            for (t, f) in triangles.iter().zip(&faces) {
+                for &v in t {
+                    if let Some(sum) = (v as usize).checked_sub(lo).and_then(|i| sums.get_mut(i)) {
+                        *sum += *f;
+                    }
+                }
+            }
+            for sum in sums.iter_mut() {
+                *sum = sum.normalize_or_zero();
+            }
+        });
     sums
 }
 

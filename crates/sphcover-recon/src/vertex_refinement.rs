@@ -185,7 +185,7 @@ pub fn refine_vertices(
         slot_samples: samples
             .index
             .order()
-            .iter()
+            .par_iter()
             .map(|&i| (samples.normals[i as usize], samples.weights[i as usize]))
             .collect(),
         radius: params.radius_spacings * scale.spacing,
