@@ -38,7 +38,7 @@ use crate::ball_index::{BallIndex, BallIndexError};
 use crate::concat::concat_in_parallel;
 
 /// Rows computed by one parallel task. Fixed, so the work split never depends on the pool.
-const ROWS_PER_CHUNK: usize = 2048;
+const ROWS_PER_CHUNK: usize = 512;
 
 /// Why a [`SphereIntersectionGraph`] could not be built.
 #[derive(Clone, Debug, Error, PartialEq)]
