@@ -1,6 +1,7 @@
 //! `sphcover recon`: a surface mesh from scanned points (thesis §5), robust to noise,
 //! outliers and wrong normals.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use serde_json::json;
@@ -71,14 +72,16 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         inputs: vec![args.input.clone()],
         ..WriteOptions::default()
     };
-    let mut mesh = recon.mesh.clone();
+    // Only the formats without per-vertex values (or normals) need a trimmed copy.
+    let mut mesh = Cow::Borrowed(&recon.mesh);
     match Format::from_path(&args.output)? {
         Format::Ply => {}
         Format::Stl => {
+            let mesh = mesh.to_mut();
             mesh.values = None;
             mesh.normals = None;
         }
-        _ => mesh.values = None,
+        _ => mesh.to_mut().values = None,
     }
     io::write_mesh(&args.output, &mesh, &options)?;
     if let Some(path) = &args.points_out {
