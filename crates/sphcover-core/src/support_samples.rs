@@ -48,7 +48,6 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::concat::concat_in_parallel;
 use crate::cover::{Cover, CoverError};
 use crate::kernel::Kernel;
 use crate::point_index::PointIndex;
@@ -60,6 +59,8 @@ const MARGIN: f64 = 1e-9;
 
 /// Supports gathered by one parallel task into a list of their own.
 const GATHER_BLOCK: usize = 256;
+/// Supports gathered (in blocks, in parallel) while the previous ones are appended.
+const GATHER_RUN: usize = 16 * GATHER_BLOCK;
 
 /// Per support of a cover, the slots of a [`PointIndex`] in (a hair more than) its ball, as
 /// one compressed row list.
@@ -80,35 +81,56 @@ impl<'a> SupportSamples<'a> {
     /// Gathers the samples of every support of `cover` from `index`, in parallel. The result
     /// does not depend on the thread count.
     pub fn gather(cover: &'a Cover, index: &'a PointIndex) -> SupportSamples<'a> {
-        // Each block's slots are gathered into a list of its own, then all are copied into
-        // the one list at its exact size: appending to a growing list had a thread copy
-        // every slot about twice more, and touch twice the memory, while the others waited.
-        let blocks: Vec<(Vec<u32>, Vec<u32>)> = cover
-            .centers()
-            .par_chunks(GATHER_BLOCK)
-            .zip(cover.radii().par_chunks(GATHER_BLOCK))
-            .map(|(centers, radii)| {
-                let mut lengths = Vec::with_capacity(centers.len());
-                let mut slots = Vec::new();
-                for (&c, &r) in centers.iter().zip(radii) {
-                    let before = slots.len();
-                    index.for_each_slot_within(c, r * (1.0 + MARGIN), |s, _| {
-                        slots.push(s as u32);
-                    });
-                    lengths.push((slots.len() - before) as u32);
-                }
-                (lengths, slots)
-            })
-            .collect();
-        let mut offsets = Vec::with_capacity(cover.len() + 1);
+        // Runs of supports are gathered in parallel, block by block, while the previous run
+        // is appended to the one list: the appending (a copy, and the first touch of the
+        // list's memory) holds one thread, and the run being gathered keeps the other busy.
+        // Only two runs' blocks are alive at a time, so the list is the only large
+        // allocation, as when each support's row was appended in turn.
+        let n = cover.len();
+        let gather_run = |run: std::ops::Range<usize>| -> Vec<(Vec<u32>, Vec<u32>)> {
+            cover.centers()[run.clone()]
+                .par_chunks(GATHER_BLOCK)
+                .zip(cover.radii()[run].par_chunks(GATHER_BLOCK))
+                .map(|(centers, radii)| {
+                    let mut lengths = Vec::with_capacity(centers.len());
+                    let mut slots = Vec::new();
+                    for (&c, &r) in centers.iter().zip(radii) {
+                        let before = slots.len();
+                        index.for_each_slot_within(c, r * (1.0 + MARGIN), |s, _| {
+                            slots.push(s as u32);
+                        });
+                        lengths.push((slots.len() - before) as u32);
+                    }
+                    (lengths, slots)
+                })
+                .collect()
+        };
+        let mut runs = (0..n)
+            .step_by(GATHER_RUN)
+            .map(|s| s..(s + GATHER_RUN).min(n));
+        let mut pending = runs.next().map(&gather_run);
+        let mut offsets = Vec::with_capacity(n + 1);
         offsets.push(0);
-        for (lengths, _) in &blocks {
-            for &len in lengths {
-                offsets.push(offsets[offsets.len() - 1] + len as usize);
-            }
+        let mut slots: Vec<u32> = Vec::new();
+        if let Some(first) = &pending {
+            // Room for a tenth more than the first run's rate predicts, so that the list
+            // is rarely copied as it grows (room never written is never touched).
+            let rate =
+                first.iter().map(|(_, b)| b.len()).sum::<usize>() as f64 / GATHER_RUN.min(n) as f64;
+            slots.reserve((1.1 * rate * n as f64) as usize);
         }
-        let parts: Vec<&[u32]> = blocks.iter().map(|(_, slots)| &slots[..]).collect();
-        let slots = concat_in_parallel(&parts);
+        let mut append = |blocks: Vec<(Vec<u32>, Vec<u32>)>| {
+            for (lengths, block) in blocks {
+                for len in lengths {
+                    offsets.push(offsets[offsets.len() - 1] + len as usize);
+                }
+                slots.extend_from_slice(&block);
+            }
+        };
+        while let Some(blocks) = pending.take() {
+            let next = runs.next();
+            pending = rayon::join(|| append(blocks), || next.map(&gather_run)).1;
+        }
         SupportSamples {
             cover,
             index,
@@ -310,8 +332,8 @@ mod tests {
     }
 
     #[test]
-    fn rows_stay_in_order_across_gather_blocks() {
-        // More supports than one gather block holds, some of them empty.
+    fn rows_stay_in_order_across_gather_blocks_and_runs() {
+        // More supports than two gather runs hold, some of them empty.
         let points: Vec<DVec3> = (0..2000)
             .map(|i| {
                 let t = i as f64 * 0.618_033_988_75;
@@ -319,7 +341,7 @@ mod tests {
             })
             .collect();
         let index = PointIndex::new(&points).unwrap();
-        let n = 3 * GATHER_BLOCK + 17;
+        let n = 2 * GATHER_RUN + 3 * GATHER_BLOCK + 17;
         let centers: Vec<DVec3> = (0..n)
             .map(|i| {
                 let t = i as f64 * 0.414_213_562_37;
