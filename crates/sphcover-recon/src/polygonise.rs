@@ -1087,7 +1087,7 @@ fn extract(
                             .map(|r| r.map_or(0.0, |(_, b)| b))
                             .collect::<Vec<f64>>(),
                     );
-                    fgb.into_iter().map(|r| r.map(|(vg, _)| vg)).collect()
+                    fgb.into_par_iter().map(|r| r.map(|(vg, _)| vg)).collect()
                 }
                 Err(_) => search.eval.values_gradients(&vertices),
             },
