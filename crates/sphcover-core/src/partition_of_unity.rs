@@ -263,10 +263,10 @@ impl<'a> PuEvaluator<'a> {
     /// the single-point queries.
     ///
     /// Large batches run in Morton order in blocks of up to [`BLOCK_LEN`] neighbouring points
-    /// (see [`BLOCK_SPAN_PER_RADIUS`]): the index is asked once per block for the balls within
-    /// reach of the block's bounding sphere, each run of [`SUB_BLOCK_LEN`] points keeps those
-    /// that may reach its own bounding sphere, and every point of the run sums over that
-    /// ascending list. The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so
+    /// (see [`BLOCK_SPAN_PER_RADIUS`]): the index is asked once per block (and per parallel
+    /// task that starts inside it) for the balls within reach of the block's bounding
+    /// sphere, each run of [`SUB_BLOCK_LEN`] points keeps those that may reach its own
+    /// bounding sphere, and every point of the run sums over that ascending list. The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so
     /// each point sums over exactly the supports of a single-point query, in the same order.
     /// This amortises the index traversal, which otherwise dominates the cost, over the
     /// block, and spares a containment pass (a square root per candidate) before the sum.
@@ -291,9 +291,9 @@ impl<'a> PuEvaluator<'a> {
         }
         // One result per position of `order`, collected straight into place: collecting per
         // block went through a list of per-task vectors that one thread then copied into
-        // one (on the 224K vertices of the 362K-point bunny's surface, about 10 ms of one
-        // thread faulting in fresh pages). Each task keeps the candidates of its current
-        // block and run; a task that starts inside a block gathers that block again.
+        // one, faulting in fresh pages while the others waited. Each task keeps the
+        // candidates of its current block and run; a task that starts inside a block
+        // gathers that block again.
         let in_order: Vec<R> = (0..order.len())
             .into_par_iter()
             .with_min_len(BATCH_MIN_LEN)
