@@ -61,6 +61,20 @@ pub enum CoverError {
         /// The expansion factor.
         sigma: f64,
     },
+    /// A cover evaluated over support lists gathered from other balls.
+    #[error(
+        "support {index}: centre or radius differs from the cover the support lists were gathered from"
+    )]
+    OtherBalls {
+        /// Index of the first support that differs.
+        index: usize,
+    },
+    /// Support lists asked for values at other points than they were gathered for.
+    #[error("point {index} differs from the point the support lists were gathered for")]
+    OtherPoints {
+        /// Index of the first point that differs.
+        index: usize,
+    },
 }
 
 /// A cover of space by balls `s_i = (c_i, r_i)`, each carrying a local function `g_i`, blended

@@ -66,7 +66,7 @@ pub use kernel::Kernel;
 pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, QuadraticFunction};
 pub use mesh::{TriMesh, vertex_normals};
 pub use mesh_topology::MeshTopology;
-pub use partition_of_unity::{PuEvaluator, ValueGradient, ValueGradientHessian};
+pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};
 pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};

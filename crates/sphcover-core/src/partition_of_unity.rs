@@ -39,16 +39,26 @@ use std::ops::Range;
 /// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type and packed
 /// supports of the evaluator.
 macro_rules! dispatch {
-    ($self:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {{
-        match &$self.supports {
-            PackedSupports::Linear(v) => dispatch!(@kernel $self, v, $x, $ids, $method $(, $extra)*),
+    ($self:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {
+        dispatch_packed!(&$self.supports, $self.cover.kernel(), $x, $ids, $method $(, $extra)*)
+    };
+}
+
+/// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type of `$kernel` and
+/// the packed supports `$supports`.
+macro_rules! dispatch_packed {
+    ($supports:expr, $kernel:expr, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {{
+        match $supports {
+            PackedSupports::Linear(v) => {
+                dispatch_packed!(@kernel $kernel, v, $x, $ids, $method $(, $extra)*)
+            }
             PackedSupports::Quadratic(v) => {
-                dispatch!(@kernel $self, v, $x, $ids, $method $(, $extra)*)
+                dispatch_packed!(@kernel $kernel, v, $x, $ids, $method $(, $extra)*)
             }
         }
     }};
-    (@kernel $self:ident, $v:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {
-        match $self.cover.kernel() {
+    (@kernel $kernel:expr, $v:ident, $x:ident, $ids:ident, $method:ident $(, $extra:expr)*) => {
+        match $kernel {
             Kernel::QuadraticBSpline => {
                 $method::<QuadraticBSplineKernel, _>($v, $x, $ids $(, $extra)*)
             }
@@ -59,6 +69,10 @@ macro_rules! dispatch {
         }
     };
 }
+
+mod support_lists;
+
+pub use support_lists::SupportLists;
 
 /// The value and gradient of `f` at a point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -275,13 +289,32 @@ impl<'a> PuEvaluator<'a> {
         points: &[DVec3],
         eval: impl Fn(DVec3, &[u32]) -> R + Sync,
     ) -> Vec<R> {
-        let single = |x: DVec3| self.with_supports(x, |ids| eval(x, ids));
-        if points.len() < SPATIAL_ORDER_MIN_LEN || u32::try_from(points.len()).is_err() {
+        let Some(plan) = self.plan(points) else {
             return points
                 .par_iter()
                 .with_min_len(BATCH_MIN_LEN)
-                .map(|&x| single(x))
+                .map(|&x| self.with_supports(x, |ids| eval(x, ids)))
                 .collect();
+        };
+        // One result per position of the plan's order, collected straight into place:
+        // collecting per block went through a list of per-task vectors that one thread then
+        // copied into one, faulting in fresh pages while the others waited.
+        let in_order: Vec<R> = (0..plan.order.len())
+            .into_par_iter()
+            .with_min_len(BATCH_MIN_LEN)
+            .map_init(BatchState::default, |state, k| {
+                let x = points[plan.order[k] as usize];
+                eval(x, state.near(self, points, &plan, k))
+            })
+            .collect();
+        in_input_order(&plan.rank(), &in_order)
+    }
+
+    /// The Morton order and blocks of a batch (see [`PuEvaluator::batch`]); `None` for a
+    /// batch too short to be worth ordering, whose points are queried one by one.
+    fn plan(&self, points: &[DVec3]) -> Option<BatchPlan> {
+        if points.len() < SPATIAL_ORDER_MIN_LEN || u32::try_from(points.len()).is_err() {
+            return None;
         }
         let order = spatial_order::morton_order(points);
         let blocks = self.blocks(points, &order);
@@ -289,54 +322,11 @@ impl<'a> PuEvaluator<'a> {
         for (b, (range, _)) in blocks.iter().enumerate() {
             block_of[range.clone()].fill(b as u32);
         }
-        // One result per position of `order`, collected straight into place: collecting per
-        // block went through a list of per-task vectors that one thread then copied into
-        // one, faulting in fresh pages while the others waited. Each task keeps the
-        // candidates of its current block and run; a task that starts inside a block
-        // gathers that block again.
-        let in_order: Vec<R> = (0..order.len())
-            .into_par_iter()
-            .with_min_len(BATCH_MIN_LEN)
-            .map_init(BatchState::default, |state, k| {
-                let b = block_of[k] as usize;
-                let (range, bounds) = &blocks[b];
-                if state.block != Some(b) {
-                    state.block = Some(b);
-                    state.run = None;
-                    state.candidates.clear();
-                    if let Some((center, reach)) = bounding_sphere(bounds) {
-                        self.index.extend_within_loose(
-                            center,
-                            GATHER_SCALE,
-                            reach,
-                            &mut state.candidates,
-                        );
-                        state.candidates.sort_unstable();
-                    }
-                }
-                // The sums skip every candidate with `s ≥ 1`, so a run's list serves as the
-                // support list directly: no containment pass.
-                let run = (k - range.start) / SUB_BLOCK_LEN;
-                if state.run != Some(run) {
-                    state.run = Some(run);
-                    let start = range.start + run * SUB_BLOCK_LEN;
-                    let end = (start + SUB_BLOCK_LEN).min(range.end);
-                    self.candidates_near(
-                        points,
-                        &order[start..end],
-                        &state.candidates,
-                        &mut state.near,
-                    );
-                }
-                let x = points[order[k] as usize];
-                eval(x, if x.is_finite() { &state.near } else { &[] })
-            })
-            .collect();
-        let mut rank = vec![0u32; points.len()];
-        for (k, &i) in order.iter().enumerate() {
-            rank[i as usize] = k as u32;
-        }
-        rank.par_iter().map(|&k| in_order[k as usize]).collect()
+        Some(BatchPlan {
+            order,
+            blocks,
+            block_of,
+        })
     }
 
     /// The candidates (ascending) that may hold one of the finite points `run` in their
@@ -444,6 +434,31 @@ impl<'a> PuEvaluator<'a> {
 /// which gather differently, sum over the same supports in the same ascending order.
 const GATHER_SCALE: f64 = 1.0 + 1e-9;
 
+/// The order in which [`PuEvaluator::batch`] visits a batch's points: Morton order, cut
+/// into blocks of neighbouring points (ranges of `order` with their bounding boxes), and the
+/// block of every position.
+struct BatchPlan {
+    order: Vec<u32>,
+    blocks: Vec<(Range<usize>, Aabb)>,
+    block_of: Vec<u32>,
+}
+
+impl BatchPlan {
+    /// The position of every point in `order`, by input index.
+    fn rank(&self) -> Vec<u32> {
+        let mut rank = vec![0u32; self.order.len()];
+        for (k, &i) in self.order.iter().enumerate() {
+            rank[i as usize] = k as u32;
+        }
+        rank
+    }
+}
+
+/// Results by position (`by_position[rank[i]]` belongs to point `i`) in input order.
+fn in_input_order<R: Copy + Send + Sync>(rank: &[u32], by_position: &[R]) -> Vec<R> {
+    rank.par_iter().map(|&k| by_position[k as usize]).collect()
+}
+
 /// What a task of [`PuEvaluator::batch`] keeps between neighbouring points: the block and
 /// the run of its last point, the block's candidate supports and the run's.
 #[derive(Default)]
@@ -452,6 +467,52 @@ struct BatchState {
     run: Option<usize>,
     candidates: Vec<u32>,
     near: Vec<u32>,
+}
+
+impl BatchState {
+    /// The candidate supports of position `k` of `plan`, ascending: a superset of the
+    /// supports whose sums' test `s < 1` holds at the point (none for a non-finite point).
+    /// The index is asked once per block (and per task that starts inside it) for the
+    /// balls within reach of the block's bounding sphere, and each run of [`SUB_BLOCK_LEN`]
+    /// points keeps those that may reach its own bounding sphere. A task that starts inside
+    /// a block gathers that block again.
+    fn near(
+        &mut self,
+        eval: &PuEvaluator<'_>,
+        points: &[DVec3],
+        plan: &BatchPlan,
+        k: usize,
+    ) -> &[u32] {
+        let b = plan.block_of[k] as usize;
+        let (range, bounds) = &plan.blocks[b];
+        if self.block != Some(b) {
+            self.block = Some(b);
+            self.run = None;
+            self.candidates.clear();
+            if let Some((center, reach)) = bounding_sphere(bounds) {
+                eval.index
+                    .extend_within_loose(center, GATHER_SCALE, reach, &mut self.candidates);
+                self.candidates.sort_unstable();
+            }
+        }
+        let run = (k - range.start) / SUB_BLOCK_LEN;
+        if self.run != Some(run) {
+            self.run = Some(run);
+            let start = range.start + run * SUB_BLOCK_LEN;
+            let end = (start + SUB_BLOCK_LEN).min(range.end);
+            eval.candidates_near(
+                points,
+                &plan.order[start..end],
+                &self.candidates,
+                &mut self.near,
+            );
+        }
+        if points[plan.order[k] as usize].is_finite() {
+            &self.near
+        } else {
+            &[]
+        }
+    }
 }
 
 /// The centre and radius of a sphere holding the box `bounds` (`None` when it is empty),

@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use pu_common::*;
 use sphcover_core::{
     Cover, CoverError, DMat3, DVec3, Kernel, LinearFunction, LocalFunctions, PuEvaluator,
-    QuadraticFunction,
+    QuadraticFunction, SupportLists,
 };
 
 fn brute_force_containing(cover: &Cover, sigma: f64, x: DVec3) -> Vec<u32> {
@@ -55,6 +55,159 @@ proptest! {
             }
         }
     }
+}
+
+/// The supports whose sums count at `x`: `‖(x − c_i) / (σ r_i)‖² < 1` computed as the
+/// evaluator computes it, every support tested.
+fn brute_force_summed(cover: &Cover, sigma: f64, x: DVec3) -> Vec<u32> {
+    (0..cover.len() as u32)
+        .filter(|&i| {
+            let inv_r = 1.0 / (sigma * cover.radii()[i as usize]);
+            ((x - cover.centers()[i as usize]) * inv_r).length_squared() < 1.0
+        })
+        .collect()
+}
+
+/// Every list of `lists` against the brute-force oracle at `points`.
+fn check_lists(lists: &SupportLists, cover: &Cover, sigma: f64, points: &[DVec3]) {
+    assert_eq!(lists.len(), points.len());
+    for (i, &x) in points.iter().enumerate() {
+        let expected = if x.is_finite() {
+            brute_force_summed(cover, sigma, x)
+        } else {
+            Vec::new()
+        };
+        assert_eq!(lists.supports(i), &expected[..], "point {i} at {x}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Support lists hold exactly the supports the sums count, and evaluate any local
+    /// functions on the same balls as a new evaluator does, bitwise.
+    #[test]
+    fn support_lists_match_brute_force_and_the_evaluator(
+        (supports, funcs) in supports_strategy(30)
+            .prop_flat_map(|s| { let n = s.len(); (Just(s), random_quadratic(n)) }),
+        linear in random_linear(30),
+        kernel in kernel_strategy(),
+        sigma in sigma_strategy(),
+        inner in inner_points_strategy(6),
+        free in prop::collection::vec(vec3(3.0), 6),
+    ) {
+        let cover = build(&supports, LocalFunctions::from_quadratic(funcs), kernel);
+        let mut points = place(&supports, sigma, &inner);
+        points.extend(free);
+        points.push(DVec3::new(f64::NAN, 0.0, 0.0));
+        let lists = PuEvaluator::new(&cover, sigma).unwrap().support_lists(&points);
+        check_lists(&lists, &cover, sigma, &points);
+        let mut relinear = cover.clone();
+        relinear
+            .set_funcs(LocalFunctions::from_linear(linear[..cover.len()].iter().copied()))
+            .unwrap();
+        for other in [&cover, &relinear] {
+            let eval = PuEvaluator::new(other, sigma).unwrap();
+            prop_assert_eq!(lists.values(other, &points).unwrap(), eval.values(&points));
+            prop_assert_eq!(
+                lists.values_gradients(other, &points).unwrap(),
+                eval.values_gradients(&points)
+            );
+        }
+    }
+}
+
+/// Batches long enough to run in Morton order (and short ones, one query per point): the
+/// lists do not depend on the thread count and serve new local functions on the same balls.
+#[test]
+fn support_lists_serve_new_functions_for_any_thread_count() {
+    for (kernel, spread) in Kernel::ALL.into_iter().flat_map(|k| [(k, 0.2), (k, 3.0)]) {
+        let (cover, mut points) = sample_cover(kernel, spread);
+        points[17] = DVec3::new(0.5, f64::INFINITY, 0.5);
+        let sigma = 1.5;
+        let eval = PuEvaluator::new(&cover, sigma).unwrap();
+        let lists_at = |threads: usize, points: &[DVec3]| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| eval.support_lists(points))
+        };
+        let lists = lists_at(1, &points);
+        let three = lists_at(3, &points);
+        check_lists(&lists, &cover, sigma, &points);
+        for i in 0..points.len() {
+            assert_eq!(lists.supports(i), three.supports(i));
+        }
+        let few = lists_at(2, &points[..100]);
+        check_lists(&few, &cover, sigma, &points[..100]);
+
+        let mut changed = cover.clone();
+        changed
+            .set_funcs(LocalFunctions::from_linear((0..cover.len()).map(|i| {
+                LinearFunction {
+                    alpha: DVec3::new((i as f64).sin(), 1.0, -0.5),
+                    beta: (i as f64 * 0.1).cos(),
+                }
+            })))
+            .unwrap();
+        let new_eval = PuEvaluator::new(&changed, sigma).unwrap();
+        let values = lists.values(&changed, &points).unwrap();
+        assert!(values.iter().any(Option::is_none) && values.iter().any(Option::is_some));
+        assert_eq!(
+            values,
+            new_eval.values(&points),
+            "{kernel}, spread {spread}"
+        );
+        assert_eq!(
+            lists.values_gradients(&changed, &points).unwrap(),
+            new_eval.values_gradients(&points)
+        );
+        assert_eq!(
+            few.values_gradients(&changed, &points[..100]).unwrap(),
+            new_eval.values_gradients(&points[..100])
+        );
+    }
+}
+
+#[test]
+fn support_lists_refuse_other_balls() {
+    let (cover, points) = sample_cover(Kernel::default(), 0.2);
+    let lists = PuEvaluator::new(&cover, 1.0)
+        .unwrap()
+        .support_lists(&points);
+    let cover_again = cover.clone();
+    let (mut centers, mut radii, funcs, kernel) = cover.into_parts();
+    radii[123] *= 1.0 + f64::EPSILON;
+    let moved = Cover::new(centers.clone(), radii.clone(), funcs.clone(), kernel).unwrap();
+    assert_eq!(
+        lists.values(&moved, &points),
+        Err(CoverError::OtherBalls { index: 123 })
+    );
+    let mut shifted = points.clone();
+    shifted[77].y = -shifted[77].y;
+    assert_eq!(
+        lists.values(&cover_again, &shifted),
+        Err(CoverError::OtherPoints { index: 77 })
+    );
+    assert!(matches!(
+        lists.values(&cover_again, &points[1..]),
+        Err(CoverError::LengthMismatch { .. })
+    ));
+    assert!(lists.values(&cover_again, &points).is_ok());
+    centers.pop();
+    radii.pop();
+    let fewer = Cover::new(
+        centers,
+        radii,
+        LocalFunctions::zero_linear(funcs.len() - 1),
+        kernel,
+    )
+    .unwrap();
+    assert!(matches!(
+        lists.values_gradients(&fewer, &points),
+        Err(CoverError::LengthMismatch { .. })
+    ));
 }
 
 proptest! {

@@ -61,7 +61,7 @@
 //! of threads.
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, CoverError, DVec3, LocalFunctions, PuEvaluator, SupportSamples};
+use sphcover_core::{Cover, CoverError, DVec3, LocalFunctions, SupportLists, SupportSamples};
 use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -326,12 +326,15 @@ pub struct DiffusionStats {
 }
 
 /// Diffuses the linear local functions of `cover` (thesis §5.2.3; module docs). `pairs` is
-/// the pair geometry of the cover over its sphere intersection graph and `terms` the
-/// samples' sums; the cover's functions are replaced.
+/// the pair geometry of the cover over its sphere intersection graph, `terms` the samples'
+/// sums and `at_centers` the support lists gathered at its centres
+/// ([`sphcover_core::PuEvaluator::support_lists`]: the balls do not change, so every round
+/// evaluates its gradients over them); the cover's functions are replaced.
 pub fn diffuse(
     cover: &mut Cover,
     pairs: &PairGeometry,
     terms: &FittingTerms,
+    at_centers: &SupportLists,
     params: &DiffusionParams,
 ) -> Result<DiffusionStats, DiffusionError> {
     let start = Instant::now();
@@ -393,14 +396,12 @@ pub fn diffuse(
     let mut weights = vec![0.0; pairs.stored_entries()];
     for round in 0..params.rounds {
         // 1. Gradients of the current function at the centres.
-        let evaluator = PuEvaluator::new(cover, 1.0)?;
-        let gradients: Vec<DVec3> = evaluator
-            .values_gradients(cover.centers())
+        let gradients: Vec<DVec3> = at_centers
+            .values_gradients(cover, cover.centers())?
             .into_iter()
             .zip(&alpha)
             .map(|(vg, &a)| vg.map_or(a, |vg| vg.gradient))
             .collect();
-        drop(evaluator);
 
         // 2. Edge weights φψ, smoothed and fitted gradients.
         edge_weights(pairs, &gradients, params.anisotropic, &mut weights);

@@ -36,7 +36,7 @@
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, CoverError, DVec3, PuEvaluator, SphereIntersectionGraph};
+use sphcover_core::{Cover, CoverError, DVec3, PuEvaluator, SphereIntersectionGraph, SupportLists};
 use sphcover_tetra::TetMesh;
 use thiserror::Error;
 
@@ -432,12 +432,16 @@ fn finite_capacity(c: f64) -> f64 {
 /// Returns the values and how many were undefined.
 pub fn values_at(cover: &Cover, points: &[DVec3]) -> Result<(Vec<f64>, usize), GraphCutError> {
     let eval = PuEvaluator::new(cover, 1.0)?;
-    let values = eval.values(points);
+    Ok(undefined_as_zero(eval.values(points)))
+}
+
+/// The values with the undefined ones 0, and how many were undefined.
+fn undefined_as_zero(values: Vec<Option<f64>>) -> (Vec<f64>, usize) {
     let undefined = values.iter().filter(|v| v.is_none()).count();
-    Ok((
+    (
         values.into_iter().map(|v| v.unwrap_or(0.0)).collect(),
         undefined,
-    ))
+    )
 }
 
 /// Graph cut on the sphere intersection graph of `cover` (thesis §5.2.4): one node per
@@ -447,16 +451,19 @@ pub fn graph_cut_sig(
     sig: &SphereIntersectionGraph,
     params: &GraphCutParams,
 ) -> Result<GraphCut, GraphCutError> {
-    graph_cut_sig_alongside(cover, sig, params, || ()).map(|(cut, ())| cut)
+    let at_centers = PuEvaluator::new(cover, 1.0)?.support_lists(cover.centers());
+    graph_cut_sig_alongside(cover, sig, &at_centers, params, || ()).map(|(cut, ())| cut)
 }
 
 /// [`graph_cut_sig`], with `alongside` run on the other threads while the max-flow solve,
 /// which is sequential, occupies one: work the caller needs next and that does not depend
 /// on the cut. Its result comes back with the cut's; it is not run when the cut fails
-/// before the solve.
+/// before the solve. `f` at the centres comes from `at_centers`, the support lists gathered
+/// at `cover`'s centres (which later evaluations there can share).
 pub fn graph_cut_sig_alongside<R: Send>(
     cover: &Cover,
     sig: &SphereIntersectionGraph,
+    at_centers: &SupportLists,
     params: &GraphCutParams,
     alongside: impl FnOnce() -> R + Send,
 ) -> Result<(GraphCut, R), GraphCutError> {
@@ -467,7 +474,7 @@ pub fn graph_cut_sig_alongside<R: Send>(
             found: sig.len(),
         });
     }
-    let (values, undefined) = values_at(cover, cover.centers())?;
+    let (values, undefined) = undefined_as_zero(at_centers.values(cover, cover.centers())?);
     let (mut cut, beside) = graph_cut_csr_alongside(
         cover.centers(),
         &values,

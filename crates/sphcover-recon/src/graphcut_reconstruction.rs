@@ -283,7 +283,7 @@ mod tests {
     use super::*;
     use sphcover_core::mesh_topology::MeshTopology;
     use sphcover_core::{
-        SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
+        PuEvaluator, SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
     };
 
     use crate::graph_cut::{graph_cut_sig, graph_cut_sig_alongside, values_at};
@@ -358,9 +358,14 @@ mod tests {
         let (values, _) = values_at(&cover, cover.centers()).unwrap();
         let cut = graph_cut_sig(&cover, &sig, &GraphCutParams::sig()).unwrap();
         // Work run alongside the max-flow solve changes nothing and comes back.
+        let at_centers = PuEvaluator::new(&cover, 1.0)
+            .unwrap()
+            .support_lists(cover.centers());
         let (beside, degree) =
-            graph_cut_sig_alongside(&cover, &sig, &GraphCutParams::sig(), || sig.mean_degree())
-                .unwrap();
+            graph_cut_sig_alongside(&cover, &sig, &at_centers, &GraphCutParams::sig(), || {
+                sig.mean_degree()
+            })
+            .unwrap();
         assert_eq!(beside.labels, cut.labels);
         assert_eq!(beside.flow, cut.flow);
         assert_eq!(degree, sig.mean_degree());

@@ -464,18 +464,28 @@ pub fn reconstruct(
                     || SupportSamples::gather(&cover, &index),
                 )
             };
-            let (pairs, incidence) = if params.method == Method::Integrated {
+            // The graph cut and every diffusion round evaluate at the centres, whose
+            // supports stay the same: gathered once.
+            let centre_supports =
+                || PuEvaluator::new(&cover, 1.0).map(|eval| eval.support_lists(cover.centers()));
+            let (at_centers, (pairs, incidence)) = if params.method == Method::Integrated {
                 clock.start("graph cut");
-                let (cut, beside) =
-                    graph_cut_sig_alongside(&cover, &graph, &params.graph_cut, geometry)?;
+                let at_centers = centre_supports()?;
+                let (cut, beside) = graph_cut_sig_alongside(
+                    &cover,
+                    &graph,
+                    &at_centers,
+                    &params.graph_cut,
+                    geometry,
+                )?;
                 stats.inconsistent_supports = cut.inconsistent.len();
                 for &i in &cut.inconsistent {
                     zeroed[i as usize] = true;
                 }
                 stats.cut = Some(cut.stats);
-                beside
+                (at_centers, beside)
             } else {
-                geometry()
+                (centre_supports()?, geometry())
             };
             let pairs = pairs?;
             drop(graph);
@@ -495,8 +505,14 @@ pub fn reconstruct(
             // The supports the cut found inconsistent start the diffusion from zero; nothing
             // above reads the local functions.
             zero_functions(&mut cover, &zeroed)?;
-            stats.diffusion = Some(diffuse(&mut cover, &pairs, &terms, &params.diffusion)?);
-            drop((pairs, terms));
+            stats.diffusion = Some(diffuse(
+                &mut cover,
+                &pairs,
+                &terms,
+                &at_centers,
+                &params.diffusion,
+            )?);
+            drop((pairs, terms, at_centers));
             clock.start("polygonise");
             let mesh = polygonise_confident(
                 &cover,
