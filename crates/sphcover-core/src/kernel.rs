@@ -167,6 +167,30 @@ impl Kernel {
         }
     }
 
+    /// [`Kernel::value_sq`] without a branch on `s ≥ 1` for the quadratic B-spline and
+    /// Wendland kernels: the same bits for `s < 1`, and 0 for `s ≥ 1` (and NaN). The
+    /// partition-of-unity sums test candidates of which many lie outside their ball, in no
+    /// order a branch predictor can follow; these kernels reach 0 at `t = 1` anyway, so `t`
+    /// is clamped to 1 instead. (The Gaussian keeps the branch: its exponential
+    /// costs more than a missed prediction.)
+    #[inline(always)]
+    pub(crate) fn value_sq_clamped(self, s: f64) -> f64 {
+        match self {
+            Kernel::QuadraticBSpline => {
+                let m = 1.0 - root_clamped(s);
+                let far = 1.125 * m * m;
+                if s <= 1.0 / 9.0 { 0.75 - 2.25 * s } else { far }
+            }
+            Kernel::TruncatedGaussian => self.value_sq(s),
+            Kernel::WendlandC2 => {
+                let t = root_clamped(s);
+                let m = 1.0 - t;
+                let m2 = m * m;
+                m2 * m2 * (4.0 * t + 1.0)
+            }
+        }
+    }
+
     /// `(ψ, A)` as functions of `s = t²`, with `A = ψ'(t)/t` (see the module docs).
     #[inline]
     pub(crate) fn value_slope_sq(self, s: f64) -> (f64, f64) {
@@ -234,6 +258,13 @@ impl Kernel {
     }
 }
 
+/// `t = √s` for `s < 1`, else 1 (also for NaN), as a select rather than a branch.
+#[inline(always)]
+fn root_clamped(s: f64) -> f64 {
+    let t = s.sqrt();
+    if t < 1.0 { t } else { 1.0 }
+}
+
 /// Gradient `A u / r` and Hessian `(A I + B u uᵀ) / r²` of a radial weight from the terms
 /// `(A, B)` of [`Kernel::value_slope_curvature_sq`], the scaled offset `u` and `1/r`. The
 /// Hessian is exactly symmetric (`u uᵀ` is formed before scaling by `B`), and the gradient is
@@ -269,5 +300,44 @@ impl FromStr for Kernel {
             .into_iter()
             .find(|k| k.name().eq_ignore_ascii_case(s.trim()))
             .ok_or_else(|| ParseKernelError(s.to_owned()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The clamped weight has the bits of the plain one inside the ball and is 0 on and
+        /// outside its sphere, whatever the kernel.
+        #[test]
+        fn the_clamped_weight_is_the_weight(
+            kernel in prop::sample::select(Kernel::ALL.to_vec()),
+            inside in 0.0..1.0f64,
+            outside in 1.0..1e300f64,
+        ) {
+            prop_assert_eq!(
+                kernel.value_sq_clamped(inside).to_bits(),
+                kernel.value_sq(inside).to_bits()
+            );
+            prop_assert_eq!(kernel.value_sq_clamped(outside).to_bits(), 0.0f64.to_bits());
+        }
+    }
+
+    #[test]
+    fn the_clamped_weight_at_the_edges() {
+        for kernel in Kernel::ALL {
+            for s in [0.0, 1.0 / 9.0, f64::from_bits((1.0f64).to_bits() - 1)] {
+                assert_eq!(
+                    kernel.value_sq_clamped(s).to_bits(),
+                    kernel.value_sq(s).to_bits(),
+                    "{kernel} at {s}"
+                );
+            }
+            for s in [1.0, f64::INFINITY, f64::NAN] {
+                assert_eq!(kernel.value_sq_clamped(s).to_bits(), 0, "{kernel} at {s}");
+            }
+        }
     }
 }

@@ -584,7 +584,8 @@ fn sym_outer(a: DVec3, b: DVec3) -> DMat3 {
     m + m.transpose()
 }
 
-/// `f` from `Σ w_i` and `Σ w_i g_i` in the order of `ids`.
+/// `f` from `Σ w_i` and `Σ w_i g_i` in the order of `ids` (a support outside its ball adds
+/// exact zeros, see [`Kernel::value_sq_clamped`]).
 #[inline]
 fn value_sum<K: FixedKernel, S: PackedSupport>(
     supports: &[S],
@@ -598,10 +599,7 @@ fn value_sum<K: FixedKernel, S: PackedSupport>(
         let d = x - sup.center();
         let u = d * sup.inv_radius();
         let s = u.length_squared();
-        if s >= 1.0 {
-            continue;
-        }
-        let w = K::KERNEL.value_sq(s);
+        let w = K::KERNEL.value_sq_clamped(s);
         w_sum += w;
         n_sum += w * sup.value(d);
     }
