@@ -97,12 +97,19 @@ impl PuEvaluator<'_> {
                                 (x, &single[..])
                             }
                         };
+                        // Every candidate is written and kept on a hit: whether a candidate's
+                        // ball holds the point follows no pattern a branch could predict.
                         let before = ids.len();
-                        ids.extend(candidates.iter().copied().filter(|&j| {
+                        ids.resize(before + candidates.len(), 0);
+                        let out = &mut ids[before..];
+                        let mut hits = 0;
+                        for &j in candidates {
                             let (c, inv_r) = self.supports.center_inv_radius(j as usize);
-                            ((x - c) * inv_r).length_squared() < 1.0
-                        }));
-                        counts.push((ids.len() - before) as u32);
+                            out[hits] = j;
+                            hits += usize::from(((x - c) * inv_r).length_squared() < 1.0);
+                        }
+                        ids.truncate(before + hits);
+                        counts.push(hits as u32);
                     }
                     (counts, ids)
                 },
