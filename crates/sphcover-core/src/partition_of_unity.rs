@@ -142,8 +142,7 @@ impl<'a> PuEvaluator<'a> {
             }
             expanded.push(r);
         }
-        let inv_radii: Vec<f64> = expanded.iter().map(|&r| 1.0 / r).collect();
-        let supports = PackedSupports::new(cover, &inv_radii);
+        let supports = PackedSupports::new(cover, sigma);
         let index = BallIndex::new(cover.centers(), &expanded);
         let block_span = if expanded.is_empty() {
             0.0
@@ -277,11 +276,10 @@ impl<'a> PuEvaluator<'a> {
     /// the single-point queries.
     ///
     /// Large batches run in Morton order in blocks of up to [`BLOCK_LEN`] neighbouring points
-    /// (see [`BLOCK_SPAN_PER_RADIUS`]): the index is asked once per block (and per parallel
-    /// task that starts inside it) for the balls within reach of the block's bounding
-    /// sphere, each run of [`SUB_BLOCK_LEN`] points keeps those that may reach its own
-    /// bounding sphere, and every point of the run sums over that ascending list. The sums skip the candidates with `s ≥ 1` (see [`GATHER_SCALE`]), so
-    /// each point sums over exactly the supports of a single-point query, in the same order.
+    /// (see [`BLOCK_SPAN_PER_RADIUS`]), and every point sums over the ascending candidate
+    /// list of its run ([`BatchState::near`]). The sums skip the candidates with `s ≥ 1`
+    /// (see [`GATHER_SCALE`]), so each point sums over exactly the supports of a
+    /// single-point query, in the same order.
     /// This amortises the index traversal, which otherwise dominates the cost, over the
     /// block, and spares a containment pass (a square root per candidate) before the sum.
     fn batch<R: Copy + Send + Sync>(
@@ -472,10 +470,9 @@ struct BatchState {
 impl BatchState {
     /// The candidate supports of position `k` of `plan`, ascending: a superset of the
     /// supports whose sums' test `s < 1` holds at the point (none for a non-finite point).
-    /// The index is asked once per block (and per task that starts inside it) for the
-    /// balls within reach of the block's bounding sphere, and each run of [`SUB_BLOCK_LEN`]
-    /// points keeps those that may reach its own bounding sphere. A task that starts inside
-    /// a block gathers that block again.
+    /// The index is asked once per block for the balls within reach of the block's bounding
+    /// sphere (again by a task that starts inside a block), and each run of
+    /// [`SUB_BLOCK_LEN`] points keeps those that may reach its own bounding sphere.
     fn near(
         &mut self,
         eval: &PuEvaluator<'_>,

@@ -130,15 +130,16 @@ pub(super) enum PackedSupports {
 }
 
 impl PackedSupports {
-    /// Packs `cover` with the expanded radii's reciprocals `inv_radii[i] = 1/(σ r_i)`.
-    pub(super) fn new(cover: &Cover, inv_radii: &[f64]) -> PackedSupports {
+    /// Packs `cover` with the expanded radii's reciprocals `1/(σ r_i)`.
+    pub(super) fn new(cover: &Cover, sigma: f64) -> PackedSupports {
         let centers = cover.centers();
+        let inv_radius = |i: usize| 1.0 / (sigma * cover.radii()[i]);
         match cover.funcs() {
             LocalFunctions::Linear { alpha, beta } => PackedSupports::Linear(
                 (0..cover.len())
                     .map(|i| LinearSupport {
                         center: centers[i],
-                        inv_radius: inv_radii[i],
+                        inv_radius: inv_radius(i),
                         alpha: alpha[i],
                         beta: beta[i],
                     })
@@ -150,7 +151,7 @@ impl PackedSupports {
                         let h = a[i] + a[i].transpose();
                         QuadraticSupport {
                             center: centers[i],
-                            inv_radius: inv_radii[i],
+                            inv_radius: inv_radius(i),
                             hessian: [
                                 h.x_axis.x, h.y_axis.y, h.z_axis.z, h.y_axis.x, h.z_axis.x,
                                 h.z_axis.y,

@@ -198,13 +198,8 @@ impl SupportLists {
         eval: impl Fn(&PackedSupports, DVec3, &[u32]) -> R + Sync,
     ) -> Result<Vec<R>, CoverError> {
         self.check(cover, points)?;
-        // `1 / (σ r)` exactly as the evaluator computes it, so the sums agree bitwise.
-        let inv_radii: Vec<f64> = cover
-            .radii()
-            .iter()
-            .map(|&r| 1.0 / (self.sigma * r))
-            .collect();
-        let supports = PackedSupports::new(cover, &inv_radii);
+        // Packed as the evaluator packs them, so the sums agree bitwise.
+        let supports = PackedSupports::new(cover, self.sigma);
         let by_position: Vec<R> = (0..self.points.len())
             .into_par_iter()
             .with_min_len(BATCH_MIN_LEN)
