@@ -51,6 +51,7 @@ pub mod mesh_topology;
 pub mod partition_of_unity;
 pub mod point_cloud;
 pub mod point_index;
+mod spatial_order;
 pub mod sphere_intersection_graph;
 pub mod support_samples;
 pub mod surface_cover;

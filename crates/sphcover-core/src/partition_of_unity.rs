@@ -24,17 +24,16 @@
 //! input order; the order changes no result.
 
 mod packed;
-mod spatial_order;
 
 use crate::ball_index::BallIndex;
 use crate::cover::{Cover, CoverError};
 use crate::geometry::Aabb;
 use crate::kernel::{Kernel, gradient_hessian, outer};
+use crate::spatial_order::{BatchPlan, bounding_sphere, in_input_order};
 use glam::{DMat3, DVec3};
 use packed::{PackedSupport, PackedSupports};
 use rayon::prelude::*;
 use std::cell::RefCell;
-use std::ops::Range;
 
 /// Calls `$method::<K, _>(supports, x, ids, extra…)` with the kernel type and packed
 /// supports of the evaluator.
@@ -314,17 +313,7 @@ impl<'a> PuEvaluator<'a> {
         if points.len() < SPATIAL_ORDER_MIN_LEN || u32::try_from(points.len()).is_err() {
             return None;
         }
-        let order = spatial_order::morton_order(points);
-        let blocks = self.blocks(points, &order);
-        let mut block_of = vec![0u32; order.len()];
-        for (b, (range, _)) in blocks.iter().enumerate() {
-            block_of[range.clone()].fill(b as u32);
-        }
-        Some(BatchPlan {
-            order,
-            blocks,
-            block_of,
-        })
+        Some(BatchPlan::new(points, BLOCK_LEN, self.block_span))
     }
 
     /// The candidates (ascending) that may hold one of the finite points `run` in their
@@ -363,39 +352,6 @@ impl<'a> PuEvaluator<'a> {
         }));
     }
 
-    /// The blocks of a batch, as ranges of `order` with the bounding box of their finite
-    /// points: at most [`BLOCK_LEN`] consecutive points, and a block closes early where the
-    /// next point would stretch its box to a diagonal over `block_span` (a finite point after
-    /// only non-finite ones never does).
-    fn blocks(&self, points: &[DVec3], order: &[u32]) -> Vec<(Range<usize>, Aabb)> {
-        let span2 = self.block_span * self.block_span;
-        let mut blocks = Vec::with_capacity(order.len() / BLOCK_LEN + 1);
-        let mut start = 0;
-        let mut bounds = Aabb::EMPTY;
-        for (k, &i) in order.iter().enumerate() {
-            let x = points[i as usize];
-            let mut grown = bounds;
-            if x.is_finite() {
-                grown.add(x);
-            }
-            let len = k - start;
-            if len == BLOCK_LEN || (len > 0 && grown.extent().length_squared() > span2) {
-                blocks.push((start..k, bounds));
-                start = k;
-                bounds = Aabb::EMPTY;
-                if x.is_finite() {
-                    bounds.add(x);
-                }
-            } else {
-                bounds = grown;
-            }
-        }
-        if start < order.len() {
-            blocks.push((start..order.len(), bounds));
-        }
-        blocks
-    }
-
     /// Runs `body` on a superset of the supports whose expanded ball holds `x` (none for a
     /// non-finite `x`; see [`GATHER_SCALE`]), sorted ascending, using the thread's reusable
     /// buffer.
@@ -431,31 +387,6 @@ impl<'a> PuEvaluator<'a> {
 /// all of them (the two tests differ by a few ulps), so single-point and batch queries,
 /// which gather differently, sum over the same supports in the same ascending order.
 const GATHER_SCALE: f64 = 1.0 + 1e-9;
-
-/// The order in which [`PuEvaluator::batch`] visits a batch's points: Morton order, cut
-/// into blocks of neighbouring points (ranges of `order` with their bounding boxes), and the
-/// block of every position.
-struct BatchPlan {
-    order: Vec<u32>,
-    blocks: Vec<(Range<usize>, Aabb)>,
-    block_of: Vec<u32>,
-}
-
-impl BatchPlan {
-    /// The position of every point in `order`, by input index.
-    fn rank(&self) -> Vec<u32> {
-        let mut rank = vec![0u32; self.order.len()];
-        for (k, &i) in self.order.iter().enumerate() {
-            rank[i as usize] = k as u32;
-        }
-        rank
-    }
-}
-
-/// Results by position (`by_position[rank[i]]` belongs to point `i`) in input order.
-fn in_input_order<R: Copy + Send + Sync>(rank: &[u32], by_position: &[R]) -> Vec<R> {
-    rank.par_iter().map(|&k| by_position[k as usize]).collect()
-}
 
 /// What a task of [`PuEvaluator::batch`] keeps between neighbouring points: the block and
 /// the run of its last point, the block's candidate supports and the run's.
@@ -510,18 +441,6 @@ impl BatchState {
             &[]
         }
     }
-}
-
-/// The centre and radius of a sphere holding the box `bounds` (`None` when it is empty),
-/// the radius widened by a relative margin so that rounding never drops a ball that holds
-/// one of the box's points: the sums' own test `s < 1` decides.
-fn bounding_sphere(bounds: &Aabb) -> Option<(DVec3, f64)> {
-    if bounds.is_empty() {
-        return None;
-    }
-    let center = bounds.center();
-    let reach = 0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * center.abs().max_element();
-    Some((center, reach))
 }
 
 /// Points per rayon task at least: one point costs about a microsecond, so smaller tasks would

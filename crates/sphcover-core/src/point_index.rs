@@ -16,6 +16,8 @@
 //!   given input and therefore deterministic too.
 //! * Non-finite points are not indexed: no query ever reports them.
 
+mod within_batch;
+
 use glam::DVec3;
 use rayon::prelude::*;
 use std::cmp::Ordering;

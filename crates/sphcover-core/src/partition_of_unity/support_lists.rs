@@ -10,11 +10,12 @@
 use super::packed::PackedSupports;
 use super::{
     BATCH_MIN_LEN, BatchState, PuEvaluator, QuadraticBSplineKernel, TruncatedGaussianKernel,
-    ValueGradient, WendlandC2Kernel, in_input_order, value_gradient_sum, value_sum,
+    ValueGradient, WendlandC2Kernel, value_gradient_sum, value_sum,
 };
 use crate::concat::concat_in_parallel;
 use crate::cover::{Cover, CoverError};
 use crate::kernel::Kernel;
+use crate::spatial_order::in_input_order;
 use glam::DVec3;
 use rayon::prelude::*;
 
