@@ -193,12 +193,13 @@ pub fn refine_vertices(
         max_move: params.max_move_steps * scale.step,
         noise_inflation: scale.noise_ratio.max(1.0).powi(4),
     };
-    let outcomes: Vec<Outcome> = mesh
-        .vertices
-        .par_iter()
-        .zip(&normals)
-        .map(|(&v, &n)| fit.outcome(v, n))
-        .collect();
+    // The first ball of every vertex, gathered for neighbouring vertices at once.
+    let outcomes: Vec<Outcome> = samples.index.map_within(
+        &mesh.vertices,
+        fit.radius,
+        FitSamples::default,
+        |kept, i, near| fit.outcome(mesh.vertices[i], normals[i], near, kept),
+    );
 
     let mut stats = VertexRefinementStats::default();
     let mut total = 0.0;
@@ -282,28 +283,39 @@ struct Fit<'a> {
 }
 
 impl Fit<'_> {
-    /// The move of vertex `v` with unit normal `n`.
-    fn outcome(&self, v: DVec3, n: DVec3) -> Outcome {
+    /// The move of vertex `v` with unit normal `n`; `near` holds the samples within the first
+    /// radius, as [`PointIndex::map_within`] gives them, and `kept` is scratch space.
+    fn outcome(&self, v: DVec3, n: DVec3, near: &[(u32, f64)], kept: &mut FitSamples) -> Outcome {
         if n == DVec3::ZERO {
             return Outcome::Unfitted;
         }
         let (t1, t2) = n.any_orthonormal_pair();
         let mut radius = self.radius;
-        for _ in 0..RADIUS_TRIES {
-            let mut sums = Sums::default();
-            self.index.for_each_slot_within(v, radius, |s, d2| {
+        let mut wider = Vec::new();
+        for attempt in 0..RADIUS_TRIES {
+            let near = if attempt == 0 {
+                near
+            } else {
+                // A sparse region: a larger ball, in the same slot order.
+                wider.clear();
+                self.index
+                    .for_each_slot_within(v, radius, |s, d2| wider.push((s as u32, d2)));
+                wider.sort_unstable_by_key(|&(s, _)| s);
+                &wider
+            };
+            kept.clear();
+            let (inv_r, inv_r2) = (1.0 / radius, 1.0 / (radius * radius));
+            for &(s, d2) in near {
+                let s = s as usize;
                 let (normal, w) = self.slot_samples[s];
                 if w.is_nan() || w <= 0.0 || normal.dot(n) <= 0.0 {
-                    return;
+                    continue;
                 }
                 let q = self.slot_points[s] - v;
-                let (x, y) = (q.dot(t1) / radius, q.dot(t2) / radius);
-                // Tangential: how far the vertex is from the samples along the surface (its
-                // offset across the surface is what the fit corrects).
-                sums.nearest2 = sums.nearest2.min((x * x + y * y) * radius * radius);
-                let w = w * (1.0 - d2 / (radius * radius)).powi(2);
-                sums.add([1.0, x, y, x * x, x * y, y * y], q.dot(n), w);
-            });
+                let w = w * (1.0 - d2 * inv_r2).powi(2);
+                kept.push(q.dot(t1) * inv_r, q.dot(t2) * inv_r, q.dot(n), w);
+            }
+            let sums = Sums::of(kept, radius);
             let nearest = sums.nearest2.sqrt();
             if nearest > self.reach {
                 return Outcome::OutOfReach;
@@ -352,6 +364,32 @@ impl Fit<'_> {
     }
 }
 
+/// The samples of one fit in the vertex's frame: tangential coordinates `x`, `y` in units of
+/// the radius, height `z` along the normal, weight `w` (kernel times confidence).
+#[derive(Default)]
+struct FitSamples {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    w: Vec<f64>,
+}
+
+impl FitSamples {
+    fn clear(&mut self) {
+        self.x.clear();
+        self.y.clear();
+        self.z.clear();
+        self.w.clear();
+    }
+
+    fn push(&mut self, x: f64, y: f64, z: f64, w: f64) {
+        self.x.push(x);
+        self.y.push(y);
+        self.z.push(z);
+        self.w.push(w);
+    }
+}
+
 /// The weighted least-squares sums of one fit (lower triangles of the matrices).
 struct Sums {
     normal: [[f64; TERMS]; TERMS],
@@ -360,36 +398,76 @@ struct Sums {
     w2: f64,
     wz2: f64,
     count: usize,
+    /// Squared tangential distance to the nearest sample: how far the vertex is from the
+    /// samples along the surface (its offset across the surface is what the fit corrects).
     nearest2: f64,
 }
 
-impl Default for Sums {
-    fn default() -> Sums {
-        Sums {
-            normal: [[0.0; TERMS]; TERMS],
-            rhs: [0.0; TERMS],
-            w: 0.0,
-            w2: 0.0,
-            wz2: 0.0,
-            count: 0,
-            nearest2: f64::INFINITY,
-        }
-    }
-}
+/// Exponents `(a, b)` of the basis `xᵃ yᵇ` of the quadric height field, in the order of its
+/// coefficients.
+const BASIS: [(usize, usize); TERMS] = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)];
 
 impl Sums {
-    fn add(&mut self, b: [f64; TERMS], z: f64, w: f64) {
-        for r in 0..TERMS {
-            let wb = w * b[r];
-            self.rhs[r] += wb * z;
-            for c in 0..=r {
-                self.normal[r][c] += wb * b[c];
+    /// The sums over `samples`, gathered in a ball of radius `radius`. Each entry of the
+    /// normal matrix is a weighted moment `Σ w xᵃ yᵇ` (`a + b ≤ 4`): 15 sums per sample
+    /// instead of the matrix's 21, each in a loop of a few accumulators, which stay in
+    /// registers.
+    fn of(samples: &FitSamples, radius: f64) -> Sums {
+        let FitSamples { x, y, z, w } = samples;
+        let mut moment = [[0.0; 5]; 5];
+        let (mut w2, mut wz2, mut nearest2) = (0.0, 0.0, f64::INFINITY);
+        let mut rhs = [0.0; TERMS];
+        for k in 0..w.len() {
+            let (wx, wy) = (w[k] * x[k], w[k] * y[k]);
+            moment[0][0] += w[k];
+            moment[1][0] += wx;
+            moment[0][1] += wy;
+            moment[2][0] += wx * x[k];
+            moment[1][1] += wx * y[k];
+            moment[0][2] += wy * y[k];
+            let r2 = x[k] * x[k] + y[k] * y[k];
+            if r2 < nearest2 {
+                nearest2 = r2;
             }
         }
-        self.w += w;
-        self.w2 += w * w;
-        self.wz2 += w * z * z;
-        self.count += 1;
+        for k in 0..w.len() {
+            let (wxx, wyy) = (w[k] * x[k] * x[k], w[k] * y[k] * y[k]);
+            moment[3][0] += wxx * x[k];
+            moment[2][1] += wxx * y[k];
+            moment[1][2] += wyy * x[k];
+            moment[0][3] += wyy * y[k];
+            moment[4][0] += wxx * x[k] * x[k];
+            moment[3][1] += wxx * x[k] * y[k];
+            moment[2][2] += wxx * y[k] * y[k];
+            moment[1][3] += wyy * x[k] * y[k];
+            moment[0][4] += wyy * y[k] * y[k];
+        }
+        for k in 0..w.len() {
+            let wz = w[k] * z[k];
+            rhs[0] += wz;
+            rhs[1] += wz * x[k];
+            rhs[2] += wz * y[k];
+            rhs[3] += wz * x[k] * x[k];
+            rhs[4] += wz * x[k] * y[k];
+            rhs[5] += wz * y[k] * y[k];
+            w2 += w[k] * w[k];
+            wz2 += wz * z[k];
+        }
+        let mut normal = [[0.0; TERMS]; TERMS];
+        for (r, &(ar, br)) in BASIS.iter().enumerate() {
+            for (c, &(ac, bc)) in BASIS.iter().enumerate().take(r + 1) {
+                normal[r][c] = moment[ar + ac][br + bc];
+            }
+        }
+        Sums {
+            normal,
+            rhs,
+            w: moment[0][0],
+            w2,
+            wz2,
+            count: w.len(),
+            nearest2: nearest2 * radius * radius,
+        }
     }
 }
 
@@ -471,6 +549,48 @@ mod tests {
     /// samples on a sphere of radius `r`, about.
     fn spacing(r: f64, n: usize) -> f64 {
         1.5 * (4.0 * std::f64::consts::PI * r * r / n as f64).sqrt()
+    }
+
+    proptest! {
+        /// The moments give the weighted least-squares sums of the basis
+        /// `b = (1, x, y, x², xy, y²)`: `N = Σ w b bᵀ`, `Σ w z b`, `Σ w²`, `Σ w z²`.
+        #[test]
+        fn moments_make_the_normal_equations(
+            samples in prop::collection::vec((-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0, 0.0f64..1.0), 0..60),
+            radius in 0.01f64..2.0,
+        ) {
+            let mut kept = FitSamples::default();
+            for &(x, y, z, w) in &samples {
+                kept.push(x, y, z, w);
+            }
+            let sums = Sums::of(&kept, radius);
+            let mut normal = [[0.0; TERMS]; TERMS];
+            let mut rhs = [0.0; TERMS];
+            let (mut w_sum, mut w2, mut wz2, mut nearest2) = (0.0, 0.0, 0.0, f64::INFINITY);
+            for &(x, y, z, w) in &samples {
+                let b = [1.0, x, y, x * x, x * y, y * y];
+                for r in 0..TERMS {
+                    rhs[r] += w * b[r] * z;
+                    for c in 0..TERMS {
+                        normal[r][c] += w * b[r] * b[c];
+                    }
+                }
+                w_sum += w;
+                w2 += w * w;
+                wz2 += w * z * z;
+                nearest2 = f64::min(nearest2, (x * x + y * y) * radius * radius);
+            }
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * (1.0 + b.abs());
+            for r in 0..TERMS {
+                prop_assert!(close(sums.rhs[r], rhs[r]));
+                for c in 0..=r {
+                    prop_assert!(close(sums.normal[r][c], normal[r][c]), "{} {}", r, c);
+                }
+            }
+            prop_assert!(close(sums.w, w_sum) && close(sums.w2, w2) && close(sums.wz2, wz2));
+            prop_assert_eq!(sums.count, samples.len());
+            prop_assert!(nearest2 == f64::INFINITY && sums.nearest2 == f64::INFINITY || close(sums.nearest2, nearest2));
+        }
     }
 
     proptest! {
