@@ -481,6 +481,52 @@ impl PointIndex {
         r2: f64,
         mut visit: impl FnMut(usize, f64),
     ) {
+        let inside = |d2: f64| if CLOSED { d2 <= r2 } else { d2 < r2 };
+        self.for_each_leaf_near::<CLOSED>(x, r2, |leaf| {
+            for s in leaf.lo as usize..leaf.hi as usize {
+                let d2 = (self.points[s] - x).length_squared();
+                if inside(d2) {
+                    visit(s, d2);
+                }
+            }
+        });
+    }
+
+    /// Appends to `out` the slots that [`PointIndex::for_each_slot_within`] reports for `x`
+    /// and `r`, in the same order. A leaf whose box lies wholly inside the ball is appended
+    /// without a test (by the rounding argument of `box_farthest2`, each of its points
+    /// passes the test), and the others are filtered without a branch per point, which no
+    /// predictor could guess.
+    pub(crate) fn extend_slots_within(&self, x: DVec3, r: f64, out: &mut Vec<u32>) {
+        if r.is_nan() || r <= 0.0 {
+            return;
+        }
+        let r2 = r * r;
+        self.for_each_leaf_near::<false>(x, r2, |leaf| {
+            let slots = leaf.lo..leaf.hi;
+            if leaf.box_farthest2(x) < r2 {
+                out.extend(slots);
+                return;
+            }
+            let mut len = out.len();
+            out.resize(len + slots.len(), 0);
+            for s in slots {
+                out[len] = s;
+                len += usize::from((self.points[s as usize] - x).length_squared() < r2);
+            }
+            out.truncate(len);
+        });
+    }
+
+    /// Calls `visit(leaf)` for every leaf whose bounding box meets the ball `‖p − x‖² < r2`
+    /// (`≤` when `CLOSED`), nearer children first (tree order). Nothing for a non-finite `x`
+    /// or a NaN `r2`.
+    fn for_each_leaf_near<const CLOSED: bool>(
+        &self,
+        x: DVec3,
+        r2: f64,
+        mut visit: impl FnMut(&Node),
+    ) {
         if self.nodes.is_empty() || !x.is_finite() || r2.is_nan() {
             return;
         }
@@ -497,12 +543,7 @@ impl PointIndex {
             let n = stack[top] as usize;
             let node = &self.nodes[n];
             if node.right == 0 {
-                for s in node.lo as usize..node.hi as usize {
-                    let d2 = (self.points[s] - x).length_squared();
-                    if inside(d2) {
-                        visit(s, d2);
-                    }
-                }
+                visit(node);
                 continue;
             }
             let (near, far) = node.children_near_far(n, x);
@@ -675,7 +716,8 @@ mod tests {
 
     proptest! {
         /// The count is that of the open ball, brute force; the sample holds distinct points
-        /// of the ball, at least one when the ball holds any.
+        /// of the ball, at least one when the ball holds any; the ball's slots come the same
+        /// from every gathering.
         #[test]
         fn sampled_count_matches_brute_force(
             points in prop::collection::vec(
@@ -704,6 +746,12 @@ mod tests {
             let mut gathered = Vec::new();
             index.for_each_slot_within(x, r, |s, _| gathered.push(s));
             prop_assert_eq!(gathered.len(), brute);
+            // The branch-free gathering appends the same slots in the same order, after what
+            // the list held.
+            let mut appended = vec![u32::MAX];
+            index.extend_slots_within(x, r, &mut appended);
+            prop_assert_eq!(appended[0], u32::MAX);
+            prop_assert!(appended[1..].iter().map(|&s| s as usize).eq(gathered.iter().copied()));
             for &s in &sample {
                 prop_assert!(gathered.contains(&s));
             }

@@ -96,9 +96,7 @@ impl<'a> SupportSamples<'a> {
                     let mut slots = Vec::new();
                     for (&c, &r) in centers.iter().zip(radii) {
                         let before = slots.len();
-                        index.for_each_slot_within(c, r * (1.0 + MARGIN), |s, _| {
-                            slots.push(s as u32);
-                        });
+                        index.extend_slots_within(c, r * (1.0 + MARGIN), &mut slots);
                         lengths.push((slots.len() - before) as u32);
                     }
                     (lengths, slots)
