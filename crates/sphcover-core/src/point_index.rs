@@ -492,29 +492,53 @@ impl PointIndex {
         });
     }
 
-    /// Appends to `out` the slots that [`PointIndex::for_each_slot_within`] reports for `x`
-    /// and `r`, in the same order. A leaf whose box lies wholly inside the ball is appended
-    /// without a test (by the rounding argument of `box_farthest2`, each of its points
-    /// passes the test), and the others are filtered without a branch per point, which no
-    /// predictor could guess.
-    pub(crate) fn extend_slots_within(&self, x: DVec3, r: f64, out: &mut Vec<u32>) {
+    /// Appends to `slots` the slots that [`PointIndex::for_each_slot_within`] reports for
+    /// `x` and `r`, in the same order, and to `dist2`, when given, their squared distances
+    /// (the same bits). A leaf whose box lies wholly inside the ball is appended without a
+    /// test (by the rounding argument of `box_farthest2`, each of its points passes it), and
+    /// the others are filtered without a branch per point, which no predictor could guess.
+    pub(crate) fn extend_within(
+        &self,
+        x: DVec3,
+        r: f64,
+        slots: &mut Vec<u32>,
+        mut dist2: Option<&mut Vec<f64>>,
+    ) {
         if r.is_nan() || r <= 0.0 {
             return;
         }
         let r2 = r * r;
+        let distance2 = |s: u32| (self.points[s as usize] - x).length_squared();
         self.for_each_leaf_near::<false>(x, r2, |leaf| {
-            let slots = leaf.lo..leaf.hi;
+            let range = leaf.lo..leaf.hi;
             if leaf.box_farthest2(x) < r2 {
-                out.extend(slots);
+                slots.extend(range.clone());
+                if let Some(dist2) = dist2.as_deref_mut() {
+                    dist2.extend(range.map(distance2));
+                }
                 return;
             }
-            let mut len = out.len();
-            out.resize(len + slots.len(), 0);
-            for s in slots {
-                out[len] = s;
-                len += usize::from((self.points[s as usize] - x).length_squared() < r2);
+            let mut len = slots.len();
+            slots.resize(len + range.len(), 0);
+            match dist2.as_deref_mut() {
+                Some(dist2) => {
+                    dist2.resize(len + range.len(), 0.0);
+                    for s in range {
+                        let d2 = distance2(s);
+                        slots[len] = s;
+                        dist2[len] = d2;
+                        len += usize::from(d2 < r2);
+                    }
+                    dist2.truncate(len);
+                }
+                None => {
+                    for s in range {
+                        slots[len] = s;
+                        len += usize::from(distance2(s) < r2);
+                    }
+                }
             }
-            out.truncate(len);
+            slots.truncate(len);
         });
     }
 
@@ -749,9 +773,15 @@ mod tests {
             // The branch-free gathering appends the same slots in the same order, after what
             // the list held.
             let mut appended = vec![u32::MAX];
-            index.extend_slots_within(x, r, &mut appended);
+            index.extend_within(x, r, &mut appended, None);
             prop_assert_eq!(appended[0], u32::MAX);
             prop_assert!(appended[1..].iter().map(|&s| s as usize).eq(gathered.iter().copied()));
+            let (mut slots, mut dist2) = (vec![u32::MAX], vec![-1.0]);
+            index.extend_within(x, r, &mut slots, Some(&mut dist2));
+            let mut visited = Vec::new();
+            index.for_each_slot_within(x, r, |s, d2| visited.push((s as u32, d2.to_bits())));
+            prop_assert_eq!((slots[0], dist2[0]), (u32::MAX, -1.0));
+            prop_assert!(slots[1..].iter().zip(&dist2[1..]).map(|(&s, d)| (s, d.to_bits())).eq(visited));
             for &s in &sample {
                 prop_assert!(gathered.contains(&s));
             }

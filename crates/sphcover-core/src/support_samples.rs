@@ -96,7 +96,7 @@ impl<'a> SupportSamples<'a> {
                     let mut slots = Vec::new();
                     for (&c, &r) in centers.iter().zip(radii) {
                         let before = slots.len();
-                        index.extend_slots_within(c, r * (1.0 + MARGIN), &mut slots);
+                        index.extend_within(c, r * (1.0 + MARGIN), &mut slots, None);
                         lengths.push((slots.len() - before) as u32);
                     }
                     (lengths, slots)

@@ -112,7 +112,7 @@ impl WithinState {
             // relative margin covers the rounding of both distances.
             if let Some((center, t)) = bounding_sphere(&plan.blocks[b].1) {
                 let reach = (r + t) * (1.0 + 1e-9);
-                index.extend_slots_within(center, reach, &mut self.candidates);
+                index.extend_within(center, reach, &mut self.candidates, None);
                 self.candidates.sort_unstable();
             }
             self.near.resize(self.candidates.len(), (0, 0.0));

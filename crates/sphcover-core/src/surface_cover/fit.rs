@@ -75,10 +75,9 @@ impl Candidates {
         self.center = c;
         self.slots.clear();
         self.dist2.clear();
-        samples.index.for_each_slot_within(c, r, |s, d2| {
-            self.slots.push(s as u32);
-            self.dist2.push(d2);
-        });
+        samples
+            .index
+            .extend_within(c, r, &mut self.slots, Some(&mut self.dist2));
     }
 
     /// Drops the candidates with `distance² ≥ r²`, keeping the others in order. Exact for
