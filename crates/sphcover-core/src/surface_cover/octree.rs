@@ -183,6 +183,16 @@ fn spread(v: u32) -> u64 {
     x
 }
 
+/// The six face neighbours' offsets, in the order the balance visits them.
+const FACE_STEPS: [(i64, i64, i64); 6] = [
+    (0, 0, -1),
+    (0, -1, 0),
+    (-1, 0, 0),
+    (1, 0, 0),
+    (0, 1, 0),
+    (0, 0, 1),
+];
+
 /// A multiplicative hasher for the `u64` cell keys (SipHash costs more than the lookups).
 #[derive(Default)]
 struct KeyHasher(u64);
@@ -487,29 +497,33 @@ impl Octree<'_> {
         for level in (2..levels).rev() {
             let bucket = std::mem::take(&mut buckets[level]);
             let cells = 1i64 << level;
-            for key in bucket {
-                if self.internal[level].contains(&key) {
-                    continue;
-                }
-                let (x, y, z) = unpack(key);
-                for dz in -1i64..=1 {
-                    for dy in -1i64..=1 {
-                        for dx in -1i64..=1 {
+            // Each face neighbour's parent must exist: its grandparent subdivided. The
+            // grandparents missing now are found in parallel, in the order of the sequential
+            // walk; subdividing only adds internal cells (and none at this level), so a
+            // grandparent present now stays present, and checking the others again in that
+            // order makes the same subdivisions as the walk.
+            let internal = &self.internal;
+            let missing: Vec<u64> = bucket
+                .par_iter()
+                .with_min_len(1024)
+                .flat_map_iter(|&key| {
+                    let unbalanced = !internal[level].contains(&key);
+                    let (x, y, z) = unpack(key);
+                    FACE_STEPS
+                        .iter()
+                        .filter(move |_| unbalanced)
+                        .filter_map(move |&(dx, dy, dz)| {
                             let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
-                            if dx.abs() + dy.abs() + dz.abs() != 1
-                                || !(0..cells).contains(&nx)
-                                || !(0..cells).contains(&ny)
-                                || !(0..cells).contains(&nz)
-                            {
-                                continue;
-                            }
-                            // The neighbour's parent must exist: its grandparent subdivided.
-                            let grand = pack((nx >> 2) as u32, (ny >> 2) as u32, (nz >> 2) as u32);
-                            if !self.internal[level - 2].contains(&grand) {
-                                self.subdivide_up(level - 2, grand, &mut buckets, &mut created);
-                            }
-                        }
-                    }
+                            let inside = |c: i64| (0..cells).contains(&c);
+                            (inside(nx) && inside(ny) && inside(nz))
+                                .then(|| pack((nx >> 2) as u32, (ny >> 2) as u32, (nz >> 2) as u32))
+                        })
+                        .filter(|grand| !internal[level - 2].contains(grand))
+                })
+                .collect();
+            for grand in missing {
+                if !self.internal[level - 2].contains(&grand) {
+                    self.subdivide_up(level - 2, grand, &mut buckets, &mut created);
                 }
             }
         }
