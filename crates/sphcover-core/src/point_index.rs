@@ -497,6 +497,7 @@ impl PointIndex {
     /// (the same bits). A leaf whose box lies wholly inside the ball is appended without a
     /// test (by the rounding argument of `box_farthest2`, each of its points passes it), and
     /// the others are filtered without a branch per point, which no predictor could guess.
+    /// `dist2` must be as long as `slots`.
     pub(crate) fn extend_within(
         &self,
         x: DVec3,
@@ -507,6 +508,7 @@ impl PointIndex {
         if r.is_nan() || r <= 0.0 {
             return;
         }
+        debug_assert!(dist2.as_ref().is_none_or(|d| d.len() == slots.len()));
         let r2 = r * r;
         let distance2 = |s: u32| (self.points[s as usize] - x).length_squared();
         self.for_each_leaf_near::<false>(x, r2, |leaf| {
