@@ -359,15 +359,28 @@ impl<'a> FlowGraph<'a> {
         if let Some(what) = malformed {
             return Err(MaxFlowError::MalformedCsr(what));
         }
-        // Sister of each entry by binary search in the neighbour's row (`u32::MAX` where the
-        // reverse entry is missing).
-        let mut sister = vec![0u32; neighbors.len()];
-        crate::csr::fill_entries(offsets, &mut sister, |v, k| {
-            let j = neighbors[k] as usize;
-            row(j)
-                .binary_search(&(v as u32))
-                .map_or(u32::MAX, |pos| offsets[j] + pos as u32)
-        });
+        // The sister of each entry, in one walk without searches: the rows ascend, so
+        // walking the rows in order and each row's entries above the diagonal (`v → j`,
+        // `j > v`) in order meets the entries below the diagonal of every row `j` in their
+        // own order. A cursor per row hands them out; an entry the cursor does not name
+        // `v` has no reverse, and one never handed out keeps `u32::MAX`. (A binary search
+        // per entry cost 40–50 ms at two threads on the 3.5 million entries of a 362K-point
+        // scan's sphere intersection graph, its branches unpredictable.)
+        let mut sister = vec![u32::MAX; neighbors.len()];
+        let mut cursor: Vec<u32> = offsets[..n].to_vec();
+        for v in 0..n {
+            let upper = row(v).partition_point(|&j| (j as usize) < v);
+            for k in offsets[v] as usize + upper..offsets[v + 1] as usize {
+                let j = neighbors[k] as usize;
+                let lower = cursor[j] as usize;
+                if lower >= offsets[j + 1] as usize || neighbors[lower] as usize != v {
+                    return Err(MaxFlowError::MalformedCsr("entry without a reverse entry"));
+                }
+                sister[k] = lower as u32;
+                sister[lower] = k as u32;
+                cursor[j] += 1;
+            }
+        }
         if sister.par_iter().any(|&s| s == u32::MAX) {
             return Err(MaxFlowError::MalformedCsr("entry without a reverse entry"));
         }
@@ -846,6 +859,57 @@ mod tests {
             let mut g = FlowGraph::from_symmetric_csr(&source, &sink, &offsets, &neighbors, capacities).unwrap();
             prop_assert_eq!(g.solve().flow, expected);
             prop_assert_eq!(cut_capacity(&source, &sink, &edges, &g.source_side()), expected);
+        }
+
+        /// Every entry of a symmetric CSR gets its reverse entry as sister; an adjacency with
+        /// one entry dropped (an edge in one direction only) is refused.
+        #[test]
+        fn sisters_are_the_reverse_entries(
+            n in 1usize..40,
+            pairs in prop::collection::btree_set((0u32..40, 0u32..40), 0..200),
+            drop in any::<prop::sample::Index>(),
+        ) {
+            let rows: Vec<std::collections::BTreeSet<u32>> = (0..n as u32)
+                .map(|v| {
+                    pairs
+                        .iter()
+                        .filter(|&&(a, b)| a != b && (a as usize) < n && (b as usize) < n)
+                        .filter_map(|&(a, b)| if a == v { Some(b) } else if b == v { Some(a) } else { None })
+                        .collect()
+                })
+                .collect();
+            let csr = |rows: &[std::collections::BTreeSet<u32>]| {
+                let mut offsets = vec![0u32];
+                let mut neighbors = Vec::new();
+                for row in rows {
+                    neighbors.extend(row.iter().copied());
+                    offsets.push(neighbors.len() as u32);
+                }
+                (offsets, neighbors)
+            };
+            let z = vec![0.0; n];
+            let (offsets, neighbors) = csr(&rows);
+            let g = FlowGraph::from_symmetric_csr(&z, &z, &offsets, &neighbors, vec![1.0; neighbors.len()]).unwrap();
+            for v in 0..n {
+                for k in offsets[v] as usize..offsets[v + 1] as usize {
+                    let s = g.sister[k] as usize;
+                    prop_assert_eq!(g.sister[s] as usize, k);
+                    prop_assert_eq!(neighbors[s] as usize, v);
+                    let j = neighbors[k] as usize;
+                    prop_assert!((offsets[j] as usize..offsets[j + 1] as usize).contains(&s));
+                }
+            }
+            if !neighbors.is_empty() {
+                let mut one_sided = rows.clone();
+                let k = drop.index(neighbors.len());
+                let v = offsets.partition_point(|&o| o as usize <= k) - 1;
+                one_sided[v].remove(&neighbors[k]);
+                let (offsets, neighbors) = csr(&one_sided);
+                prop_assert!(matches!(
+                    FlowGraph::from_symmetric_csr(&z, &z, &offsets, &neighbors, vec![1.0; neighbors.len()]),
+                    Err(MaxFlowError::MalformedCsr(_))
+                ));
+            }
         }
 
         /// Real-valued capacities: flow and cut agree to rounding.
