@@ -522,25 +522,21 @@ impl PointIndex {
             }
             let mut len = slots.len();
             slots.resize(len + range.len(), 0);
-            match dist2.as_deref_mut() {
-                Some(dist2) => {
-                    dist2.resize(len + range.len(), 0.0);
-                    for s in range {
-                        let d2 = distance2(s);
-                        slots[len] = s;
-                        dist2[len] = d2;
-                        len += usize::from(d2 < r2);
-                    }
-                    dist2.truncate(len);
+            if let Some(dist2) = dist2.as_deref_mut() {
+                dist2.resize(len + range.len(), 0.0);
+            }
+            for s in range {
+                let d2 = distance2(s);
+                slots[len] = s;
+                if let Some(dist2) = dist2.as_deref_mut() {
+                    dist2[len] = d2;
                 }
-                None => {
-                    for s in range {
-                        slots[len] = s;
-                        len += usize::from(distance2(s) < r2);
-                    }
-                }
+                len += usize::from(d2 < r2);
             }
             slots.truncate(len);
+            if let Some(dist2) = dist2.as_deref_mut() {
+                dist2.truncate(len);
+            }
         });
     }
 
