@@ -19,6 +19,9 @@ use crate::point_index::PointIndex;
 use glam::DVec3;
 use std::borrow::Cow;
 
+/// Candidates per check of the error pass's early exit (see [`Candidates::fit`]).
+const ERROR_RUN: usize = 16;
+
 /// The oriented points of the build, in the slot order of the point index.
 #[derive(Debug)]
 pub(crate) struct Samples<'i> {
@@ -121,7 +124,7 @@ impl Candidates {
             None => {
                 for j in 0..len {
                     let s = slots[j] as usize;
-                    let w = kernel.value_sq(dist2[j] * inv_r2);
+                    let w = kernel.value_sq_clamped(dist2[j] * inv_r2);
                     sum_w += w;
                     sum_p += w * (points[s] - c);
                     sum_n += w * normals[s];
@@ -130,7 +133,7 @@ impl Candidates {
             Some(conf) => {
                 for j in 0..len {
                     let s = slots[j] as usize;
-                    let w = kernel.value_sq(dist2[j] * inv_r2) * conf[s];
+                    let w = kernel.value_sq_clamped(dist2[j] * inv_r2) * conf[s];
                     sum_w += w;
                     sum_p += w * (points[s] - c);
                     sum_n += w * normals[s];
@@ -151,19 +154,22 @@ impl Candidates {
             (normals[s], points[s] - c)
         };
         let level = normal.dot(centroid);
-        let mut error: f64 = 0.0;
-        let conf = samples.confidence.as_deref();
-        for j in 0..len {
+        // The candidates outside the ball (and of zero confidence) count as 0 rather than
+        // being skipped by a branch, which no predictor could guess for a trial smaller
+        // than its gather; the limit is checked once per run of `ERROR_RUN`, so a passing
+        // fit's error is the same maximum, and a failing one's is still above the limit.
+        let deviation = |j: usize| {
             let s = slots[j] as usize;
-            if dist2[j] >= r2 || conf.is_some_and(|conf| conf[s] <= 0.0) {
-                continue;
-            }
             let e = (level - normal.dot(points[s] - c)).abs();
-            if e > error {
-                error = e;
-                if error > limit {
-                    break;
-                }
+            let counted = dist2[j] < r2 && samples.confidence.as_ref().is_none_or(|w| w[s] > 0.0);
+            if counted { e } else { 0.0 }
+        };
+        let mut error: f64 = 0.0;
+        for start in (0..len).step_by(ERROR_RUN) {
+            let run = (start..len.min(start + ERROR_RUN)).map(deviation);
+            error = run.fold(error, f64::max);
+            if error > limit {
+                break;
             }
         }
         Some(Fit {
