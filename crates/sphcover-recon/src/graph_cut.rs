@@ -234,7 +234,7 @@ pub fn graph_cut(
         .collect();
     let graph = FlowGraph::new(n, &source, &sink, &flow_edges)?;
     drop(flow_edges);
-    Ok(solve(graph, values, edges.len(), start, || ()).0)
+    Ok(solve(|| Ok(graph), values, edges.len(), start, || ())?.0)
 }
 
 /// Terminal capacities of eq. 5.1 (with the optional degree normalisation) from the sums and
@@ -265,25 +265,28 @@ fn terminal_capacities(
         .unzip()
 }
 
-/// Solves the network and reads the labelling off the cut, running `alongside` on the other
-/// threads meanwhile: the max-flow solve is sequential.
-fn solve<R: Send>(
-    mut graph: FlowGraph<'_>,
+/// Builds the network with `build`, solves it and reads the labelling off the cut, running
+/// `alongside` on the other threads meanwhile: building the network's reverse arcs and the
+/// max-flow solve are sequential. An error of `build` is returned once `alongside` is done.
+fn solve<'g, R: Send>(
+    build: impl FnOnce() -> Result<FlowGraph<'g>, MaxFlowError> + Send,
     values: &[f64],
     edges: usize,
     start: Instant,
     alongside: impl FnOnce() -> R + Send,
-) -> (GraphCut, R) {
+) -> Result<(GraphCut, R), GraphCutError> {
     let n = values.len();
-    let build_time = start.elapsed();
-    let ((info, solve_time), beside) = rayon::join(
+    let (solved, beside) = rayon::join(
         || {
+            let mut graph = build()?;
+            let build_time = start.elapsed();
             let solve_start = Instant::now();
             let info = graph.solve();
-            (info, solve_start.elapsed())
+            Ok::<_, MaxFlowError>((graph, info, build_time, solve_start.elapsed()))
         },
         alongside,
     );
+    let (graph, info, build_time, solve_time) = solved?;
     let labels = graph.source_side();
     let inconsistent: Vec<u32> = (0..n)
         .filter(|&v| (labels[v] && values[v] < 0.0) || (!labels[v] && values[v] > 0.0))
@@ -305,7 +308,7 @@ fn solve<R: Send>(
         flow: info.flow,
         stats,
     };
-    (cut, beside)
+    Ok((cut, beside))
 }
 
 /// Checks the common inputs of the graph cuts.
@@ -419,8 +422,8 @@ fn graph_cut_csr_alongside<R: Send>(
         let j = neighbors[k] as usize;
         finite_capacity((values[v] + values[j]).abs() / length(v, j).max(floor))
     });
-    let graph = FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, capacities)?;
-    Ok(solve(graph, values, neighbors.len() / 2, start, alongside))
+    let build = || FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, capacities);
+    solve(build, values, neighbors.len() / 2, start, alongside)
 }
 
 /// Keeps a capacity finite when a tiny length meets a large value.
@@ -457,8 +460,8 @@ pub fn graph_cut_sig(
 
 /// [`graph_cut_sig`], with `alongside` run on the other threads while the max-flow solve,
 /// which is sequential, occupies one: work the caller needs next and that does not depend
-/// on the cut. Its result comes back with the cut's; it is not run when the cut fails
-/// before the solve. `f` at the centres comes from `at_centers`, the support lists gathered
+/// on the cut. Its result comes back with the cut's; it is not run when the inputs are
+/// refused, but may be when the graph proves not symmetric while the network is built. `f` at the centres comes from `at_centers`, the support lists gathered
 /// at `cover`'s centres (which later evaluations there can share).
 pub fn graph_cut_sig_alongside<R: Send>(
     cover: &Cover,
