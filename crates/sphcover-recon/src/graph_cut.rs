@@ -461,8 +461,9 @@ pub fn graph_cut_sig(
 /// [`graph_cut_sig`], with `alongside` run on the other threads while the max-flow solve,
 /// which is sequential, occupies one: work the caller needs next and that does not depend
 /// on the cut. Its result comes back with the cut's; it is not run when the inputs are
-/// refused, but may be when the graph proves not symmetric while the network is built. `f` at the centres comes from `at_centers`, the support lists gathered
-/// at `cover`'s centres (which later evaluations there can share).
+/// refused, but may be when the graph proves not symmetric while the network is built. `f`
+/// at the centres comes from `at_centers`, the support lists gathered at `cover`'s centres
+/// (which later evaluations there can share).
 pub fn graph_cut_sig_alongside<R: Send>(
     cover: &Cover,
     sig: &SphereIntersectionGraph,

@@ -36,8 +36,8 @@
 //! Each trial radius refits from scratch (the kernel weights depend on the radius). The
 //! first trial of a bracket gathers its own ball. Once it passed, the doubled ball is
 //! gathered and serves every later trial: the kernel gives the points outside a smaller
-//! trial ball weight 0, and the error pass skips them. (Sorting the points by distance, to
-//! make each trial ball a prefix, cost more than these extra passes.)
+//! trial ball weight 0, and the error pass counts them as 0. (Sorting the points by
+//! distance, to make each trial ball a prefix, cost more than these extra passes.)
 
 use super::SurfaceCoverParams;
 use super::fit::{Candidates, Fit, Samples};

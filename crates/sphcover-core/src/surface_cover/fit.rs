@@ -86,8 +86,8 @@ impl Candidates {
     /// Drops the candidates with `distance² ≥ r²`, keeping the others in order. Exact for
     /// every later fit whose radius `ρ` has `ρ² ≤ r² / (1 + 1e-6)`: the dropped candidates
     /// would get kernel weight exactly 0 there (`s = d²/ρ² > 1`, with a margin far above
-    /// rounding) and be skipped by the error pass, so the sums and the error do not change
-    /// by a bit.
+    /// rounding) and count as 0 in the error pass, so the sums do not change by a bit, nor
+    /// the error of a fit within its limit (one above it stays above).
     pub fn keep_within(&mut self, r: f64) {
         let r2 = r * r;
         let mut kept = 0;
@@ -104,10 +104,11 @@ impl Candidates {
 
     /// Fits the candidates inside the ball of radius `r` (at most the gather radius) with
     /// kernel radius `r`, reading them from `samples` (those of the gather). Candidates
-    /// outside get weight 0 from the kernel and are skipped by the error pass, so one gather
-    /// at the largest radius serves every smaller trial. The error pass stops as soon as `E`
-    /// exceeds `limit` (pass `f64::INFINITY` for the exact error). `None` when no candidate
-    /// lies inside.
+    /// outside get weight 0 from the kernel and count as 0 in the error pass, so one gather
+    /// at the largest radius serves every smaller trial. The error pass stops once `E`
+    /// exceeds `limit`, tested every [`ERROR_RUN`] candidates, and then returns a value
+    /// above `limit` rather than `E` (pass `f64::INFINITY` for the exact error). `None` when
+    /// no candidate lies inside.
     pub fn fit(&self, samples: &Samples<'_>, r: f64, kernel: Kernel, limit: f64) -> Option<Fit> {
         let len = self.len();
         let r2 = r * r;
