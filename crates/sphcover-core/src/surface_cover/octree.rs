@@ -506,12 +506,11 @@ impl Octree<'_> {
             let missing: Vec<u64> = bucket
                 .par_iter()
                 .with_min_len(1024)
+                .filter(|&key| !internal[level].contains(key))
                 .flat_map_iter(|&key| {
-                    let unbalanced = !internal[level].contains(&key);
                     let (x, y, z) = unpack(key);
                     FACE_STEPS
                         .iter()
-                        .filter(move |_| unbalanced)
                         .filter_map(move |&(dx, dy, dz)| {
                             let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
                             let inside = |c: i64| (0..cells).contains(&c);
