@@ -5,6 +5,12 @@
 //! denies `unsafe`, so the command runs under GNU `time` (`/usr/bin/time -f`), which prints
 //! exactly those fields. Where GNU `time` is missing, wall time is measured here and the
 //! memory is reported as unknown rather than guessed.
+//!
+//! On a virtual machine the hypervisor may run other guests on the cores this one was
+//! given; the time it takes is the *steal* column of Linux's `/proc/stat`. Read before and
+//! after the run, it tells a slow run on a shared host from a slow program: on the 2-core
+//! VM of `docs/benchmarks.md`, a `sphcover recon` run that usually takes 2.2–2.9 s took
+//! 4.0–4.5 s while 21–29% of the machine's CPU time was stolen.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -43,6 +49,9 @@ pub struct RunMeasurement {
     pub cpu_seconds: Option<f64>,
     /// Peak resident memory in MiB, when known.
     pub peak_mib: Option<f64>,
+    /// The share of the machine's CPU time (all cores, over the run) that the hypervisor
+    /// gave to other guests, in percent; `None` where `/proc/stat` is unavailable.
+    pub steal_percent: Option<f64>,
     /// The full stderr of the command (without GNU time's own line).
     pub stderr: String,
 }
@@ -62,6 +71,7 @@ pub fn run_measured(argv: &[String], cwd: &Path, timeout: Duration) -> RunMeasur
         wall_seconds: 0.0,
         cpu_seconds: None,
         peak_mib: None,
+        steal_percent: None,
         stderr: String::new(),
     };
     let Some((program, args)) = argv.split_first() else {
@@ -92,6 +102,7 @@ pub fn run_measured(argv: &[String], cwd: &Path, timeout: Duration) -> RunMeasur
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
+    let ticks_before = machine_ticks();
     let start = Instant::now();
     let mut child = match cmd.spawn() {
         Ok(c) => c,
@@ -129,6 +140,9 @@ pub fn run_measured(argv: &[String], cwd: &Path, timeout: Duration) -> RunMeasur
         std::thread::sleep(Duration::from_millis(20));
     };
     let wall = start.elapsed().as_secs_f64();
+    let steal_percent = ticks_before
+        .zip(machine_ticks())
+        .and_then(|(before, after)| after.steal_percent_since(&before));
     let stderr = reader.join().unwrap_or_default();
     let times = std::fs::read_to_string(&report).ok();
     let _ = std::fs::remove_file(&report);
@@ -154,8 +168,52 @@ pub fn run_measured(argv: &[String], cwd: &Path, timeout: Duration) -> RunMeasur
         wall_seconds: parsed.map_or(wall, |p| p.0),
         cpu_seconds: parsed.map(|p| p.1),
         peak_mib: parsed.map(|p| p.2),
+        steal_percent,
         stderr,
     }
+}
+
+/// The machine's CPU time so far, summed over its cores, in clock ticks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MachineTicks {
+    /// Every state: user, nice, system, idle, iowait, irq, softirq and steal.
+    total: u64,
+    /// Steal alone.
+    steal: u64,
+}
+
+impl MachineTicks {
+    /// Percent of the ticks since `before` that were stolen; `None` when none passed.
+    fn steal_percent_since(&self, before: &MachineTicks) -> Option<f64> {
+        let total = self.total.checked_sub(before.total)?;
+        let steal = self.steal.checked_sub(before.steal)?;
+        (total > 0).then(|| 100.0 * steal as f64 / total as f64)
+    }
+}
+
+/// The machine's ticks from `/proc/stat`, or `None` where it cannot be read.
+fn machine_ticks() -> Option<MachineTicks> {
+    parse_proc_stat(&std::fs::read_to_string("/proc/stat").ok()?)
+}
+
+/// The aggregate `cpu` line of `/proc/stat`: `cpu user nice system idle iowait irq softirq
+/// steal guest guest_nice`. The guest times are already counted in user and nice, so they
+/// are left out of the total. Kernels before 2.6.11 have no steal column: `None`.
+fn parse_proc_stat(stat: &str) -> Option<MachineTicks> {
+    let line = stat
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some("cpu"))?;
+    let fields: Vec<u64> = line
+        .split_whitespace()
+        .skip(1)
+        .take(8)
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .ok()?;
+    (fields.len() == 8).then(|| MachineTicks {
+        total: fields.iter().sum(),
+        steal: fields[7],
+    })
 }
 
 /// `(wall s, cpu s, peak MiB)` from GNU time's `%e %U %S %M` line (its last line; earlier
@@ -216,6 +274,30 @@ mod tests {
         );
         assert_eq!(parse_gnu_time("garbage"), None);
         assert_eq!(parse_gnu_time(""), None);
+    }
+
+    #[test]
+    fn proc_stat_gives_the_steal_share() {
+        let before = parse_proc_stat(
+            "cpu  100 5 50 800 10 0 5 30 7 0\ncpu0 50 2 25 400 5 0 2 15 3 0\nintr 1 2\n",
+        )
+        .unwrap();
+        assert_eq!(
+            before,
+            MachineTicks {
+                total: 1000,
+                steal: 30
+            }
+        );
+        let after = parse_proc_stat("cpu  300 5 70 900 10 0 5 130 9 0\n").unwrap();
+        // 420 ticks passed, 100 of them stolen.
+        let share = after.steal_percent_since(&before).unwrap();
+        assert!((share - 100.0 * 100.0 / 420.0).abs() < 1e-9, "{share}");
+        assert_eq!(before.steal_percent_since(&before), None);
+        assert_eq!(before.steal_percent_since(&after), None);
+        assert_eq!(parse_proc_stat("cpu  1 2 3 4\n"), None);
+        assert_eq!(parse_proc_stat("cpu0 1 2 3 4 5 6 7 8\n"), None);
+        assert_eq!(parse_proc_stat("cpu  1 2 x 4 5 6 7 8\n"), None);
     }
 
     #[test]

@@ -39,6 +39,8 @@ fn recon_bench_scores_peers_and_reports_failures() {
             "clean,outliers1",
             "--samples",
             "5000",
+            "--repeat",
+            "2",
         ])
         .arg("--mesh")
         .arg(format!("sphere={}", gt.display()))
@@ -74,15 +76,32 @@ fn recon_bench_scores_peers_and_reports_failures() {
                 .collect::<Vec<_>>()
         };
         let perfect = row("perfect");
-        // Columns: mesh case points tool wall cpu peak chamfer h99 nc f.25 f.5 f1 comp wt status
-        assert_eq!(perfect[8], "0.0000", "{perfect:?}");
-        assert_eq!(perfect[10], "1.0000");
-        assert_eq!(perfect[13], "1.0000");
-        assert_eq!(perfect[14], "1");
-        assert_eq!(perfect[15], "yes");
-        assert_eq!(perfect[16], "ok");
-        assert!(row("broken")[16].contains("failed (exit 4): boom"));
-        assert!(row("sphcover")[16].starts_with("not built"));
+        // Columns: mesh case points tool wall cpu peak steal chamfer h99 nc f.25 f.5 f1 comp
+        // wt status
+        assert_eq!(perfect[9], "0.0000", "{perfect:?}");
+        assert_eq!(perfect[11], "1.0000");
+        assert_eq!(perfect[14], "1.0000");
+        assert_eq!(perfect[15], "1");
+        assert_eq!(perfect[16], "yes");
+        assert_eq!(perfect[17], "ok");
+        // Two runs: the median's wall time and the range of both.
+        let (wall, range) = perfect[5].split_once(' ').expect("a range after the time");
+        let wall: f64 = wall.parse().unwrap();
+        let (lo, hi) = range
+            .trim_matches(['(', ')'])
+            .split_once('–')
+            .expect("lo–hi");
+        let (lo, hi): (f64, f64) = (lo.parse().unwrap(), hi.parse().unwrap());
+        assert!(lo <= wall && wall <= hi, "{perfect:?}");
+        if Path::new("/proc/stat").is_file() {
+            let steal: f64 = perfect[8].parse().unwrap();
+            assert!((0.0..=100.0).contains(&steal), "{perfect:?}");
+        }
+        // A failing tool is not run again: its row has no range.
+        let broken = row("broken");
+        assert!(broken[17].contains("failed (exit 4): boom"));
+        assert!(!broken[5].contains('('), "{broken:?}");
+        assert!(row("sphcover")[17].starts_with("not built"));
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

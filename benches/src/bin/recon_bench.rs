@@ -72,6 +72,10 @@ struct Args {
     /// Time limit per tool run, in seconds.
     #[arg(long, default_value_t = 1800.0)]
     timeout: f64,
+    /// Runs of each tool per scan: the table gives the run of median wall time, with the
+    /// range of all (the machine's speed drifts, so one run says little).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
 }
 
 /// Builds the command line of a tool for an input and an output path.
@@ -203,6 +207,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "wall s",
         "CPU s",
         "peak MiB",
+        "steal %",
         "Chamfer %",
         "H99 %",
         "NC",
@@ -236,7 +241,16 @@ fn run(args: Args) -> anyhow::Result<()> {
                 );
                 for tool in &tools {
                     let output = work.join(format!("{stem}.{}.ply", tool.name));
-                    let row = run_tool(tool, &input, &output, gt, &score_params, &root, timeout);
+                    let row = run_tool(
+                        tool,
+                        &input,
+                        &output,
+                        gt,
+                        &score_params,
+                        &root,
+                        timeout,
+                        args.repeat,
+                    );
                     let cells = row_cells(mesh_name, case, scan.cloud.len(), &tool.name, &row);
                     eprintln!("  {}", cells.join(" | "));
                     table.push(cells);
@@ -274,10 +288,15 @@ fn run(args: Args) -> anyhow::Result<()> {
 
 /// What one tool did on one scan.
 struct ToolResult {
+    /// The run of median wall time (or the first that failed).
     run: Option<RunMeasurement>,
+    /// The shortest and longest wall time, when the tool ran more than once.
+    wall_range: Option<(f64, f64)>,
     scores: Result<ReconMetrics, String>,
 }
 
+/// Runs `tool` on `input` `repeat` times (stopping at a failure) and scores the output.
+#[allow(clippy::too_many_arguments)]
 fn run_tool(
     tool: &Tool,
     input: &Path,
@@ -286,16 +305,32 @@ fn run_tool(
     params: &ReconMetricsParams,
     cwd: &Path,
     timeout: Duration,
+    repeat: u32,
 ) -> ToolResult {
     if let Some(why) = &tool.unavailable {
         return ToolResult {
             run: None,
+            wall_range: None,
             scores: Err(why.clone()),
         };
     }
-    // A stale output of an earlier run must not be scored as this run's.
-    let _ = std::fs::remove_file(output);
-    let run = run_measured(&(tool.command)(input, output), cwd, timeout);
+    let mut runs = Vec::new();
+    for _ in 0..repeat {
+        // A stale output of an earlier run must not be scored as this run's.
+        let _ = std::fs::remove_file(output);
+        let run = run_measured(&(tool.command)(input, output), cwd, timeout);
+        let failed = !run.succeeded();
+        runs.push(run);
+        if failed {
+            break;
+        }
+    }
+    let wall_range = (runs.len() > 1).then(|| {
+        runs.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+            (lo.min(r.wall_seconds), hi.max(r.wall_seconds))
+        })
+    });
+    let run = median_or_failed(runs);
     let scores = match &run.outcome {
         RunOutcome::Success if !output.is_file() => Err("exited 0 but wrote no output".into()),
         RunOutcome::Success => {
@@ -315,8 +350,20 @@ fn run_tool(
     };
     ToolResult {
         run: Some(run),
+        wall_range,
         scores,
     }
+}
+
+/// The failed run if one failed (the last), else the run of median wall time (the slower
+/// of the middle two for an even count).
+fn median_or_failed(mut runs: Vec<RunMeasurement>) -> RunMeasurement {
+    if runs.last().is_some_and(|r| !r.succeeded()) {
+        return runs.pop().expect("a last run");
+    }
+    runs.sort_by(|a, b| a.wall_seconds.total_cmp(&b.wall_seconds));
+    let middle = runs.len() / 2;
+    runs.swap_remove(middle)
 }
 
 fn row_cells(mesh: &str, case: ScanCase, points: usize, tool: &str, r: &ToolResult) -> Vec<String> {
@@ -325,9 +372,10 @@ fn row_cells(mesh: &str, case: ScanCase, points: usize, tool: &str, r: &ToolResu
         case.name().to_string(),
         points.to_string(),
         tool.to_string(),
-        fixed(r.run.as_ref().map(|m| m.wall_seconds), 2),
+        wall_cell(r),
         fixed(r.run.as_ref().and_then(|m| m.cpu_seconds), 2),
         fixed(r.run.as_ref().and_then(|m| m.peak_mib), 0),
+        fixed(r.run.as_ref().and_then(|m| m.steal_percent), 0),
     ];
     match &r.scores {
         Ok(s) => cells.extend([
@@ -347,6 +395,15 @@ fn row_cells(mesh: &str, case: ScanCase, points: usize, tool: &str, r: &ToolResu
         }
     }
     cells
+}
+
+/// The wall time of the reported run, with the range over all runs when there were several.
+fn wall_cell(r: &ToolResult) -> String {
+    let wall = fixed(r.run.as_ref().map(|m| m.wall_seconds), 2);
+    match r.wall_range {
+        Some((lo, hi)) => format!("{wall} ({lo:.2}–{hi:.2})"),
+        None => wall,
+    }
 }
 
 /// The analytic ground truths: a sphere of radius 0.5 (81,920 triangles) and a torus of
