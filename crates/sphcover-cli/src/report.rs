@@ -5,6 +5,7 @@ use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use sphcover_core::stages::StageProgress;
 
 /// Where progress, timings and messages go, and how much of them.
 #[derive(Debug)]
@@ -84,6 +85,11 @@ impl Reporter {
             eprintln!("  caused by: {cause}");
         }
     }
+}
+
+/// The progress message for a pipeline stage as it starts: `3/11 cover`.
+pub fn stage_message(stage: StageProgress) -> String {
+    format!("{}/{} {}", stage.index + 1, stage.count, stage.name)
 }
 
 /// A timed stage of a command.

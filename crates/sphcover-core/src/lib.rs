@@ -53,6 +53,7 @@ pub mod point_cloud;
 pub mod point_index;
 mod spatial_order;
 pub mod sphere_intersection_graph;
+pub mod stages;
 pub mod support_samples;
 pub mod surface_cover;
 pub mod synthetic;

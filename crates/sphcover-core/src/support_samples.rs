@@ -34,7 +34,7 @@
 //! let incidence = SupportSamples::gather(&cover, &index);
 //!
 //! let mut inside = 0;
-//! incidence.for_each_slot_within(0, |_slot, d2| {
+//! incidence.for_each_slot_within(&cover, &index, 0, |_slot, d2| {
 //!     assert!(d2 < 0.36);
 //!     inside += 1;
 //! });
@@ -42,7 +42,7 @@
 //!
 //! // The blend equals the evaluator's, bit for bit.
 //! let values = [1.0, 3.0];
-//! let blended = incidence.blend(&values)?;
+//! let blended = incidence.blend(&cover, &index, &values)?;
 //! let reference = PuEvaluator::new(&cover, 1.0)?.blend(&points, &values)?;
 //! assert_eq!(blended, reference);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -64,10 +64,14 @@ const GATHER_RUN: usize = 16 * GATHER_BLOCK;
 
 /// Per support of a cover, the slots of a [`PointIndex`] in (a hair more than) its ball, as
 /// one compressed row list.
-#[derive(Debug)]
-pub struct SupportSamples<'a> {
-    cover: &'a Cover,
-    index: &'a PointIndex,
+///
+/// The rows hold no reference to the cover or the index they were gathered from, so a
+/// pipeline can keep them beside both (and change the cover's local functions, which the
+/// rows do not depend on); every method takes the two again and checks their sizes.
+#[derive(Clone, Debug)]
+pub struct SupportSamples {
+    /// Points of the index the rows were gathered from.
+    indexed: usize,
     /// Support `i`'s slots are `slots[offsets[i]..offsets[i + 1]]`.
     offsets: Vec<usize>,
     /// One list, not a vector per support: a large allocation goes back to the system when
@@ -77,10 +81,10 @@ pub struct SupportSamples<'a> {
     slots: Vec<u32>,
 }
 
-impl<'a> SupportSamples<'a> {
+impl SupportSamples {
     /// Gathers the samples of every support of `cover` from `index`, in parallel. The result
     /// does not depend on the thread count.
-    pub fn gather(cover: &'a Cover, index: &'a PointIndex) -> SupportSamples<'a> {
+    pub fn gather(cover: &Cover, index: &PointIndex) -> SupportSamples {
         // Runs of supports are gathered in parallel, block by block, while the previous run
         // is appended to the one list: the appending (a copy, and the first touch of the
         // list's memory) holds one thread, and the run being gathered keeps the other busy.
@@ -130,8 +134,7 @@ impl<'a> SupportSamples<'a> {
             pending = rayon::join(|| append(blocks), || next.map(&gather_run)).1;
         }
         SupportSamples {
-            cover,
-            index,
+            indexed: index.len(),
             offsets,
             slots,
         }
@@ -142,14 +145,27 @@ impl<'a> SupportSamples<'a> {
         &self.slots[self.offsets[i]..self.offsets[i + 1]]
     }
 
-    /// The cover whose supports these are.
-    pub fn cover(&self) -> &'a Cover {
-        self.cover
+    /// Number of supports the rows were gathered for.
+    pub fn supports(&self) -> usize {
+        self.offsets.len() - 1
     }
 
-    /// The point index the slots refer to.
-    pub fn index(&self) -> &'a PointIndex {
-        self.index
+    /// Whether `cover` and `index` have the sizes of the ones the rows were gathered from.
+    pub fn fits(&self, cover: &Cover, index: &PointIndex) -> bool {
+        cover.len() == self.supports() && index.len() == self.indexed
+    }
+
+    /// Panics unless [`SupportSamples::fits`]: rows read against another cover or index
+    /// would name wrong points.
+    fn assert_fits(&self, cover: &Cover, index: &PointIndex) {
+        assert!(
+            self.fits(cover, index),
+            "support samples gathered for {} supports and {} points, used with {} and {}",
+            self.supports(),
+            self.indexed,
+            cover.len(),
+            index.len()
+        );
     }
 
     /// Number of stored incidences (a few more than the supports' balls hold).
@@ -163,15 +179,23 @@ impl<'a> SupportSamples<'a> {
     ///
     /// # Panics
     ///
-    /// When `i` is not a support of the cover.
-    pub fn for_each_slot_within(&self, i: usize, mut visit: impl FnMut(usize, f64)) {
-        let c = self.cover.centers()[i];
-        let r = self.cover.radii()[i];
+    /// When `i` is not a support of the cover, or `cover` and `index` are not the ones the
+    /// rows were gathered from ([`SupportSamples::fits`]).
+    pub fn for_each_slot_within(
+        &self,
+        cover: &Cover,
+        index: &PointIndex,
+        i: usize,
+        mut visit: impl FnMut(usize, f64),
+    ) {
+        self.assert_fits(cover, index);
+        let c = cover.centers()[i];
+        let r = cover.radii()[i];
         if r.is_nan() || r <= 0.0 {
             return;
         }
         let r2 = r * r;
-        let points = self.index.slot_points();
+        let points = index.slot_points();
         // The larger ball's query visits the tree in the same order (the near child first,
         // chosen by the centre alone), so the slots inside the support's ball keep theirs.
         for &s in self.row(i) {
@@ -187,25 +211,38 @@ impl<'a> SupportSamples<'a> {
     /// at every point `p` of the index, in the index's input order; `None` where no weight
     /// is positive (and for the points the index leaves out, the non-finite ones). Bitwise
     /// equal to [`crate::PuEvaluator::blend`] of the cover with σ = 1 at the indexed points.
-    pub fn blend(&self, values: &[f64]) -> Result<Vec<Option<f64>>, CoverError> {
-        if values.len() != self.cover.len() {
+    ///
+    /// # Panics
+    ///
+    /// When `cover` and `index` are not the ones the rows were gathered from
+    /// ([`SupportSamples::fits`]).
+    pub fn blend(
+        &self,
+        cover: &Cover,
+        index: &PointIndex,
+        values: &[f64],
+    ) -> Result<Vec<Option<f64>>, CoverError> {
+        if values.len() != cover.len() {
             return Err(CoverError::LengthMismatch {
                 array: "blended values",
-                expected: self.cover.len(),
+                expected: cover.len(),
                 found: values.len(),
             });
         }
-        let by_slot = match self.cover.kernel() {
-            Kernel::QuadraticBSpline => {
-                self.blend_by_slot(values, |s| Kernel::QuadraticBSpline.value_sq(s))
+        self.assert_fits(cover, index);
+        let by_slot = match cover.kernel() {
+            Kernel::QuadraticBSpline => self.blend_by_slot(cover, index, values, |s| {
+                Kernel::QuadraticBSpline.value_sq(s)
+            }),
+            Kernel::TruncatedGaussian => self.blend_by_slot(cover, index, values, |s| {
+                Kernel::TruncatedGaussian.value_sq(s)
+            }),
+            Kernel::WendlandC2 => {
+                self.blend_by_slot(cover, index, values, |s| Kernel::WendlandC2.value_sq(s))
             }
-            Kernel::TruncatedGaussian => {
-                self.blend_by_slot(values, |s| Kernel::TruncatedGaussian.value_sq(s))
-            }
-            Kernel::WendlandC2 => self.blend_by_slot(values, |s| Kernel::WendlandC2.value_sq(s)),
         };
-        let mut out = vec![None; self.index.input_len()];
-        for (&i, (num, den)) in self.index.order().iter().zip(by_slot) {
+        let mut out = vec![None; index.input_len()];
+        for (&i, (num, den)) in index.order().iter().zip(by_slot) {
             out[i as usize] = (den > 0.0).then(|| num / den);
         }
         Ok(out)
@@ -215,12 +252,18 @@ impl<'a> SupportSamples<'a> {
     /// the evaluator's, with its arithmetic (`u = (p − c)·(1/r)`, skip `‖u‖² ≥ 1`, sum
     /// `w > 0`). The slots are split into ranges, one per thread; each thread walks every
     /// support and keeps the slots of its range, so no sum depends on the split.
-    fn blend_by_slot(&self, values: &[f64], kernel: impl Fn(f64) -> f64 + Sync) -> Vec<(f64, f64)> {
-        let n = self.index.len();
+    fn blend_by_slot(
+        &self,
+        cover: &Cover,
+        index: &PointIndex,
+        values: &[f64],
+        kernel: impl Fn(f64) -> f64 + Sync,
+    ) -> Vec<(f64, f64)> {
+        let n = index.len();
         let parts = rayon::current_num_threads().clamp(1, n.max(1));
-        let points = self.index.slot_points();
-        let centers = self.cover.centers();
-        let radii = self.cover.radii();
+        let points = index.slot_points();
+        let centers = cover.centers();
+        let radii = cover.radii();
         let mut sums = vec![(0.0, 0.0); n];
         let part_len = n.div_ceil(parts).max(1);
         sums.par_chunks_mut(part_len)
@@ -228,7 +271,7 @@ impl<'a> SupportSamples<'a> {
             .for_each(|(part, sums)| {
                 let lo = part * part_len;
                 let hi = lo + sums.len();
-                for i in 0..self.cover.len() {
+                for i in 0..cover.len() {
                     let (c, inv_r) = (centers[i], 1.0 / radii[i]);
                     let v = values[i];
                     for &s in self.row(i) {
@@ -318,11 +361,11 @@ mod tests {
                 let mut direct = Vec::new();
                 index.for_each_slot_within(c, r, |s, d2| direct.push((s, d2.to_bits())));
                 let mut stored = Vec::new();
-                incidence.for_each_slot_within(i, |s, d2| stored.push((s, d2.to_bits())));
+                incidence.for_each_slot_within(&cover, &index, i, |s, d2| stored.push((s, d2.to_bits())));
                 prop_assert_eq!(stored, direct);
             }
             let values: Vec<f64> = balls.iter().map(|b| b.2).collect();
-            let blended = incidence.blend(&values).unwrap();
+            let blended = incidence.blend(&cover, &index, &values).unwrap();
             let reference = PuEvaluator::new(&cover, 1.0).unwrap().blend(&points, &values).unwrap();
             let bits = |v: &[Option<f64>]| v.iter().map(|x| x.map(f64::to_bits)).collect::<Vec<_>>();
             prop_assert_eq!(bits(&blended), bits(&reference));
@@ -362,7 +405,7 @@ mod tests {
             let mut direct = Vec::new();
             index.for_each_slot_within(centers[i], radii[i], |s, d2| direct.push((s, d2)));
             let mut stored = Vec::new();
-            incidence.for_each_slot_within(i, |s, d2| stored.push((s, d2)));
+            incidence.for_each_slot_within(&cover, &index, i, |s, d2| stored.push((s, d2)));
             assert_eq!(stored, direct, "support {i}");
             total += direct.len();
         }
@@ -383,14 +426,36 @@ mod tests {
         .unwrap();
         let incidence = SupportSamples::gather(&cover, &index);
         assert!(matches!(
-            incidence.blend(&[1.0, 2.0]),
+            incidence.blend(&cover, &index, &[1.0, 2.0]),
             Err(CoverError::LengthMismatch {
                 expected: 1,
                 found: 2,
                 ..
             })
         ));
-        assert_eq!(incidence.blend(&[0.5]).unwrap(), vec![Some(0.5)]);
+        assert_eq!(
+            incidence.blend(&cover, &index, &[0.5]).unwrap(),
+            vec![Some(0.5)]
+        );
         assert_eq!(incidence.incidences(), 1);
+        assert!(incidence.fits(&cover, &index));
+        let other = PointIndex::new(&[DVec3::ZERO, DVec3::ONE]).unwrap();
+        assert!(!incidence.fits(&cover, &other));
+    }
+
+    #[test]
+    #[should_panic(expected = "support samples gathered for 1 supports and 1 points")]
+    fn rows_refuse_another_index() {
+        let index = PointIndex::new(&[DVec3::ZERO]).unwrap();
+        let cover = Cover::new(
+            vec![DVec3::ZERO],
+            vec![1.0],
+            LocalFunctions::zero_linear(1),
+            Kernel::QuadraticBSpline,
+        )
+        .unwrap();
+        let incidence = SupportSamples::gather(&cover, &index);
+        let other = PointIndex::new(&[DVec3::ZERO, DVec3::ONE]).unwrap();
+        incidence.for_each_slot_within(&cover, &other, 0, |_, _| {});
     }
 }

@@ -134,21 +134,24 @@ pub fn support_confidence(
     samples: &[DVec3],
 ) -> Result<(Vec<f64>, usize), ConfidenceError> {
     let index = PointIndex::new(samples)?;
-    Ok(support_confidence_in(&SupportSamples::gather(
-        cover, &index,
-    )))
+    let incidence = SupportSamples::gather(cover, &index);
+    Ok(support_confidence_in(cover, &index, &incidence))
 }
 
-/// As [`support_confidence`], over the samples of `incidence`.
-fn support_confidence_in(incidence: &SupportSamples<'_>) -> (Vec<f64>, usize) {
-    let cover = incidence.cover();
-    let points = incidence.index().slot_points();
+/// As [`support_confidence`], over the samples of `incidence` (gathered from `cover` and
+/// `index`).
+fn support_confidence_in(
+    cover: &Cover,
+    index: &PointIndex,
+    incidence: &SupportSamples,
+) -> (Vec<f64>, usize) {
+    let points = index.slot_points();
     let tau: Vec<(f64, bool)> = (0..cover.len())
         .into_par_iter()
         .with_min_len(256)
         .map_init(Vec::new, |buf, i| {
             buf.clear();
-            incidence.for_each_slot_within(i, |s, _| buf.push(points[s]));
+            incidence.for_each_slot_within(cover, index, i, |s, _| buf.push(points[s]));
             tau_of(cover.centers()[i], cover.radii()[i], buf)
         })
         .collect();
@@ -194,37 +197,29 @@ pub fn sample_confidence(
     scanner: Option<&[f64]>,
     params: &ConfidenceParams,
 ) -> Result<SampleConfidence, ConfidenceError> {
-    sample_confidence_with(cover, samples, scanner, params, |_| false)
-}
-
-/// As [`sample_confidence`], with the supports for which `distrusted(i)` holds given
-/// confidence `τ_i = 0` (thesis §5.2.4: the supports the graph cut found inconsistent).
-pub fn sample_confidence_with(
-    cover: &Cover,
-    samples: &[DVec3],
-    scanner: Option<&[f64]>,
-    params: &ConfidenceParams,
-    distrusted: impl Fn(usize) -> bool,
-) -> Result<SampleConfidence, ConfidenceError> {
     let index = PointIndex::new(samples)?;
     let incidence = SupportSamples::gather(cover, &index);
-    sample_confidence_indexed(&incidence, samples, scanner, params, distrusted)
+    sample_confidence_indexed(cover, &index, &incidence, samples, scanner, params, |_| {
+        false
+    })
 }
 
-/// As [`sample_confidence_with`], over `incidence`: the samples of the cover's supports,
-/// gathered from a point index over exactly `samples` (built by [`PointIndex::new`]). A
+/// As [`sample_confidence`], over `incidence`: the samples of the cover's supports, gathered
+/// from `index`, a point index over exactly `samples` (built by [`PointIndex::new`]), so a
 /// caller that needs the incidences again (the diffusion's fitting terms) gathers them once.
-/// The result is the same.
-pub fn sample_confidence_indexed(
-    incidence: &SupportSamples<'_>,
+/// The supports for which `distrusted(i)` holds get confidence `τ_i = 0` (thesis §5.2.4: the
+/// supports the graph cut found inconsistent).
+pub(crate) fn sample_confidence_indexed(
+    cover: &Cover,
+    index: &PointIndex,
+    incidence: &SupportSamples,
     samples: &[DVec3],
     scanner: Option<&[f64]>,
     params: &ConfidenceParams,
     distrusted: impl Fn(usize) -> bool,
 ) -> Result<SampleConfidence, ConfidenceError> {
-    let cover = incidence.cover();
-    let found = incidence.index().input_len();
-    if found != samples.len() {
+    let found = index.input_len();
+    if found != samples.len() || !incidence.fits(cover, index) {
         return Err(ConfidenceError::IndexMismatch {
             expected: samples.len(),
             found,
@@ -255,7 +250,7 @@ pub fn sample_confidence_indexed(
         ..Default::default()
     };
     let start = Instant::now();
-    let (mut tau, degenerate) = support_confidence_in(incidence);
+    let (mut tau, degenerate) = support_confidence_in(cover, index, incidence);
     for (i, t) in tau.iter_mut().enumerate() {
         if distrusted(i) {
             *t = 0.0;
@@ -271,7 +266,7 @@ pub fn sample_confidence_indexed(
             s.to_vec()
         }
         None => {
-            let blended = incidence.blend(&tau)?;
+            let blended = incidence.blend(cover, index, &tau)?;
             stats.uncovered_samples = blended.iter().filter(|v| v.is_none()).count();
             blended.into_iter().map(|v| v.unwrap_or(0.0)).collect()
         }
@@ -426,21 +421,43 @@ mod tests {
         assert_eq!(a.confidence, b.confidence);
         assert_eq!(a.support_confidence, b.support_confidence);
 
-        // A caller's index over the same samples gives the same bits; one over other
-        // samples is refused.
+        // A caller's index over the same samples gives the same bits; distrusted supports
+        // get τ = 0; an index over other samples is refused.
         let index = PointIndex::new(&samples).unwrap();
         let params = ConfidenceParams::default();
-        let with = sample_confidence_with(&cover, &samples, None, &params, |i| i % 3 == 0).unwrap();
         let incidence = SupportSamples::gather(&cover, &index);
-        let indexed =
-            sample_confidence_indexed(&incidence, &samples, None, &params, |i| i % 3 == 0).unwrap();
-        assert_eq!(with.confidence, indexed.confidence);
-        assert_eq!(with.support_confidence, indexed.support_confidence);
-        assert_eq!(with.outliers, indexed.outliers);
-        let short = PointIndex::new(&samples[1..]).unwrap();
-        let short = SupportSamples::gather(&cover, &short);
+        let indexed = |distrusted: fn(usize) -> bool| {
+            sample_confidence_indexed(
+                &cover, &index, &incidence, &samples, None, &params, distrusted,
+            )
+            .unwrap()
+        };
+        let trusted = indexed(|_| false);
+        assert_eq!(trusted.confidence, a.confidence);
+        assert_eq!(trusted.support_confidence, a.support_confidence);
+        assert_eq!(trusted.outliers, a.outliers);
+        let distrusted = indexed(|i| i % 3 == 0);
+        for (i, (&t, &d)) in a
+            .support_confidence
+            .iter()
+            .zip(&distrusted.support_confidence)
+            .enumerate()
+        {
+            assert_eq!(d, if i % 3 == 0 { 0.0 } else { t }, "support {i}");
+        }
+        let short_index = PointIndex::new(&samples[1..]).unwrap();
+        let short = SupportSamples::gather(&cover, &short_index);
         assert_eq!(
-            sample_confidence_indexed(&short, &samples, None, &params, |_| false).unwrap_err(),
+            sample_confidence_indexed(
+                &cover,
+                &short_index,
+                &short,
+                &samples,
+                None,
+                &params,
+                |_| false
+            )
+            .unwrap_err(),
             ConfidenceError::IndexMismatch {
                 expected: samples.len(),
                 found: samples.len() - 1

@@ -61,7 +61,9 @@
 //! of threads.
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, CoverError, DVec3, LocalFunctions, SupportLists, SupportSamples};
+use sphcover_core::{
+    Cover, CoverError, DVec3, LocalFunctions, PointIndex, SupportLists, SupportSamples,
+};
 use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -205,7 +207,9 @@ impl FittingTerms {
     /// point index over exactly `points`), in parallel. Samples with a zero or
     /// non-finite normal contribute to `W` and `P` but not to `N`.
     pub fn gather(
-        incidence: &SupportSamples<'_>,
+        cover: &Cover,
+        index: &PointIndex,
+        incidence: &SupportSamples,
         points: &[DVec3],
         normals: &[DVec3],
         confidence: &[f64],
@@ -219,8 +223,7 @@ impl FittingTerms {
                 });
             }
         }
-        let (cover, index) = (incidence.cover(), incidence.index());
-        if index.input_len() != points.len() {
+        if index.input_len() != points.len() || !incidence.fits(cover, index) {
             return Err(DiffusionError::LengthMismatch {
                 array: "point index",
                 expected: points.len(),
@@ -244,7 +247,7 @@ impl FittingTerms {
             .enumerate()
             .map(|(i, (&c, &r))| {
                 let mut sum = (0.0, DVec3::ZERO, DVec3::ZERO, 0.0);
-                incidence.for_each_slot_within(i, |s, _| {
+                incidence.for_each_slot_within(cover, index, i, |s, _| {
                     let p = slot_points[s];
                     let kw = kernel.weight(p, c, r);
                     sum.3 += kw;

@@ -52,7 +52,7 @@ pub mod scan_statistics;
 
 pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
-    sample_confidence, sample_confidence_indexed, sample_confidence_with, support_confidence,
+    sample_confidence, support_confidence,
 };
 pub use diffusion::{
     DiffusionError, DiffusionParams, DiffusionStats, FittingScale, FittingTerms, PoissonStep,
@@ -78,6 +78,7 @@ pub mod vertex_refinement;
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use pipeline::{
     Method, ReconError, ReconParams, ReconStats, Reconstruction, Trim, default_depth, reconstruct,
+    stage_names,
 };
 pub use polygonise::{
     GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,

@@ -15,7 +15,7 @@ use sphcover_recon::{
 use crate::args::{ReconArgs, ReconMethodArg};
 use crate::byte_size::format_byte_size;
 use crate::exit::BadInput;
-use crate::report::Reporter;
+use crate::report::{Reporter, stage_message};
 
 /// Runs `sphcover recon`.
 pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
@@ -50,8 +50,9 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     };
 
     let bar = reporter.progress(None, "reconstructing");
-    let on_stage = |name: &'static str| bar.set_message(name);
-    let result = reconstruct(&cloud, &params, &on_stage);
+    let result = reconstruct(&cloud, &params, &|stage| {
+        bar.set_message(stage_message(stage))
+    });
     bar.finish_and_clear();
     let recon = result.map_err(|e| match e {
         ReconError::TooFewPoints { .. }

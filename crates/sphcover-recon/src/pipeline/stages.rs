@@ -1,0 +1,559 @@
+//! The stages of [`reconstruct`](super::reconstruct) and the context they share.
+//!
+//! Each stage reads what the earlier ones left in [`ReconContext`] and leaves its own product
+//! there; [`stage_list`] says which stages a method runs, in order. The large intermediates
+//! (sphere intersection graph, pair geometry, samples of each support, support lists at the
+//! centres) are taken out of the context by the last stage that reads them, so each is freed
+//! as soon as it is no longer needed, and peak memory stays that of the largest stage.
+
+use rayon::prelude::*;
+use sphcover_core::stages::Stage;
+use sphcover_core::{
+    Cover, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex, PuEvaluator,
+    SphereIntersectionGraph, SupportLists, SupportSamples, TriMesh, build_surface_cover_with_index,
+};
+use sphcover_ops::{OpsError, PairGeometry};
+
+use super::{Method, ReconError, ReconParams, ReconStats, Trim, default_depth};
+use crate::confidence::{
+    SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
+};
+use crate::diffusion::{FittingTerms, diffuse};
+use crate::graph_cut::graph_cut_sig_alongside;
+use crate::graphcut_reconstruction::reconstruct_graphcut;
+use crate::normals::estimate_normals;
+use crate::polygonise::{GridStep, PolygoniseParams, polygonise_blending};
+use crate::scan_statistics::{ScanStatistics, scan_statistics};
+use crate::small_components::remove_small_components_of;
+use crate::vertex_refinement::{RefinementSamples, RefinementScale, refine_vertices};
+
+/// A stage of the reconstruction.
+pub(super) type ReconStage<'a> = Stage<ReconContext<'a>, ReconError>;
+
+/// Fewest points with finite coordinates that span a surface.
+const MIN_POINTS: usize = 4;
+
+/// What the stages of one reconstruction share. Per-sample arrays are indexed by slot: slot
+/// `s` is input point `kept[s]`.
+pub(super) struct ReconContext<'a> {
+    pub cloud: &'a PointCloud,
+    pub params: &'a ReconParams,
+    /// The input points with finite coordinates.
+    pub kept: Vec<usize>,
+    /// The unit frame (after `normalise`).
+    pub normalisation: Option<Normalisation>,
+    /// The samples in the unit frame.
+    pub points: Vec<DVec3>,
+    /// Outward normals of the samples, given or estimated.
+    pub normals: Vec<DVec3>,
+    /// The scanner's confidence of each sample, clamped to `[0, 1]`, when the input has one.
+    pub scanner: Option<Vec<f64>>,
+    /// The k-d tree over `points` (after `scan statistics`).
+    pub index: Option<PointIndex>,
+    pub scan: ScanStatistics,
+    /// Isolated samples are left out of the cover and labelled outliers.
+    pub drop_isolated: bool,
+    /// The cover (after `cover`); its local functions change in `diffusion`.
+    pub cover: Option<Cover>,
+    /// The sphere intersection graph, until the stages after it have built the pair geometry.
+    pub graph: Option<SphereIntersectionGraph>,
+    /// Supports the graph cut found inconsistent: they start the diffusion from zero.
+    pub zeroed: Vec<bool>,
+    /// The supports at each centre, shared by the graph cut and every diffusion round.
+    pub at_centres: Option<SupportLists>,
+    pub pairs: Option<PairGeometry>,
+    /// The samples inside each support, shared by the confidence and the fitting terms.
+    pub incidence: Option<SupportSamples>,
+    pub confidence: Option<SampleConfidence>,
+    /// The surface, in the unit frame until `topology` maps it back.
+    pub mesh: TriMesh,
+    /// The topology of `mesh`, when the cleaning left its triangles as they were.
+    pub unchanged_topology: Option<MeshTopology>,
+    pub stats: ReconStats,
+}
+
+impl<'a> ReconContext<'a> {
+    pub fn new(cloud: &'a PointCloud, params: &'a ReconParams) -> ReconContext<'a> {
+        ReconContext {
+            cloud,
+            params,
+            kept: Vec::new(),
+            normalisation: None,
+            points: Vec::new(),
+            normals: Vec::new(),
+            scanner: None,
+            index: None,
+            scan: ScanStatistics::default(),
+            drop_isolated: false,
+            cover: None,
+            graph: None,
+            zeroed: Vec::new(),
+            at_centres: None,
+            pairs: None,
+            incidence: None,
+            confidence: None,
+            mesh: TriMesh::default(),
+            unchanged_topology: None,
+            stats: ReconStats {
+                method: params.method,
+                points: cloud.len(),
+                ..ReconStats::default()
+            },
+        }
+    }
+
+    pub fn normalisation(&self) -> Normalisation {
+        built(self.normalisation, "unit frame")
+    }
+
+    pub fn index(&self) -> &PointIndex {
+        built(self.index.as_ref(), "point index")
+    }
+
+    pub fn cover(&self) -> &Cover {
+        built(self.cover.as_ref(), "cover")
+    }
+
+    pub fn confidence(&self) -> &SampleConfidence {
+        built(self.confidence.as_ref(), "sample confidence")
+    }
+}
+
+/// An intermediate that an earlier stage of the list builds. Every method's list is run by
+/// the tests, so a missing one is a bug in [`stage_list`], not something input can cause.
+pub(super) fn built<T>(slot: Option<T>, what: &str) -> T {
+    slot.unwrap_or_else(|| panic!("the stage list builds the {what} before it is used"))
+}
+
+/// The stages `params` asks for, in order. `has_normals`: the input carries normals.
+pub(super) fn stage_list<'a>(params: &ReconParams, has_normals: bool) -> Vec<ReconStage<'a>> {
+    let mut stages = vec![
+        Stage::new("normalise", normalise),
+        Stage::new("scan statistics", measure_scan),
+    ];
+    if !has_normals {
+        stages.push(Stage::new("normals", estimate_sample_normals));
+    }
+    stages.push(Stage::new("cover", build_cover));
+    stages.extend(match params.method {
+        Method::Integrated => vec![
+            Stage::new("graph", build_graph),
+            Stage::new("graph cut", cut_graph),
+            Stage::new("confidence", confidence_over_supports),
+            Stage::new("diffusion", diffuse_functions),
+            Stage::new("polygonise", polygonise_cover),
+        ],
+        Method::Diffusion => vec![
+            Stage::new("graph", build_graph_and_geometry),
+            Stage::new("confidence", confidence_over_supports),
+            Stage::new("diffusion", diffuse_functions),
+            Stage::new("polygonise", polygonise_cover),
+        ],
+        Method::PartitionOfUnity => vec![
+            Stage::new("confidence", confidence_of_cover),
+            Stage::new("polygonise", polygonise_cover),
+        ],
+        Method::GraphCut => vec![
+            Stage::new("graph cut", cut_dual_complex),
+            Stage::new("confidence", confidence_of_cover),
+        ],
+    });
+    stages.push(Stage::new("clean", clean));
+    if params.refine.is_some() {
+        stages.push(Stage::new("refine", refine));
+    }
+    stages.push(Stage::new("topology", topology));
+    stages
+}
+
+/// The finite input points in the unit frame; non-finite points are left out (and get
+/// confidence 0).
+fn normalise(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let cloud = ctx.cloud;
+    let kept: Vec<usize> = (0..cloud.len())
+        .filter(|&i| cloud.positions[i].is_finite())
+        .collect();
+    ctx.stats.non_finite_points = cloud.len() - kept.len();
+    if kept.len() < MIN_POINTS {
+        return Err(ReconError::TooFewPoints {
+            found: kept.len(),
+            needed: MIN_POINTS,
+        });
+    }
+    let mut points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
+    let extent = sphcover_core::Aabb::from_points(&points).longest_edge();
+    if extent.is_nan() || extent <= 0.0 {
+        return Err(ReconError::NoExtent(kept.len()));
+    }
+    let normalisation =
+        Normalisation::of_points(&points).ok_or(ReconError::NoExtent(kept.len()))?;
+    normalisation.points_to_unit(&mut points);
+    ctx.scanner = cloud
+        .confidence
+        .as_ref()
+        .map(|c| kept.iter().map(|&i| c[i].clamp(0.0, 1.0)).collect());
+    if let Some(n) = &cloud.normals {
+        ctx.normals = kept.iter().map(|&i| n[i]).collect();
+    }
+    ctx.normalisation = Some(normalisation);
+    ctx.points = points;
+    ctx.kept = kept;
+    Ok(())
+}
+
+/// Spacing, noise and isolated samples; the frame refitted to the samples that are not
+/// isolated; the cover tolerance raised to the noise.
+fn measure_scan(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let params = ctx.params;
+    let mut index = PointIndex::new(&ctx.points)?;
+    let mut scan = scan_statistics(&ctx.points, &index, &params.scan);
+    ctx.drop_isolated = params.drop_isolated && scan.isolated_count > 0;
+    if ctx.drop_isolated {
+        // The frame and the cover's octree follow the object, not the outliers' extent:
+        // with far outliers in the box, the octree's cells near the object are coarser and
+        // data-less regions (scanner shadows) reach much farther.
+        let positions = &ctx.cloud.positions[..];
+        let inliers: Vec<DVec3> = (0..ctx.points.len())
+            .filter(|&s| !scan.isolated[s])
+            .map(|s| positions[ctx.kept[s]])
+            .collect();
+        if let Some(tight) = Normalisation::of_points(&inliers) {
+            let ratio = ctx.normalisation().scale / tight.scale;
+            scan.spacing *= ratio;
+            scan.noise *= ratio;
+            ctx.points = ctx
+                .kept
+                .iter()
+                .map(|&i| tight.to_unit(positions[i]))
+                .collect();
+            ctx.normalisation = Some(tight);
+            index = PointIndex::new(&ctx.points)?;
+        }
+    }
+    ctx.stats.eps = match params.noise_tolerance {
+        Some(factor) => params.cover.eps.max(factor * scan.noise),
+        None => params.cover.eps,
+    };
+    ctx.index = Some(index);
+    ctx.scan = scan;
+    Ok(())
+}
+
+/// Normals by PCA and consistent orientation, for input without normals.
+fn estimate_sample_normals(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    ctx.stats.normals_estimated = true;
+    ctx.normals = estimate_normals(&ctx.points, &ctx.params.normals)?.normals;
+    Ok(())
+}
+
+/// The surface cover of the samples that are not isolated (thesis §3.4.1).
+fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let mut cover_params = ctx.params.cover.clone();
+    cover_params.eps = ctx.stats.eps;
+    // Isolated samples are left out of the cover (copied only when there are some).
+    let picked: (Vec<DVec3>, Vec<DVec3>, Option<Vec<f64>>);
+    let (points, normals, trust) = if ctx.drop_isolated {
+        let in_cover: Vec<usize> = (0..ctx.points.len())
+            .filter(|&s| !ctx.scan.isolated[s])
+            .collect();
+        let pick = |v: &[DVec3]| -> Vec<DVec3> { in_cover.iter().map(|&s| v[s]).collect() };
+        picked = (
+            pick(&ctx.points),
+            pick(&ctx.normals),
+            ctx.scanner
+                .as_ref()
+                .map(|c| in_cover.iter().map(|&s| c[s]).collect()),
+        );
+        (&picked.0[..], &picked.1[..], picked.2.as_deref())
+    } else {
+        (&ctx.points[..], &ctx.normals[..], ctx.scanner.as_deref())
+    };
+    // The scan statistics' index serves the cover too when every sample is in it.
+    let (cover, cover_stats) =
+        build_surface_cover_with_index(points, normals, trust, ctx.index(), &cover_params)?;
+    ctx.stats.cover = cover_stats;
+    ctx.stats.supports = cover.len();
+    ctx.stats.depth = ctx
+        .params
+        .depth
+        .unwrap_or_else(|| default_depth(ctx.points.len()));
+    ctx.zeroed = vec![false; cover.len()];
+    ctx.cover = Some(cover);
+    Ok(())
+}
+
+/// The sphere intersection graph of the supports (thesis Appendix B).
+fn build_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let cover = ctx.cover();
+    let graph =
+        SphereIntersectionGraph::build(cover.centers(), cover.radii(), ctx.params.graph_shrink)?;
+    ctx.stats.graph_mean_degree = graph.mean_degree();
+    ctx.graph = Some(graph);
+    Ok(())
+}
+
+/// The support lists at the centres, gathered once: the graph cut and every diffusion round
+/// evaluate there, and the supports stay the same.
+fn centre_supports(cover: &Cover) -> Result<SupportLists, ReconError> {
+    Ok(PuEvaluator::new(cover, 1.0)?.support_lists(cover.centers()))
+}
+
+/// The diffusion's pair geometry and the samples of each support: neither depends on the cut.
+fn geometry_and_samples(
+    cover: &Cover,
+    graph: &SphereIntersectionGraph,
+    index: &PointIndex,
+) -> (Result<PairGeometry, OpsError>, SupportSamples) {
+    rayon::join(
+        || PairGeometry::build(cover.centers(), cover.radii(), graph),
+        || SupportSamples::gather(cover, index),
+    )
+}
+
+/// The graph, and what the diffusion needs of it, without a cut.
+fn build_graph_and_geometry(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    build_graph(ctx)?;
+    let graph = built(ctx.graph.take(), "sphere intersection graph");
+    let cover = ctx.cover();
+    let at_centres = centre_supports(cover)?;
+    let (pairs, incidence) = geometry_and_samples(cover, &graph, ctx.index());
+    ctx.pairs = Some(pairs?);
+    ctx.at_centres = Some(at_centres);
+    ctx.incidence = Some(incidence);
+    Ok(())
+}
+
+/// The graph cut on the sphere intersection graph (thesis §5.2.4): supports whose label
+/// disagrees with the sign of `f` at their centre are inconsistent (outliers and wrong
+/// normals make them) and get a zero local function and confidence 0.
+fn cut_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let graph = built(ctx.graph.take(), "sphere intersection graph");
+    let (cover, index) = (ctx.cover(), ctx.index());
+    let at_centres = centre_supports(cover)?;
+    // The pair geometry and the support samples are built while the max-flow solve, which
+    // is sequential, holds one thread: they keep the others busy.
+    let (cut, (pairs, incidence)) =
+        graph_cut_sig_alongside(cover, &graph, &at_centres, &ctx.params.graph_cut, || {
+            geometry_and_samples(cover, &graph, index)
+        })?;
+    ctx.stats.inconsistent_supports = cut.inconsistent.len();
+    for &i in &cut.inconsistent {
+        ctx.zeroed[i as usize] = true;
+    }
+    ctx.stats.cut = Some(cut.stats);
+    ctx.pairs = Some(pairs?);
+    ctx.at_centres = Some(at_centres);
+    ctx.incidence = Some(incidence);
+    Ok(())
+}
+
+/// The graph-cut-only path (thesis §5.2.2): marching tetrahedra on the labels of the dual
+/// complex.
+fn cut_dual_complex(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let (mut mesh, stats) =
+        reconstruct_graphcut(ctx.cover(), &ctx.points, &ctx.params.graph_cut_only)?;
+    // The clean stage blends the support confidence at these vertices.
+    mesh.values = None;
+    ctx.stats.inconsistent_supports = stats.cut.inconsistent;
+    ctx.stats.cut = Some(stats.cut);
+    ctx.mesh = mesh;
+    Ok(())
+}
+
+/// The confidence of every sample (eq. 5.39–5.40) over the samples of each support gathered
+/// beside the graph cut; the inconsistent supports count as τ = 0.
+fn confidence_over_supports(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let incidence = built(ctx.incidence.as_ref(), "support samples");
+    let zeroed = &ctx.zeroed;
+    let confidence = sample_confidence_indexed(
+        ctx.cover(),
+        ctx.index(),
+        incidence,
+        &ctx.points,
+        ctx.scanner.as_deref(),
+        &ctx.params.confidence,
+        |i| zeroed[i],
+    )?;
+    ctx.confidence = Some(without_isolated(confidence, ctx));
+    Ok(())
+}
+
+/// The confidence of every sample (eq. 5.39–5.40) from the cover alone.
+fn confidence_of_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let confidence = sample_confidence(
+        ctx.cover(),
+        &ctx.points,
+        ctx.scanner.as_deref(),
+        &ctx.params.confidence,
+    )?;
+    ctx.confidence = Some(without_isolated(confidence, ctx));
+    Ok(())
+}
+
+/// `conf` with the isolated samples (when they are dropped) at confidence 0 and labelled
+/// outliers.
+fn without_isolated(mut conf: SampleConfidence, ctx: &ReconContext<'_>) -> SampleConfidence {
+    if ctx.params.drop_isolated {
+        for (i, _) in ctx.scan.isolated.iter().enumerate().filter(|(_, o)| **o) {
+            conf.confidence[i] = 0.0;
+            conf.outliers[i] = true;
+        }
+        conf.stats.outliers = conf.outliers.iter().filter(|&&o| o).count();
+    }
+    conf
+}
+
+/// Diffusion of the local functions with confidence-weighted fitting (thesis §5.2.3).
+fn diffuse_functions(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let incidence = built(ctx.incidence.take(), "support samples");
+    let terms = FittingTerms::gather(
+        ctx.cover(),
+        ctx.index(),
+        &incidence,
+        &ctx.points,
+        &ctx.normals,
+        &ctx.confidence().confidence,
+    )?;
+    drop(incidence);
+    let pairs = built(ctx.pairs.take(), "pair geometry");
+    let at_centres = built(ctx.at_centres.take(), "support lists at the centres");
+    let cover = built(ctx.cover.as_mut(), "cover");
+    // The supports the cut found inconsistent start the diffusion from zero; no stage before
+    // this one reads the local functions after the cut.
+    zero_functions(cover, &ctx.zeroed)?;
+    ctx.stats.diffusion = Some(diffuse(
+        cover,
+        &pairs,
+        &terms,
+        &at_centres,
+        &ctx.params.diffusion,
+    )?);
+    Ok(())
+}
+
+/// Sets the local functions of the `zeroed` supports to zero.
+fn zero_functions(cover: &mut Cover, zeroed: &[bool]) -> Result<(), ReconError> {
+    if !zeroed.contains(&true) {
+        return Ok(());
+    }
+    if let LocalFunctions::Linear { alpha, beta } = cover.funcs() {
+        let (mut alpha, mut beta) = (alpha.clone(), beta.clone());
+        for (i, _) in zeroed.iter().enumerate().filter(|(_, z)| **z) {
+            alpha[i] = DVec3::ZERO;
+            beta[i] = 0.0;
+        }
+        cover.set_funcs(LocalFunctions::Linear { alpha, beta })?;
+    }
+    Ok(())
+}
+
+/// Surface nets from the confident, non-outlier samples, so a sheet that no confident sample
+/// touches (floating outlier surfaces) is never meshed.
+fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let (params, conf) = (ctx.params, ctx.confidence());
+    let confident = |threshold: f64| -> Vec<DVec3> {
+        ctx.points
+            .par_iter()
+            .zip(conf.confidence.par_iter().zip(conf.outliers.par_iter()))
+            .filter(|(_, (c, o))| !**o && **c >= threshold)
+            .map(|(&p, _)| p)
+            .collect()
+    };
+    let mut seeds = confident(params.seed_confidence);
+    if seeds.is_empty() {
+        seeds = confident(0.0);
+    }
+    if seeds.is_empty() {
+        return Err(ReconError::Empty("every sample is an outlier"));
+    }
+    let eval = PuEvaluator::new(ctx.cover(), 1.0)?;
+    let poly = PolygoniseParams {
+        step: GridStep::Absolute(1.0 / f64::from(1u32 << ctx.stats.depth)),
+        trim: match params.trim {
+            Trim::Off => None,
+            Trim::SampleSpacings(m) => Some(m * ctx.scan.spacing),
+            Trim::Distance(d) => Some(d),
+        },
+        ..PolygoniseParams::default()
+    };
+    let (mesh, stats) = polygonise_blending(&eval, &seeds, &poly, Some(&conf.support_confidence))?;
+    ctx.stats.polygonise = Some(stats);
+    ctx.mesh = mesh;
+    Ok(())
+}
+
+/// The surface confidence at the vertices, and components far smaller than the largest
+/// dropped.
+fn clean(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    // Polygonisation blended the support confidence at the vertices already.
+    if ctx.mesh.values.as_ref().map(Vec::len) != Some(ctx.mesh.vertices.len()) {
+        let surface_confidence = blend_over_supports(
+            ctx.cover(),
+            &ctx.mesh.vertices,
+            &ctx.confidence().support_confidence,
+        )?;
+        ctx.mesh.values = Some(
+            surface_confidence
+                .into_iter()
+                .map(|v| v.unwrap_or(0.0))
+                .collect(),
+        );
+    }
+    let topology = MeshTopology::of(&ctx.mesh);
+    let removal =
+        remove_small_components_of(&mut ctx.mesh, &topology, ctx.params.min_component_fraction)?;
+    ctx.stats.dropped_components = removal.components_removed;
+    // Neither the refinement nor the change of frame touches the triangles, so the topology
+    // stays valid unless triangles or vertices went here.
+    ctx.unchanged_topology =
+        (removal.triangles_removed == 0 && removal.vertices_removed == 0).then_some(topology);
+    if ctx.mesh.triangles.is_empty() {
+        return Err(ReconError::Empty(
+            "no surface was found near the confident samples",
+        ));
+    }
+    Ok(())
+}
+
+/// The vertices moved onto quadrics fitted to the samples near them.
+fn refine(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let Some(refine) = &ctx.params.refine else {
+        return Ok(());
+    };
+    let conf = built(ctx.confidence.as_ref(), "sample confidence");
+    let weights: Vec<f64> = conf
+        .confidence
+        .iter()
+        .zip(&conf.outliers)
+        .map(|(&c, &o)| if o { 0.0 } else { c })
+        .collect();
+    let samples = RefinementSamples {
+        points: &ctx.points,
+        normals: &ctx.normals,
+        weights: &weights,
+        index: built(ctx.index.as_ref(), "point index"),
+    };
+    let scale = RefinementScale {
+        spacing: ctx.scan.spacing,
+        step: 1.0 / f64::from(1u32 << ctx.stats.depth),
+        noise_ratio: ctx.stats.eps / ctx.params.cover.eps,
+    };
+    ctx.stats.refinement = Some(refine_vertices(&mut ctx.mesh, &samples, &scale, refine)?);
+    Ok(())
+}
+
+/// The mesh in input coordinates, and its topology.
+fn topology(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    ctx.mesh.to_input(&ctx.normalisation());
+    let topology = ctx
+        .unchanged_topology
+        .take()
+        .unwrap_or_else(|| MeshTopology::of(&ctx.mesh));
+    let stats = &mut ctx.stats;
+    stats.triangles = ctx.mesh.triangles.len();
+    stats.vertices = ctx.mesh.vertices.len();
+    stats.components = topology.components;
+    stats.watertight = topology.is_watertight();
+    stats.euler_characteristic = topology.euler_characteristic();
+    Ok(())
+}
