@@ -59,7 +59,7 @@ fn main() {
     )
     .unwrap();
     let start = std::time::Instant::now();
-    let (mesh, stats) = extract_skeleton(&volume, &SkeletonParams::default()).unwrap();
+    let (mesh, stats) = extract_skeleton(&volume, &SkeletonParams::default(), &|_| {}).unwrap();
     let total = start.elapsed().as_secs_f64();
     println!(
         "{} in {N}³ ({nx}×{ny}×{nz} phantom), noise {noise}: {:.2} s; {} object voxels, {} supports, {} tetrahedra, {} ridge points, {} triangles, {} components, χ {}",
@@ -73,7 +73,7 @@ fn main() {
         stats.components,
         stats.euler_characteristic
     );
-    for (name, t) in stats.timings.stages() {
+    for (name, t) in &stats.stages {
         println!("  {name:<18} {:.3} s", t.as_secs_f64());
     }
     let m = score_mesh(&mesh, &phantom.truth, 1.0);

@@ -55,7 +55,7 @@ fn main() {
                 },
             );
             let start = std::time::Instant::now();
-            match extract_skeleton(&ph.volume, &params) {
+            match extract_skeleton(&ph.volume, &params, &|_| {}) {
                 Ok((mesh, _)) => {
                     let secs = start.elapsed().as_secs_f64();
                     let m = score_mesh(&mesh, &ph.truth, 1.0);
@@ -118,25 +118,56 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
         let v: f64 = value
             .parse()
             .unwrap_or_else(|_| panic!("PARAMS: {name}: not a number: {value:?}"));
+        let r = &mut p.repairs;
         match name {
             "sigma" => p.sigma = v,
-            "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = v,
-            "rim_trim_factor" => p.rim_trim_factor = v,
-            "min_rim_piece_voxels" => p.min_rim_piece_voxels = v,
-            "max_centring_shift_voxels" => p.max_centring_shift_voxels = v,
-            "smoothing_rounds" => p.smoothing_rounds = v as usize,
-            "junction_angle_degrees" => p.junction_angle_degrees = v,
-            "junction_fold_reach_voxels" => p.junction_fold_reach_voxels = v,
-            "junction_plane_reach_voxels" => p.junction_plane_reach_voxels = v,
-            "junction_plane_max_shift_voxels" => p.junction_plane_max_shift_voxels = v,
-            "max_tunnel_perimeter_voxels" => p.max_tunnel_perimeter_voxels = v,
-            "min_flap_alignment" => p.min_flap_alignment = v,
-            "min_component_fraction" => p.min_component_fraction = v,
-            "max_hole_perimeter_voxels" => p.max_hole_perimeter_voxels = v,
+            "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = (v > 0.0).then_some(v),
+            "rim_trim_factor" => set(&mut r.rim_trimming, |t| t.factor = v),
+            "rim_keep_pieces_voxels" => set(&mut r.rim_trimming, |t| {
+                t.keep_pieces_voxels = v.is_finite().then_some(v);
+            }),
+            "centring_max_shift_voxels" => set(&mut r.centring, |c| c.max_shift_voxels = v),
+            "smoothing_rounds" => set(&mut r.smoothing, |s| s.rounds = v as usize),
+            "junction_holes_angle_degrees" => {
+                set(&mut r.junction_holes, |h| h.min_angle_degrees = v);
+            }
+            "junction_fold_reach_voxels" => set(&mut r.junction_fold, |f| f.reach_voxels = v),
+            "junction_planes_reach_voxels" => {
+                set(&mut r.junction_planes, |j| j.reach_voxels = v);
+            }
+            "junction_planes_max_shift_voxels" => {
+                set(&mut r.junction_planes, |j| j.max_shift_voxels = v);
+            }
+            "tunnels_max_perimeter_voxels" => {
+                set(&mut r.tunnels, |t| t.max_perimeter_voxels = v);
+            }
+            "flaps_min_alignment" => set(&mut r.flaps, |f| f.min_alignment = v),
+            "min_component_fraction" => r.cleaning.min_component_fraction = v,
+            "max_hole_perimeter_voxels" => r.cleaning.max_hole_perimeter_voxels = v,
             "min_relative_strength" => p.ridge.min_relative_strength = v,
             "max_eigen_ratio" => p.ridge.max_eigen_ratio = v,
+            "off" => {
+                // `off=N` switches off the N-th optional repair, in the order of the table
+                // in the `repair` module's docs.
+                match v as usize {
+                    1 => r.rim_trimming = None,
+                    2 => r.junction_holes = None,
+                    3 => r.tunnels = None,
+                    4 => r.flaps = None,
+                    5 => (r.centring, r.junction_fold) = (None, None),
+                    6 => r.junction_fold = None,
+                    7 => r.junction_planes = None,
+                    _ => panic!("PARAMS: off takes 1..=7"),
+                }
+            }
             _ => panic!("PARAMS: unknown parameter {name:?}"),
         }
     }
     p
+}
+
+/// Applies `change` to a repair's parameters, switching the repair on with its defaults
+/// first when it was off.
+fn set<T: Default>(repair: &mut Option<T>, change: impl FnOnce(&mut T)) {
+    change(repair.get_or_insert_with(T::default));
 }

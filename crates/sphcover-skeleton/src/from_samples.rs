@@ -3,18 +3,19 @@
 //! built on the samples themselves ([`build_scattered_cover`], thesis §3.4.2 without the
 //! lattice), and every later stage is the volume pipeline's.
 
-use std::time::Instant;
-
 use rayon::prelude::*;
+use sphcover_core::stages::{Stage, StageProgress, run_stages};
 use sphcover_core::volume_cover::median_nearest_distance;
-use sphcover_core::{DVec3, PointIndex, TriMesh, VolumeCoverError, build_scattered_cover};
+use sphcover_core::{
+    Cover, DVec3, PointIndex, TriMesh, VolumeCoverError, VolumeCoverStats, build_scattered_cover,
+};
 
 use crate::error::SkeletonError;
-use crate::intensity_model::{OTSU_SMOOTHING, estimate_sample_intensity_model};
+use crate::intensity_model::{IntensityModel, OTSU_SMOOTHING, estimate_sample_intensity_model};
 use crate::object_mask::{ObjectMaskStats, lower_specks};
 use crate::pipeline::{
-    CoverStage, SkeletonParams, SkeletonStats, SkeletonTimings, check_params,
-    intensity_cover_params, sheet_from_cover,
+    CoverStage, SkeletonParams, SkeletonStats, check_params, intensity_cover_params, offset,
+    sheet_from_cover, sheet_stage_list,
 };
 
 /// The automatic tolerance's model part on scattered samples, relative to a volume's
@@ -28,7 +29,8 @@ use crate::pipeline::{
 pub const SAMPLE_MODEL_TOLERANCE_FACTOR: f64 = 0.5;
 
 /// Extracts the skeletal sheet of the thin object sampled by `positions` with intensity
-/// `values` (one per position), as [`crate::extract_skeleton`] does for a volume.
+/// `values` (one per position), as [`crate::extract_skeleton`] does for a volume, with the
+/// same stages ([`crate::stage_names`]) and `progress`.
 ///
 /// The lengths [`SkeletonParams`] gives in voxels are in units of the median distance from
 /// a sample to its nearest neighbour (the voxel edge of the equivalent grid, see
@@ -63,7 +65,7 @@ pub const SAMPLE_MODEL_TOLERANCE_FACTOR: f64 = 0.5;
 ///         }
 ///     }
 /// }
-/// let (sheet, stats) = extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default())?;
+/// let (sheet, stats) = extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default(), &|_| {})?;
 /// assert_eq!(stats.components, 1);
 /// // The sheet lies on the plate's mid-plane z = 8, within a tenth of the spacing on average.
 /// let n = sheet.vertices.len() as f64;
@@ -74,6 +76,7 @@ pub fn extract_skeleton_from_samples(
     positions: &[DVec3],
     values: &[f64],
     params: &SkeletonParams,
+    progress: &(dyn Fn(StageProgress) + Sync),
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     check_params(params)?;
     if positions.len() != values.len() {
@@ -83,50 +86,112 @@ pub fn extract_skeleton_from_samples(
         }
         .into());
     }
-    let mut timings = SkeletonTimings::default();
+    let front: [Stage<SampleFront<'_>, SkeletonError>; 3] = [
+        Stage::new("intensity model", intensity_model),
+        Stage::new("object mask", object_mask),
+        Stage::new("cover", cover),
+    ];
+    let count = front.len() + sheet_stage_list(params).len();
+    let mut ctx = SampleFront {
+        positions,
+        values,
+        params,
+        index: None,
+        spacing: 1.0,
+        smooth: Vec::new(),
+        intensity: None,
+        tolerance: 0.0,
+        lowered: None,
+        object_mask: ObjectMaskStats::default(),
+        cover: None,
+    };
+    let times = run_stages(&mut ctx, &front, &offset(progress, 0, count))?;
+    let (cover, cover_stats) = built(ctx.cover, "cover");
+    let front = CoverStage {
+        intensity: built(ctx.intensity, "intensity model"),
+        tolerance: ctx.tolerance,
+        object_mask: ctx.object_mask,
+        // The spacing is the voxel diagonal of the equivalent cubic grid.
+        voxel: cover_stats.sample_spacing / 3f64.sqrt(),
+        cover_stats,
+        cover,
+    };
+    sheet_from_cover(front, times, params, progress)
+}
 
-    let start = Instant::now();
+/// What the front stages of scattered samples share.
+struct SampleFront<'a> {
+    positions: &'a [DVec3],
+    values: &'a [f64],
+    params: &'a SkeletonParams,
+    index: Option<PointIndex>,
+    /// Median distance from a sample to its nearest neighbour.
+    spacing: f64,
+    /// The values smoothed over about a spacing, until the object mask is made.
+    smooth: Vec<f64>,
+    intensity: Option<IntensityModel>,
+    tolerance: f64,
+    /// The values with the specks lowered to the threshold.
+    lowered: Option<Vec<f64>>,
+    object_mask: ObjectMaskStats,
+    cover: Option<(Cover, VolumeCoverStats)>,
+}
+
+/// An intermediate that an earlier front stage builds.
+fn built<T>(slot: Option<T>, what: &str) -> T {
+    slot.unwrap_or_else(|| panic!("the front stages build the {what} before it is used"))
+}
+
+/// The samples' spacing and smoothed values; the threshold (Otsu's on the smoothed values
+/// unless given), the noise and the fit tolerance ε.
+fn intensity_model(ctx: &mut SampleFront<'_>) -> Result<(), SkeletonError> {
+    let (positions, values, params) = (ctx.positions, ctx.values, ctx.params);
     let index = PointIndex::new(positions).map_err(|_| VolumeCoverError::TooManyVoxels {
         voxels: positions.len(),
     })?;
     // 1 when more than half the samples coincide: the cover refuses them.
-    let spacing = median_nearest_distance(&index, positions).unwrap_or(1.0);
-    let smooth = smoothed_sample_values(&index, positions, values, OTSU_SMOOTHING * spacing);
-    let intensity = estimate_sample_intensity_model(values, &smooth, params.threshold)?;
-    let tolerance = params.tolerance.unwrap_or_else(|| {
+    ctx.spacing = median_nearest_distance(&index, positions).unwrap_or(1.0);
+    ctx.smooth = smoothed_sample_values(&index, positions, values, OTSU_SMOOTHING * ctx.spacing);
+    let intensity = estimate_sample_intensity_model(values, &ctx.smooth, params.threshold)?;
+    ctx.tolerance = params.tolerance.unwrap_or_else(|| {
         intensity.tolerance(SAMPLE_MODEL_TOLERANCE_FACTOR * params.model_tolerance)
     });
-    timings.intensity_model = start.elapsed();
+    ctx.intensity = Some(intensity);
+    ctx.index = Some(index);
+    Ok(())
+}
 
-    let start = Instant::now();
-    let noisy = intensity.noise_std > params.smooth_mask_noise * intensity.contrast().abs();
+/// Specks above the threshold lowered to it (the volume pipeline's object mask).
+fn object_mask(ctx: &mut SampleFront<'_>) -> Result<(), SkeletonError> {
+    let intensity = built(ctx.intensity.as_ref(), "intensity model");
+    let index = built(ctx.index.as_ref(), "sample index");
+    let noisy = intensity.noise_std > ctx.params.smooth_mask_noise * intensity.contrast().abs();
     let (values, object_mask) = drop_sample_specks(
-        &index,
-        positions,
-        values,
+        index,
+        ctx.positions,
+        ctx.values,
         intensity.threshold,
-        params.min_object_fraction,
-        noisy.then_some(smooth.as_slice()),
-        SPECK_NEIGHBOUR_DISTANCE * spacing,
+        ctx.params.min_object_fraction,
+        noisy.then_some(ctx.smooth.as_slice()),
+        SPECK_NEIGHBOUR_DISTANCE * ctx.spacing,
     );
-    drop(smooth);
-    timings.object_mask = start.elapsed();
+    ctx.smooth = Vec::new();
+    ctx.lowered = Some(values);
+    ctx.object_mask = object_mask;
+    Ok(())
+}
 
-    let start = Instant::now();
-    let cover_params = intensity_cover_params(params, &intensity, tolerance);
-    let (cover, cover_stats) = build_scattered_cover(positions, &values, &cover_params)?;
-    drop(values);
-    timings.cover = start.elapsed();
-    let front = CoverStage {
-        intensity,
-        tolerance,
-        object_mask,
-        // The spacing is the voxel diagonal of the equivalent cubic grid.
-        voxel: cover_stats.sample_spacing / 3f64.sqrt(),
-        cover: cover_stats,
-        timings,
-    };
-    sheet_from_cover(cover, front, params)
+/// The intensity cover of the samples (thesis §3.4.2 without the lattice).
+fn cover(ctx: &mut SampleFront<'_>) -> Result<(), SkeletonError> {
+    let intensity = built(ctx.intensity.as_ref(), "intensity model");
+    let cover_params = intensity_cover_params(ctx.params, intensity, ctx.tolerance);
+    let values = built(ctx.lowered.take(), "object mask");
+    ctx.cover = Some(build_scattered_cover(
+        ctx.positions,
+        &values,
+        &cover_params,
+    )?);
+    Ok(())
 }
 
 /// Samples closer than this many spacings are neighbours when the object's samples are

@@ -54,7 +54,7 @@ fn irregular_samples_of_thin_plates_give_their_sheet() {
         let phantom = phantom(shape, noise);
         let (positions, values) = irregular_samples(&phantom, 0.7, 3);
         let (sheet, stats) =
-            extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default())
+            extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default(), &|_| {})
                 .unwrap_or_else(|e| panic!("{}: {e}", shape.name()));
         let m = score_mesh(&sheet, &phantom.truth, 1.0);
         let name = format!("{} at {noise}", shape.name());
@@ -85,9 +85,14 @@ fn the_sheet_of_samples_does_not_depend_on_the_thread_count() {
             .build()
             .unwrap()
             .install(|| {
-                extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default())
-                    .unwrap()
-                    .0
+                extract_skeleton_from_samples(
+                    &positions,
+                    &values,
+                    &SkeletonParams::default(),
+                    &|_| {},
+                )
+                .unwrap()
+                .0
             })
     };
     assert!(run(1) == run(2));
@@ -100,24 +105,22 @@ fn bad_samples_are_refused() {
     let params = SkeletonParams::default();
     let constant = vec![3.0; values.len()];
     assert!(matches!(
-        extract_skeleton_from_samples(&positions, &constant, &params),
+        extract_skeleton_from_samples(&positions, &constant, &params, &|_| {}),
         Err(SkeletonError::ConstantVolume { .. })
     ));
-    let nothing = SkeletonParams {
-        threshold: Some(1e9),
-        ..SkeletonParams::default()
-    };
+    let mut nothing = SkeletonParams::default();
+    nothing.threshold = Some(1e9);
     assert!(matches!(
-        extract_skeleton_from_samples(&positions, &values, &nothing),
+        extract_skeleton_from_samples(&positions, &values, &nothing, &|_| {}),
         Err(SkeletonError::ThresholdSelectsNothing { .. })
     ));
     assert!(matches!(
-        extract_skeleton_from_samples(&positions, &values[1..], &params),
+        extract_skeleton_from_samples(&positions, &values[1..], &params, &|_| {}),
         Err(SkeletonError::Cover(_))
     ));
     let nan = vec![f64::NAN; values.len()];
     assert!(matches!(
-        extract_skeleton_from_samples(&positions, &nan, &params),
+        extract_skeleton_from_samples(&positions, &nan, &params, &|_| {}),
         Err(SkeletonError::NoFiniteValue)
     ));
 }

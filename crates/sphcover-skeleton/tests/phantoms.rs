@@ -17,7 +17,7 @@ fn run(shape: ThinShape, noise: f64) -> (Phantom, SheetMetrics) {
             ..PhantomParams::default()
         },
     );
-    let (mesh, stats) = extract_skeleton(&phantom.volume, &SkeletonParams::default())
+    let (mesh, stats) = extract_skeleton(&phantom.volume, &SkeletonParams::default(), &|_| {})
         .unwrap_or_else(|e| panic!("{}: {e}", shape.name()));
     let m = score_mesh(&mesh, &phantom.truth, 1.0);
     // The stats describe the mesh returned.
@@ -106,7 +106,7 @@ fn output_does_not_depend_on_the_thread_count() {
             .build()
             .unwrap()
             .install(|| {
-                extract_skeleton(&phantom.volume, &SkeletonParams::default())
+                extract_skeleton(&phantom.volume, &SkeletonParams::default(), &|_| {})
                     .unwrap()
                     .0
             })

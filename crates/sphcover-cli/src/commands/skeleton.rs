@@ -11,7 +11,7 @@ use sphcover_skeleton::{
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
-use crate::report::Reporter;
+use crate::report::{Reporter, stage_message};
 
 /// Relative difference of voxel edge lengths accepted as cubic voxels without a warning.
 const CUBIC_TOLERANCE: f64 = 1e-3;
@@ -56,7 +56,9 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     match args.method {
         SkeletonMethod::Ridge => {
             let bar = reporter.progress(None, "extracting the skeletal sheet");
-            let result = extract_skeleton(&volume, &ridge_params(args));
+            let result = extract_skeleton(&volume, &ridge_params(args), &|stage| {
+                bar.set_message(stage_message(stage));
+            });
             bar.finish_and_clear();
             let (sheet, stats) = result.map_err(|e| bad(args, e))?;
             write_sheet(args, &sheet, &stats, reporter)?;
@@ -122,7 +124,10 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
     )?;
     reporter.detail(&format!("  {} samples with `{property}`", positions.len()));
     let bar = reporter.progress(None, "extracting the skeletal sheet of the samples");
-    let result = extract_skeleton_from_samples(&positions, &values, &ridge_params(args));
+    let result =
+        extract_skeleton_from_samples(&positions, &values, &ridge_params(args), &|stage| {
+            bar.set_message(stage_message(stage));
+        });
     bar.finish_and_clear();
     let (sheet, stats) = result.map_err(|e| bad(args, e))?;
     write_sheet(args, &sheet, &stats, reporter)
@@ -130,13 +135,12 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
 
 /// The ridge pipeline's parameters: the library's defaults and the command line's.
 fn ridge_params(args: &SkeletonArgs) -> SkeletonParams {
-    SkeletonParams {
-        threshold: args.threshold,
-        tolerance: args.eps,
-        sigma: args.sigma.unwrap_or(SkeletonParams::default().sigma),
-        seed: args.seed,
-        ..SkeletonParams::default()
-    }
+    let mut params = SkeletonParams::default();
+    params.threshold = args.threshold;
+    params.tolerance = args.eps;
+    params.sigma = args.sigma.unwrap_or(params.sigma);
+    params.seed = args.seed;
+    params
 }
 
 /// A failure of the input or parameters is bad input (exit 2); a lower-layer failure is an
@@ -157,7 +161,7 @@ fn write_sheet(
     stats: &SkeletonStats,
     reporter: &Reporter,
 ) -> anyhow::Result<()> {
-    for (name, time) in stats.timings.stages() {
+    for (name, time) in &stats.stages {
         reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
     }
     if stats.thickness_exceeds_r_max() {
@@ -257,7 +261,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "euler_characteristic": s.euler_characteristic,
         "tunnels_closed": s.tunnels,
         "flap_triangles_collapsed": s.flap_triangles,
-        "stages_seconds": s.timings.stages().iter()
+        "stages_seconds": s.stages.iter()
             .map(|(n, t)| serde_json::json!({"stage": n, "seconds": t.as_secs_f64()}))
             .collect::<Vec<_>>(),
     })
@@ -288,6 +292,6 @@ fn summary(s: &SkeletonStats, output: &str) -> String {
         s.components,
         if s.components == 1 { "" } else { "s" },
         s.euler_characteristic,
-        s.timings.total().as_secs_f64(),
+        s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),
     )
 }

@@ -19,18 +19,49 @@ use glam::DVec3;
 use sphcover_core::TriMesh;
 use sphcover_core::mesh_topology::MeshTopology;
 
-/// Parameters of [`clean_sheet`].
+/// Parameters of [`clean_sheet`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct CleaningParams {
     /// A component is dropped when its strength-weighted area is below this fraction of the
     /// largest component's.
     pub min_component_fraction: f64,
-    /// A component is dropped when its area is below this (world units²).
-    pub min_component_area: f64,
+    /// A component is dropped when its area is below this many voxel areas.
+    pub min_component_area_voxels: f64,
     /// Largest number of edges of a hole that is filled (with material at its centroid).
     pub max_hole_edges: usize,
-    /// Largest perimeter of a hole that is filled (world units).
-    pub max_hole_perimeter: f64,
+    /// Largest perimeter of a hole that is filled.
+    pub max_hole_perimeter_voxels: f64,
+}
+
+impl Default for CleaningParams {
+    fn default() -> CleaningParams {
+        CleaningParams {
+            min_component_fraction: 0.05,
+            min_component_area_voxels: 4.0,
+            max_hole_edges: 200,
+            max_hole_perimeter_voxels: 60.0,
+        }
+    }
+}
+
+/// [`CleaningParams`] in world units.
+struct Limits {
+    min_component_fraction: f64,
+    min_component_area: f64,
+    max_hole_edges: usize,
+    max_hole_perimeter: f64,
+}
+
+impl CleaningParams {
+    fn in_world(&self, voxel: f64) -> Limits {
+        Limits {
+            min_component_fraction: self.min_component_fraction,
+            min_component_area: self.min_component_area_voxels * voxel * voxel,
+            max_hole_edges: self.max_hole_edges,
+            max_hole_perimeter: self.max_hole_perimeter_voxels * voxel,
+        }
+    }
 }
 
 /// What [`clean_sheet`] did.
@@ -52,8 +83,22 @@ pub struct CleaningStats {
     pub pinch_triangles: usize,
 }
 
+impl CleaningStats {
+    /// Adds the counts of a later pass over the cleaned sheet; the components before
+    /// cleaning stay those of the first pass.
+    pub fn add_later_pass(&mut self, later: &CleaningStats) {
+        self.welded_vertices += later.welded_vertices;
+        self.degenerate_triangles += later.degenerate_triangles;
+        self.dropped_components += later.dropped_components;
+        self.dropped_triangles += later.dropped_triangles;
+        self.holes_filled += later.holes_filled;
+        self.pinch_triangles += later.pinch_triangles;
+    }
+}
+
 /// Cleans a patch mesh whose per-vertex values are ridge strengths (missing values count
-/// as 1). The output has no unused vertex.
+/// as 1); `voxel` is the length unit of `params` (world units). The output has no unused
+/// vertex.
 ///
 /// `is_material(x)` says whether there is material at `x`: a hole is filled only when there
 /// is material at its centroid, so holes of the part itself (air in the middle) stay open
@@ -61,8 +106,10 @@ pub struct CleaningStats {
 pub fn clean_sheet(
     mesh: &TriMesh,
     params: &CleaningParams,
+    voxel: f64,
     is_material: impl Fn(DVec3) -> bool,
 ) -> (TriMesh, CleaningStats) {
+    let params = &params.in_world(voxel);
     let mut stats = CleaningStats::default();
     let mut mesh = weld_coincident(mesh, &mut stats);
     resolve_pinches(&mut mesh, &mut stats);
@@ -194,7 +241,7 @@ pub fn triangle_area(mesh: &TriMesh, tri: &[u32; 3]) -> f64 {
     0.5 * (b - a).cross(c - a).length()
 }
 
-fn drop_fragments(mesh: &mut TriMesh, params: &CleaningParams, stats: &mut CleaningStats) {
+fn drop_fragments(mesh: &mut TriMesh, params: &Limits, stats: &mut CleaningStats) {
     let topo = MeshTopology::of(mesh);
     stats.components_before = topo.components;
     if topo.components == 0 {
@@ -232,7 +279,7 @@ fn drop_fragments(mesh: &mut TriMesh, params: &CleaningParams, stats: &mut Clean
 
 fn fill_small_holes(
     mesh: &mut TriMesh,
-    params: &CleaningParams,
+    params: &Limits,
     is_material: &impl Fn(DVec3) -> bool,
     stats: &mut CleaningStats,
 ) {
@@ -390,16 +437,16 @@ mod tests {
 
     const PARAMS: CleaningParams = CleaningParams {
         min_component_fraction: 0.05,
-        min_component_area: 0.5,
+        min_component_area_voxels: 0.5,
         max_hole_edges: 8,
-        max_hole_perimeter: 6.0,
+        max_hole_perimeter_voxels: 6.0,
     };
 
     #[test]
     fn small_fragment_is_dropped_and_large_kept() {
         let mut m = grid(10, 0.0, 0.0);
         append(&mut m, &grid(1, 20.0, 0.0));
-        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        let (out, stats) = clean_sheet(&m, &PARAMS, 1.0, |_| true);
         assert_eq!(stats.components_before, 2);
         assert_eq!(stats.dropped_components, 1);
         assert_eq!(out.triangles.len(), 200);
@@ -414,7 +461,7 @@ mod tests {
         let mut small = m.clone();
         small.triangles.remove(2 * (4 * 10 + 4));
         small.triangles.remove(2 * (4 * 10 + 4));
-        let (out, stats) = clean_sheet(&small, &PARAMS, |_| true);
+        let (out, stats) = clean_sheet(&small, &PARAMS, 1.0, |_| true);
         assert_eq!(stats.holes_filled, 1);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 1);
         // Remove a 3 × 3 block: perimeter 12 stays open (χ = 0, an annulus).
@@ -429,11 +476,11 @@ mod tests {
             })
             .map(|(_, t)| *t)
             .collect();
-        let (out, stats) = clean_sheet(&big, &PARAMS, |_| true);
+        let (out, stats) = clean_sheet(&big, &PARAMS, 1.0, |_| true);
         assert_eq!(stats.holes_filled, 0);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
         // A small hole over air stays open.
-        let (out, stats) = clean_sheet(&small, &PARAMS, |_| false);
+        let (out, stats) = clean_sheet(&small, &PARAMS, 1.0, |_| false);
         assert_eq!(stats.holes_filled, 0);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 0);
     }
@@ -451,7 +498,7 @@ mod tests {
         m.triangles.push([off, off + 1, 0]);
         m.triangles.push([off, 0, off + 2]);
         assert_eq!(MeshTopology::of(&m).non_manifold_vertices, 1);
-        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        let (out, stats) = clean_sheet(&m, &PARAMS, 1.0, |_| true);
         assert_eq!(stats.pinch_triangles, 2);
         let topo = MeshTopology::of(&out);
         assert_eq!((topo.non_manifold_vertices, topo.components), (0, 1));
@@ -473,7 +520,7 @@ mod tests {
                 }
             }
         }
-        let (out, stats) = clean_sheet(&m, &PARAMS, |_| true);
+        let (out, stats) = clean_sheet(&m, &PARAMS, 1.0, |_| true);
         assert!(stats.welded_vertices == 1);
         assert_eq!(out.vertices.len(), 9);
         assert_eq!(MeshTopology::of(&out).euler_characteristic(), 1);

@@ -39,10 +39,27 @@ pub fn triangle_alignment(mesh: &TriMesh) -> Vec<f64> {
         .collect()
 }
 
+/// Parameters of [`collapse_misaligned_flaps`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct FlapParams {
+    /// Triangles whose alignment ([`triangle_alignment`]) is below this are collapsed from
+    /// the free edges: `|cos|` of the angle between a triangle's normal and its corners'
+    /// across direction.
+    pub min_alignment: f64,
+}
+
+impl Default for FlapParams {
+    fn default() -> FlapParams {
+        FlapParams { min_alignment: 0.8 }
+    }
+}
+
 /// Collapses, from the free edges, the triangles whose alignment ([`triangle_alignment`]) is
-/// below `min_alignment`, as described in the [module documentation](self). Returns the
-/// triangles removed.
-pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, min_alignment: f64) -> usize {
+/// below [`FlapParams::min_alignment`], as described in the [module documentation](self).
+/// Returns the triangles removed.
+pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usize {
+    let min_alignment = params.min_alignment;
     let alignment = triangle_alignment(mesh);
     let mut edge_index: HashMap<(u32, u32), u32> = HashMap::new();
     let mut triangle_edges: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
@@ -168,10 +185,10 @@ mod tests {
             let base = 2 * (n * n) as usize;
             let before = MeshTopology::of(&m);
             let mut same = m.clone();
-            prop_assert_eq!(collapse_misaligned_flaps(&mut same, 0.0), 0);
+            prop_assert_eq!(collapse_misaligned_flaps(&mut same, &FlapParams { min_alignment: 0.0 }), 0);
             prop_assert_eq!(&same, &m);
             let fin = m.triangles.len() - base;
-            prop_assert_eq!(collapse_misaligned_flaps(&mut m, 0.5), fin);
+            prop_assert_eq!(collapse_misaligned_flaps(&mut m, &FlapParams { min_alignment: 0.5 }), fin);
             prop_assert_eq!(m.triangles.len(), base);
             let after = MeshTopology::of(&m);
             prop_assert_eq!(after.euler_characteristic(), before.euler_characteristic());
@@ -197,7 +214,7 @@ mod tests {
                 .collect();
             m.normals = Some(normals);
             let before = MeshTopology::of(&m);
-            collapse_misaligned_flaps(&mut m, bound);
+            collapse_misaligned_flaps(&mut m, &FlapParams { min_alignment: bound });
             let after = MeshTopology::of(&m);
             prop_assert_eq!(after.euler_characteristic(), before.euler_characteristic());
             prop_assert_eq!(after.components, before.components);

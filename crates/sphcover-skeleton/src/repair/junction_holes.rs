@@ -6,7 +6,7 @@
 //! test of eq. 6.5 fails in places along the junction, and the base sheet is left with small
 //! holes there. Web triangles stand on the rims of those holes, so their edges are shared by
 //! two triangles and the holes are not boundary loops of the mesh: the hole filling of
-//! [`crate::cleaning`] cannot see them.
+//! [`super::cleaning`] cannot see them.
 //!
 //! Here the mesh is split into smooth sheets first: triangles sharing an edge belong to the
 //! same sheet when their planes meet at less than `min_angle` (a web meets its base at about
@@ -29,24 +29,37 @@ use std::collections::{HashMap, HashSet};
 use glam::DVec3;
 use sphcover_core::TriMesh;
 
-/// Parameters of [`fill_holes_within_sheets`].
+/// Parameters of [`fill_holes_within_sheets`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct SheetHoleParams {
-    /// Triangles whose planes meet at less than this angle (radians) across a shared edge
-    /// belong to the same sheet.
-    pub min_angle: f64,
-    /// Largest perimeter (world units) of a hole that is filled.
-    pub max_perimeter: f64,
+    /// Triangles whose planes meet at less than this angle (degrees) across a shared edge
+    /// belong to the same sheet (a web meets its base at about 90°).
+    pub min_angle_degrees: f64,
+    /// Largest perimeter of a hole that is filled.
+    pub max_perimeter_voxels: f64,
+}
+
+impl Default for SheetHoleParams {
+    fn default() -> SheetHoleParams {
+        SheetHoleParams {
+            min_angle_degrees: 45.0,
+            max_perimeter_voxels: 60.0,
+        }
+    }
 }
 
 /// Fills the holes of the smooth sheets `mesh` is made of, as described in the
 /// [module documentation](self): each by a fan around its centroid (one new vertex, with
-/// the normal of a rim vertex and the mean value of the rim). Returns the holes filled.
+/// the normal of a rim vertex and the mean value of the rim); `voxel` is the length unit of
+/// `params` (world units). Returns the holes filled.
 pub fn fill_holes_within_sheets(
     mesh: &mut TriMesh,
     params: &SheetHoleParams,
+    voxel: f64,
     is_material: impl Fn(DVec3) -> bool,
 ) -> usize {
+    let max_perimeter = params.max_perimeter_voxels * voxel;
     let normals: Vec<DVec3> = mesh
         .triangles
         .iter()
@@ -75,7 +88,7 @@ pub fn fill_holes_within_sheets(
         }
         x
     }
-    let cos_max = params.min_angle.cos();
+    let cos_max = params.min_angle_degrees.to_radians().cos();
     for (_, tris) in &edges {
         for i in 0..tris.len() {
             for j in i + 1..tris.len() {
@@ -153,7 +166,7 @@ pub fn fill_holes_within_sheets(
         }
         loops.sort_by(|a, b| b.0.total_cmp(&a.0));
         for (perimeter, ring) in loops.into_iter().skip(1) {
-            if perimeter <= params.max_perimeter && ring.len() >= 3 {
+            if perimeter <= max_perimeter && ring.len() >= 3 {
                 holes.push(ring);
             }
         }
@@ -231,8 +244,8 @@ mod tests {
 
     fn params() -> SheetHoleParams {
         SheetHoleParams {
-            min_angle: 45f64.to_radians(),
-            max_perimeter: 10.0,
+            min_angle_degrees: 45.0,
+            max_perimeter_voxels: 10.0,
         }
     }
 
@@ -247,7 +260,7 @@ mod tests {
             let web = if on_rim { (i, j) } else { (0, 0) };
             let mut mesh = base_with_web(n, Some((i, j)), Some((web.0, web.1, height)));
             let before = MeshTopology::of(&mesh).euler_characteristic();
-            prop_assert_eq!(fill_holes_within_sheets(&mut mesh, &params(), |_| true), 1);
+            prop_assert_eq!(fill_holes_within_sheets(&mut mesh, &params(), 1.0, |_| true), 1);
             prop_assert_eq!(MeshTopology::of(&mesh).euler_characteristic(), before + 1);
             prop_assert_eq!(mesh.normals.as_ref().map(Vec::len), Some(mesh.vertices.len()));
             prop_assert_eq!(mesh.values.as_ref().map(Vec::len), Some(mesh.vertices.len()));
@@ -258,16 +271,25 @@ mod tests {
     fn outlines_holes_of_the_part_and_large_holes_stay_open() {
         // No hole: the outlines of the base and of the web are not holes.
         let mut mesh = base_with_web(4, None, Some((1, 1, 2)));
-        assert_eq!(fill_holes_within_sheets(&mut mesh, &params(), |_| true), 0);
+        assert_eq!(
+            fill_holes_within_sheets(&mut mesh, &params(), 1.0, |_| true),
+            0
+        );
         // Air at the hole's centroid: a hole of the part.
         let mut mesh = base_with_web(4, Some((1, 1)), Some((1, 1, 2)));
-        assert_eq!(fill_holes_within_sheets(&mut mesh, &params(), |_| false), 0);
+        assert_eq!(
+            fill_holes_within_sheets(&mut mesh, &params(), 1.0, |_| false),
+            0
+        );
         // Perimeter 4 above the bound.
         let small = SheetHoleParams {
-            max_perimeter: 3.9,
+            max_perimeter_voxels: 3.9,
             ..params()
         };
-        assert_eq!(fill_holes_within_sheets(&mut mesh, &small, |_| true), 0);
-        assert_eq!(fill_holes_within_sheets(&mut mesh, &params(), |_| true), 1);
+        assert_eq!(fill_holes_within_sheets(&mut mesh, &small, 1.0, |_| true), 0);
+        assert_eq!(
+            fill_holes_within_sheets(&mut mesh, &params(), 1.0, |_| true),
+            1
+        );
     }
 }

@@ -9,7 +9,7 @@
 //! as they are.
 //!
 //! Each plate is known away from the junction. A *plate vertex* is one whose across direction
-//! `e` agrees, within [`JunctionPlaneParams::max_ring_angle`], with those of all its
+//! `e` agrees, within [`JunctionPlaneParams::max_ring_angle_degrees`], with those of all its
 //! neighbours in the mesh (the fillet, where `e` turns, fails this test). Around each vertex
 //! `p`, the plate vertices within `reach` are grouped by orientation (greedily, nearest
 //! first: a vertex joins the first group whose seed's `e` is within `min_angle / 2` of its
@@ -33,30 +33,73 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::TriMesh;
 
-/// Parameters of [`snap_to_junction_planes`].
+/// Parameters of [`snap_to_junction_planes`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct JunctionPlaneParams {
-    /// Radius of the neighbourhood whose plate vertices define the planes (world units).
-    pub reach: f64,
+    /// Radius of the neighbourhood whose plate vertices define the planes.
+    pub reach_voxels: f64,
+    /// Largest move of a vertex onto a plane.
+    pub max_shift_voxels: f64,
     /// Two groups of plate vertices are different sheets when their directions make at least
-    /// this angle (radians).
-    pub min_angle: f64,
-    /// A vertex is a plate vertex when its across direction is within this angle (radians) of
+    /// this angle (degrees).
+    pub min_angle_degrees: f64,
+    /// A vertex is a plate vertex when its across direction is within this angle (degrees) of
     /// every neighbour's.
-    pub max_ring_angle: f64,
+    pub max_ring_angle_degrees: f64,
     /// A sheet's plane is fitted to its plate vertices whose directions are within this angle
-    /// (radians) of the plane's normal.
-    pub max_fit_angle: f64,
+    /// (degrees) of the plane's normal.
+    pub max_fit_angle_degrees: f64,
     /// Smallest number of plate vertices of a group that defines a plane.
     pub min_group: usize,
-    /// Largest move of a vertex onto a plane (world units).
-    pub max_shift: f64,
+}
+
+impl Default for JunctionPlaneParams {
+    fn default() -> JunctionPlaneParams {
+        JunctionPlaneParams {
+            reach_voxels: 9.0,
+            max_shift_voxels: 2.0,
+            min_angle_degrees: 60.0,
+            max_ring_angle_degrees: 20.0,
+            max_fit_angle_degrees: 10.0,
+            min_group: 6,
+        }
+    }
+}
+
+/// [`JunctionPlaneParams`] in world units and radians.
+struct Limits {
+    reach: f64,
+    min_angle: f64,
+    max_ring_angle: f64,
+    max_fit_angle: f64,
+    min_group: usize,
+    max_shift: f64,
+}
+
+impl JunctionPlaneParams {
+    fn in_world(&self, voxel: f64) -> Limits {
+        Limits {
+            reach: self.reach_voxels * voxel,
+            min_angle: self.min_angle_degrees.to_radians(),
+            max_ring_angle: self.max_ring_angle_degrees.to_radians(),
+            max_fit_angle: self.max_fit_angle_degrees.to_radians(),
+            min_group: self.min_group,
+            max_shift: self.max_shift_voxels * voxel,
+        }
+    }
 }
 
 /// Snaps the vertices of `mesh` (normals = across directions) in junction bands onto the
-/// nearest plane of the sheets meeting there (see the module documentation). Triangles are
-/// unchanged. Returns the number of vertices moved.
-pub fn snap_to_junction_planes(mesh: &mut TriMesh, params: &JunctionPlaneParams) -> usize {
+/// nearest plane of the sheets meeting there (see the module documentation); `voxel` is the
+/// length unit of `params` (world units). Triangles are unchanged. Returns the number of
+/// vertices moved.
+pub fn snap_to_junction_planes(
+    mesh: &mut TriMesh,
+    params: &JunctionPlaneParams,
+    voxel: f64,
+) -> usize {
+    let params = &params.in_world(voxel);
     let Some(normals) = mesh.normals.clone() else {
         return 0;
     };
@@ -320,12 +363,9 @@ mod tests {
 
     fn params() -> JunctionPlaneParams {
         JunctionPlaneParams {
-            reach: 6.0,
-            min_angle: 60f64.to_radians(),
-            max_ring_angle: 20f64.to_radians(),
-            max_fit_angle: 10f64.to_radians(),
-            min_group: 6,
-            max_shift: 2.0,
+            reach_voxels: 6.0,
+            max_shift_voxels: 2.0,
+            ..JunctionPlaneParams::default()
         }
     }
 
@@ -406,7 +446,7 @@ mod tests {
             |i, _| profile(s(i), 1.0).2,
         );
         let before = mesh.clone();
-        assert_eq!(snap_to_junction_planes(&mut mesh, &params()), 0);
+        assert_eq!(snap_to_junction_planes(&mut mesh, &params(), 1.0), 0);
         assert_eq!(mesh, before);
     }
 
@@ -430,7 +470,7 @@ mod tests {
             );
             add_base_continuation(&mut mesh, n);
             let before = mesh.clone();
-            let moved = snap_to_junction_planes(&mut mesh, &params());
+            let moved = snap_to_junction_planes(&mut mesh, &params(), 1.0);
             prop_assert!(moved > 0);
             prop_assert_eq!(&mesh.triangles, &before.triangles);
             for (p, q) in before.vertices.iter().zip(&mesh.vertices) {
@@ -459,7 +499,7 @@ mod tests {
                 },
             );
             let before = mesh.clone();
-            prop_assert_eq!(snap_to_junction_planes(&mut mesh, &params()), 0);
+            prop_assert_eq!(snap_to_junction_planes(&mut mesh, &params(), 1.0), 0);
             prop_assert_eq!(mesh, before);
         }
     }
@@ -467,9 +507,9 @@ mod tests {
     #[test]
     fn meshes_without_normals_or_vertices_are_left_alone() {
         let mut mesh = TriMesh::new(vec![DVec3::ZERO], vec![]);
-        assert_eq!(snap_to_junction_planes(&mut mesh, &params()), 0);
+        assert_eq!(snap_to_junction_planes(&mut mesh, &params(), 1.0), 0);
         let mut empty = TriMesh::new(vec![], vec![]);
         empty.normals = Some(vec![]);
-        assert_eq!(snap_to_junction_planes(&mut empty, &params()), 0);
+        assert_eq!(snap_to_junction_planes(&mut empty, &params(), 1.0), 0);
     }
 }

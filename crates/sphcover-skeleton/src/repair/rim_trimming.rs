@@ -23,55 +23,74 @@ use std::collections::BinaryHeap;
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::{PuEvaluator, TriMesh};
+use sphcover_core::TriMesh;
 
-/// Parameters of [`trim_rims`].
+use super::part_surface::PartSurface;
+
+/// Parameters of [`trim_rims`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct RimTrimParams {
-    /// Level of the object surface in the evaluator's units.
-    pub surface_level: f64,
-    /// Step of the march along `±e` (world units).
-    pub step: f64,
-    /// Largest half-thickness searched (world units); also bounds the geodesic distances.
-    pub max_half_thickness: f64,
     /// `κ`: a vertex is in the rim when the surface lies closer than `κ·h` along the sheet.
     pub factor: f64,
+    /// Step of the march towards the part's faces.
+    pub step_voxels: f64,
+    /// Pieces of the sheet of at least this area (voxel²) that trimming would cut off stay
+    /// joined to the rest ([`trim_rims`]); `None` lets trimming cut off pieces of any size.
+    pub keep_pieces_voxels: Option<f64>,
+}
+
+impl Default for RimTrimParams {
+    fn default() -> RimTrimParams {
+        RimTrimParams {
+            factor: 0.9,
+            step_voxels: 0.25,
+            keep_pieces_voxels: Some(16.0),
+        }
+    }
 }
 
 /// In-plane directions tested around each vertex.
 pub const DIRECTIONS: usize = 12;
 
-/// Removes the rim triangles of `mesh` (whose normals must hold the ridge directions `e`).
-/// Returns the trimmed mesh (vertices unchanged) and the number of triangles removed.
+/// Removes the rim triangles of `mesh` (whose normals must hold the ridge directions `e`) in
+/// the part `surface`; `voxel` is the length unit of `params` (world units). Returns the
+/// trimmed mesh (vertices unchanged) and the number of triangles removed.
 ///
 /// Trimming must not cut the sheet apart: where the raw sheet has a slit reaching the rim (a
 /// crack along which the ridge was missed), the piece beyond it hangs on the rest by rim
 /// triangles only, and removing them would leave it a fragment that cleaning drops (on the
 /// generated T-junction at 10 % noise, 55 voxel² of the base, coverage 0.98 instead of 0.99).
-/// So every piece of at least `min_piece_area` that trimming separates from the largest piece
-/// of its component keeps the fewest removed triangles that connect it back across edges
-/// (a breadth-first path through the removed triangles).
+/// So every piece of at least [`RimTrimParams::keep_pieces_voxels`] that trimming separates
+/// from the largest piece of its component keeps the fewest removed triangles that connect
+/// it back across edges (a breadth-first path through the removed triangles).
 pub fn trim_rims(
     mesh: &TriMesh,
-    evaluator: &PuEvaluator<'_>,
+    surface: &PartSurface<'_>,
     params: &RimTrimParams,
-    min_piece_area: f64,
+    voxel: f64,
 ) -> (TriMesh, usize) {
     let Some(normals) = &mesh.normals else {
         return (mesh.clone(), 0);
     };
-    let distance = distance_to_boundary(mesh, 2.0 * params.max_half_thickness);
+    let step = params.step_voxels * voxel;
+    let distance = distance_to_boundary(mesh, 2.0 * surface.max_half_thickness);
     let in_rim: Vec<bool> = (0..mesh.vertices.len())
         .into_par_iter()
         .with_min_len(256)
-        .map(|v| distance[v].is_finite() && is_rim(evaluator, mesh.vertices[v], normals[v], params))
+        .map(|v| {
+            distance[v].is_finite()
+                && is_rim(surface, mesh.vertices[v], normals[v], params.factor, step)
+        })
         .collect();
     let mut keep: Vec<bool> = mesh
         .triangles
         .iter()
         .map(|t| t.iter().filter(|&&v| in_rim[v as usize]).count() < 2)
         .collect();
-    reconnect_split_pieces(mesh, &mut keep, min_piece_area);
+    if let Some(area) = params.keep_pieces_voxels {
+        reconnect_split_pieces(mesh, &mut keep, area * voxel * voxel);
+    }
     let mut out = mesh.clone();
     let mut k = 0;
     out.triangles.retain(|_| {
@@ -220,73 +239,28 @@ pub fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area: f64) 
     }
 }
 
-/// True when the object surface is closer than `factor · h(p)` along some direction
-/// perpendicular to `e` (see the module documentation).
-pub fn is_rim(evaluator: &PuEvaluator<'_>, p: DVec3, e: DVec3, params: &RimTrimParams) -> bool {
-    let Some(h) = half_thickness(evaluator, p, e, params) else {
+/// True when the part's surface is closer than `factor · h(p)` along some direction
+/// perpendicular to `e` (see the module documentation), marching in steps of `step` (world
+/// units).
+pub fn is_rim(surface: &PartSurface<'_>, p: DVec3, e: DVec3, factor: f64, step: f64) -> bool {
+    let Some(h) = surface.half_thickness(p, e, step) else {
         return false;
     };
-    let reach = params.factor * h;
+    let reach = factor * h;
     let u = e.any_orthonormal_vector();
     let v = e.cross(u);
     (0..DIRECTIONS).any(|k| {
         let angle = std::f64::consts::TAU * k as f64 / DIRECTIONS as f64;
         let dir = angle.cos() * u + angle.sin() * v;
-        let mut s = params.step;
+        let mut s = step;
         while s <= reach {
-            if evaluator
-                .value(p + s * dir)
-                .is_none_or(|f| f < params.surface_level)
-            {
+            if surface.is_outside(p + s * dir) {
                 return true;
             }
-            s += params.step;
+            s += step;
         }
         false
     })
-}
-
-/// The half-thickness of the object at `p` along `±e`: the mean distance to the first
-/// point where `f` falls below the surface level on each side (linear interpolation between
-/// march steps). `None` when `f` is undefined at `p` or never falls below the level.
-pub fn half_thickness(
-    evaluator: &PuEvaluator<'_>,
-    p: DVec3,
-    e: DVec3,
-    params: &RimTrimParams,
-) -> Option<f64> {
-    let a = surface_distance(evaluator, p, e, params)?;
-    let b = surface_distance(evaluator, p, -e, params)?;
-    Some(0.5 * (a + b))
-}
-
-/// The distance from `p` along the unit direction `d` to the first point where `f` falls
-/// below the surface level (linear interpolation between march steps), or `None` when `f`
-/// is undefined at `p` or does not fall below the level within the largest half-thickness.
-pub fn surface_distance(
-    evaluator: &PuEvaluator<'_>,
-    p: DVec3,
-    d: DVec3,
-    params: &RimTrimParams,
-) -> Option<f64> {
-    let level = params.surface_level;
-    let mut prev = (0.0, evaluator.value(p)?);
-    let mut s = params.step;
-    while s <= params.max_half_thickness + params.step {
-        let v = evaluator.value(p + s * d).unwrap_or(f64::NEG_INFINITY);
-        if v < level {
-            let denom = prev.1 - v;
-            let frac = if denom.is_finite() && denom > 0.0 {
-                (prev.1 - level) / denom
-            } else {
-                0.5
-            };
-            return Some(prev.0 + frac.clamp(0.0, 1.0) * (s - prev.0));
-        }
-        prev = (s, v);
-        s += params.step;
-    }
-    None
 }
 
 /// Geodesic (shortest path over edges) distance from every vertex to the mesh boundary (the

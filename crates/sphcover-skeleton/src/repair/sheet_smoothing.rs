@@ -11,10 +11,30 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::TriMesh;
 
-/// Runs `rounds` Jacobi rounds of `v ← v + λ ⟨m − v, e⟩ e` with `m` the mean of the
-/// 1-ring neighbours of `v` and `e` its normal. Needs per-vertex normals (does nothing
-/// without them); vertices without a neighbour stay.
-pub fn smooth_across(mesh: &mut TriMesh, rounds: usize, lambda: f64) {
+/// Parameters of [`smooth_across`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct SmoothingParams {
+    /// Jacobi rounds.
+    pub rounds: usize,
+    /// `λ`: the fraction of the step to the neighbours' plane taken per round.
+    pub lambda: f64,
+}
+
+impl Default for SmoothingParams {
+    fn default() -> SmoothingParams {
+        SmoothingParams {
+            rounds: 3,
+            lambda: 0.5,
+        }
+    }
+}
+
+/// Runs [`SmoothingParams::rounds`] Jacobi rounds of `v ← v + λ ⟨m − v, e⟩ e` with `m` the
+/// mean of the 1-ring neighbours of `v` and `e` its normal. Needs per-vertex normals (does
+/// nothing without them); vertices without a neighbour stay.
+pub fn smooth_across(mesh: &mut TriMesh, params: &SmoothingParams) {
+    let SmoothingParams { rounds, lambda } = *params;
     let Some(normals) = mesh.normals.clone() else {
         return;
     };
@@ -88,7 +108,7 @@ mod tests {
         fn moves_only_across(amplitude in 0.0..0.5f64, rounds in 1usize..5) {
             let mut m = zigzag_grid(amplitude);
             let before = m.vertices.clone();
-            smooth_across(&mut m, rounds, 0.5);
+            smooth_across(&mut m, &SmoothingParams { rounds, lambda: 0.5 });
             for (a, b) in before.iter().zip(&m.vertices) {
                 prop_assert!(a.x == b.x && a.y == b.y);
                 prop_assert!(b.z.abs() <= amplitude + 1e-12);
@@ -102,7 +122,7 @@ mod tests {
     #[test]
     fn zigzag_is_flattened() {
         let mut m = zigzag_grid(0.3);
-        smooth_across(&mut m, 3, 0.5);
+        smooth_across(&mut m, &SmoothingParams::default());
         let interior_max = m
             .vertices
             .iter()

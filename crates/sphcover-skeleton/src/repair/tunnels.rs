@@ -22,17 +22,28 @@ use std::collections::{BinaryHeap, HashMap};
 use glam::DVec3;
 use sphcover_core::TriMesh;
 
-use crate::flaps::triangle_alignment;
+use super::flaps::triangle_alignment;
 
-/// Parameters of [`close_material_tunnels`].
+/// Parameters of [`close_material_tunnels`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct TunnelParams {
-    /// Longest loop (world units) that is closed.
-    pub max_perimeter: f64,
+    /// Longest loop that is closed.
+    pub max_perimeter_voxels: f64,
     /// Most loops closed (a bound on the work on pathological input).
     pub max_tunnels: usize,
     /// Remove closed pockets first (see [`remove_closed_pockets`]).
     pub remove_pockets: bool,
+}
+
+impl Default for TunnelParams {
+    fn default() -> TunnelParams {
+        TunnelParams {
+            max_perimeter_voxels: 24.0,
+            max_tunnels: 10_000,
+            remove_pockets: true,
+        }
+    }
 }
 
 /// A sparse Z2 vector of edge indices, sorted ascending.
@@ -109,8 +120,10 @@ impl Ord for Entry {
 pub fn close_material_tunnels(
     mesh: &mut TriMesh,
     params: &TunnelParams,
+    voxel: f64,
     is_material: impl Fn(DVec3) -> bool,
 ) -> usize {
+    let max_perimeter = params.max_perimeter_voxels * voxel;
     if mesh.triangles.is_empty() || params.max_tunnels == 0 {
         return 0;
     }
@@ -187,13 +200,13 @@ pub fn close_material_tunnels(
         return 0;
     }
 
-    let loops = short_loops(mesh, &adjacency, &edges, &roots, 0.5 * params.max_perimeter);
+    let loops = short_loops(mesh, &adjacency, &edges, &roots, 0.5 * max_perimeter);
     let mut closed: Vec<Vec<u32>> = Vec::new();
     for (length, cycle, chain) in loops {
         if generators_left == 0 || closed.len() >= params.max_tunnels {
             break;
         }
-        if length > params.max_perimeter {
+        if length > max_perimeter {
             break;
         }
         if !reducer.insert(chain) {
@@ -518,9 +531,9 @@ mod tests {
         mesh(vertices, triangles)
     }
 
-    fn params(max_perimeter: f64) -> TunnelParams {
+    fn params(max_perimeter_voxels: f64) -> TunnelParams {
         TunnelParams {
-            max_perimeter,
+            max_perimeter_voxels,
             max_tunnels: 100,
             remove_pockets: true,
         }
@@ -539,13 +552,13 @@ mod tests {
             prop_assert_eq!(before.euler_characteristic(), 0);
             prop_assert_eq!(before.components, 1);
             let mut air = m.clone();
-            prop_assert_eq!(close_material_tunnels(&mut air, &params(100.0), |_| false), 0);
+            prop_assert_eq!(close_material_tunnels(&mut air, &params(100.0), 1.0, |_| false), 0);
             prop_assert_eq!(&air, &m);
             let mut short = m.clone();
-            prop_assert_eq!(close_material_tunnels(&mut short, &params(2.5), |_| true), 0);
+            prop_assert_eq!(close_material_tunnels(&mut short, &params(2.5), 1.0, |_| true), 0);
             prop_assert_eq!(&short, &m);
             let triangles = m.triangles.len();
-            prop_assert_eq!(close_material_tunnels(&mut m, &params(100.0), |_| true), 1);
+            prop_assert_eq!(close_material_tunnels(&mut m, &params(100.0), 1.0, |_| true), 1);
             let after = MeshTopology::of(&m);
             prop_assert_eq!(after.euler_characteristic(), 1);
             prop_assert_eq!(after.components, 1);
@@ -553,7 +566,7 @@ mod tests {
             prop_assert_eq!(m.normals.as_ref().map(Vec::len), Some(m.vertices.len()));
             prop_assert_eq!(m.values.as_ref().map(Vec::len), Some(m.vertices.len()));
             // Nothing is left to close.
-            prop_assert_eq!(close_material_tunnels(&mut m, &params(100.0), |_| true), 0);
+            prop_assert_eq!(close_material_tunnels(&mut m, &params(100.0), 1.0, |_| true), 0);
         }
 
         /// A pyramid standing on a square of the grid closes a pocket (χ 2: one component,
@@ -588,7 +601,10 @@ mod tests {
         triangles.drain(2 * (5 * 2 + 2)..2 * (5 * 2 + 2) + 2);
         let mut m = mesh(vertices, triangles);
         let before = m.clone();
-        assert_eq!(close_material_tunnels(&mut m, &params(100.0), |_| true), 0);
+        assert_eq!(
+            close_material_tunnels(&mut m, &params(100.0), 1.0, |_| true),
+            0
+        );
         assert_eq!(m, before);
     }
 

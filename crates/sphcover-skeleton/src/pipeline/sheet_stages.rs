@@ -1,0 +1,348 @@
+//! The stages after the intensity cover, common to volumes and scattered samples:
+//! tetrahedral mesh, derivatives, ridge points, patches and the repairs of
+//! [`crate::repair`], over one [`SheetContext`].
+
+use sphcover_core::mesh_topology::MeshTopology;
+use sphcover_core::stages::Stage;
+use sphcover_core::{Cover, DVec3, PuEvaluator, TriMesh};
+use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
+
+use super::SkeletonParams;
+use crate::derivative_smoothing::smoothed_vertex_derivatives;
+use crate::error::SkeletonError;
+use crate::patches::ridge_patches;
+use crate::repair::cleaning::{CleaningStats, clean_sheet};
+use crate::repair::flaps::collapse_misaligned_flaps;
+use crate::repair::junction_holes::fill_holes_within_sheets;
+use crate::repair::junction_planes::snap_to_junction_planes;
+use crate::repair::medial_correction::{centre_between_faces, fold_junction_vertices};
+use crate::repair::part_surface::PartSurface;
+use crate::repair::rim_trimming::trim_rims;
+use crate::repair::sheet_smoothing::smooth_across;
+use crate::repair::tunnels::close_material_tunnels;
+use crate::ridge_points::{
+    RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points, vertex_derivatives,
+};
+
+/// A stage after the cover.
+pub(crate) type SheetStage<'c> = Stage<SheetContext<'c>, SkeletonError>;
+
+/// What the repairs did, for [`super::SkeletonStats`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct RepairCounts {
+    pub cleaning: CleaningStats,
+    pub rim_triangles: usize,
+    pub junction_holes: usize,
+    pub tunnels: usize,
+    pub flap_triangles: usize,
+    pub centred_vertices: usize,
+    pub junction_folded_vertices: usize,
+    pub junction_snapped_vertices: usize,
+}
+
+/// What the stages after the cover share.
+pub(crate) struct SheetContext<'c> {
+    pub params: &'c SkeletonParams,
+    pub cover: &'c Cover,
+    /// The part's surface level in the cover's (normalised) units.
+    pub level: f64,
+    /// The cover's largest support radius: how far the part's faces are searched.
+    pub r_max: f64,
+    /// The length unit of the voxel-based parameters (world units).
+    pub voxel: f64,
+    pub mesh: Option<TetMesh>,
+    pub derivatives: Vec<Option<VertexDerivatives>>,
+    pub ridge: Vec<Option<RidgePoint>>,
+    pub ridge_count: usize,
+    pub raw_triangles: usize,
+    /// The cover's function with σ = 1, which the repairs probe (from the first repair on).
+    pub function: Option<PuEvaluator<'c>>,
+    /// The raw patches, then the sheet as each repair leaves it.
+    pub sheet: TriMesh,
+    pub repairs: RepairCounts,
+    /// Cleaning passes run so far.
+    pub cleaning_passes: usize,
+    pub topology: Option<MeshTopology>,
+}
+
+impl<'c> SheetContext<'c> {
+    pub fn new(
+        params: &'c SkeletonParams,
+        cover: &'c Cover,
+        level: f64,
+        r_max: f64,
+        voxel: f64,
+    ) -> SheetContext<'c> {
+        SheetContext {
+            params,
+            cover,
+            level,
+            r_max,
+            voxel,
+            mesh: None,
+            derivatives: Vec::new(),
+            ridge: Vec::new(),
+            ridge_count: 0,
+            raw_triangles: 0,
+            function: None,
+            sheet: TriMesh::default(),
+            repairs: RepairCounts::default(),
+            cleaning_passes: 0,
+            topology: None,
+        }
+    }
+
+    fn mesh(&self) -> &TetMesh {
+        built(self.mesh.as_ref(), "tetrahedral mesh")
+    }
+}
+
+/// The part's surface from the context's fields, for the repairs that probe it (a method
+/// would borrow the whole context, beside the sheet the repairs change).
+fn part<'a>(function: &'a Option<PuEvaluator<'a>>, level: f64, r_max: f64) -> PartSurface<'a> {
+    PartSurface {
+        function: built(function.as_ref(), "cover function"),
+        level,
+        max_half_thickness: r_max,
+    }
+}
+
+/// An intermediate that an earlier stage of the list builds. Every stage list is run by the
+/// tests, so a missing one is a bug in [`sheet_stage_list`], not something input can cause.
+pub(super) fn built<T>(slot: Option<T>, what: &str) -> T {
+    slot.unwrap_or_else(|| panic!("the stage list builds the {what} before it is used"))
+}
+
+/// The stages after the cover that `params` asks for, in order.
+pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c>> {
+    let repairs = &params.repairs;
+    let mut stages = vec![
+        Stage::new("tetrahedral mesh", tetrahedral_mesh),
+        Stage::new("derivatives", derivatives),
+        Stage::new("ridge points", find_ridge_points),
+        Stage::new("patches", patches),
+        Stage::new("cleaning", cleaning),
+    ];
+    let optional: [(bool, SheetStage<'c>); 9] = [
+        (
+            repairs.rim_trimming.is_some(),
+            Stage::new("rim trimming", rim_trimming),
+        ),
+        (
+            repairs.rim_trimming.is_some(),
+            Stage::new("cleaning again", cleaning),
+        ),
+        (
+            repairs.junction_holes.is_some(),
+            Stage::new("junction holes", junction_holes),
+        ),
+        (repairs.tunnels.is_some(), Stage::new("tunnels", tunnels)),
+        (repairs.flaps.is_some(), Stage::new("flaps", flaps)),
+        (repairs.centring.is_some(), Stage::new("centring", centring)),
+        (
+            repairs.junction_fold.is_some(),
+            Stage::new("junction fold", junction_fold),
+        ),
+        (
+            repairs.junction_planes.is_some(),
+            Stage::new("junction planes", junction_planes),
+        ),
+        (
+            repairs.smoothing.is_some(),
+            Stage::new("smoothing", smoothing),
+        ),
+    ];
+    stages.extend(optional.into_iter().filter(|s| s.0).map(|s| s.1));
+    stages.push(Stage::new("topology", topology));
+    stages
+}
+
+/// The dual complex of the cover (radius shrink σ_t) and its tetrahedral mesh with edges and
+/// ordered edge rings.
+fn tetrahedral_mesh(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let cover = ctx.cover;
+    let complex = dual_complex(
+        cover.centers(),
+        cover.radii(),
+        &DualComplexParams {
+            shrink: ctx.params.tet_shrink,
+            seed: ctx.params.seed,
+        },
+    )
+    .map_err(|e| match e {
+        TetraError::NotFullDimensional { .. } => SkeletonError::EmptyResult {
+            stage: "the tetrahedral mesh",
+            hint: "the object's supports do not span 3D: it is a speck or a single layer of voxels; check the threshold",
+        },
+        e => SkeletonError::Tetra(e),
+    })?;
+    let mesh = TetMesh::from_dual_complex(&complex);
+    if mesh.tets.is_empty() {
+        return Err(SkeletonError::EmptyResult {
+            stage: "the tetrahedral mesh",
+            hint: "the object is too small or too thin for the cover; check the threshold",
+        });
+    }
+    ctx.mesh = Some(mesh);
+    Ok(())
+}
+
+/// `∇f` and `∇²f` at the mesh vertices with support expansion σ, smoothed over the supports'
+/// sphere intersection graph when asked, with eigenvectors oriented over the mesh.
+fn derivatives(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let (cover, mesh) = (ctx.cover, built(ctx.mesh.as_ref(), "tetrahedral mesh"));
+    let evaluator = PuEvaluator::new(cover, ctx.params.sigma)?;
+    let positions: Vec<DVec3> = mesh
+        .vertices
+        .iter()
+        .map(|&s| cover.centers()[s as usize])
+        .collect();
+    let mut derivatives = match ctx.params.derivative_smoothing_voxels {
+        Some(voxels) => {
+            let radii: Vec<f64> = mesh
+                .vertices
+                .iter()
+                .map(|&s| cover.radii()[s as usize])
+                .collect();
+            let length = voxels * ctx.voxel;
+            smoothed_vertex_derivatives(&evaluator, &positions, &radii, 0.5 * length * length)?
+        }
+        None => vertex_derivatives(&evaluator, &positions),
+    };
+    drop(evaluator);
+    orient_eigenvectors(mesh, &mut derivatives);
+    ctx.derivatives = derivatives;
+    Ok(())
+}
+
+/// Ridge points on the mesh edges (thesis eq. 6.1, 6.4, 6.5).
+fn find_ridge_points(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    ctx.ridge = ridge_points(ctx.mesh(), &ctx.derivatives, &ctx.params.ridge);
+    ctx.ridge_count = ctx.ridge.iter().flatten().count();
+    if ctx.ridge_count == 0 {
+        return Err(SkeletonError::EmptyResult {
+            stage: "the ridge detection",
+            hint: "no intensity ridge inside the object; is the object brighter than the background?",
+        });
+    }
+    Ok(())
+}
+
+/// The fans around ridge edges (thesis Fig. 6.11), open at the mesh boundary.
+fn patches(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    ctx.sheet = ridge_patches(ctx.mesh(), &ctx.ridge);
+    ctx.raw_triangles = ctx.sheet.triangles.len();
+    Ok(())
+}
+
+/// Welding, pinches, small holes over material and fragments; the first repair also builds
+/// the function the repairs probe.
+fn cleaning(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    if ctx.function.is_none() {
+        ctx.function = Some(PuEvaluator::new(ctx.cover, 1.0)?);
+    }
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    let (sheet, stats) = clean_sheet(&ctx.sheet, &ctx.params.repairs.cleaning, ctx.voxel, |x| {
+        part.is_material(x)
+    });
+    if ctx.cleaning_passes == 0 {
+        ctx.repairs.cleaning = stats;
+    } else {
+        ctx.repairs.cleaning.add_later_pass(&stats);
+    }
+    ctx.cleaning_passes += 1;
+    ctx.sheet = sheet;
+    Ok(())
+}
+
+/// Trimming back from the part's rounded rims.
+fn rim_trimming(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let Some(params) = &ctx.params.repairs.rim_trimming else {
+        return Ok(());
+    };
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    let (trimmed, removed) = trim_rims(&ctx.sheet, &part, params, ctx.voxel);
+    ctx.repairs.rim_triangles = removed;
+    ctx.sheet = trimmed;
+    Ok(())
+}
+
+/// Holes of the sheets meeting at a junction.
+fn junction_holes(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let Some(params) = &ctx.params.repairs.junction_holes else {
+        return Ok(());
+    };
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    ctx.repairs.junction_holes =
+        fill_holes_within_sheets(&mut ctx.sheet, params, ctx.voxel, |x| part.is_material(x));
+    Ok(())
+}
+
+/// Closed pockets opened, and loops that go around material only closed.
+fn tunnels(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let Some(params) = &ctx.params.repairs.tunnels else {
+        return Ok(());
+    };
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    ctx.repairs.tunnels =
+        close_material_tunnels(&mut ctx.sheet, params, ctx.voxel, |x| part.is_material(x));
+    Ok(())
+}
+
+/// Flaps standing across the sheet collapsed.
+fn flaps(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    if let Some(params) = &ctx.params.repairs.flaps {
+        ctx.repairs.flap_triangles = collapse_misaligned_flaps(&mut ctx.sheet, params);
+    }
+    Ok(())
+}
+
+/// Vertices re-centred between the part's faces.
+fn centring(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let Some(params) = &ctx.params.repairs.centring else {
+        return Ok(());
+    };
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    ctx.repairs.centred_vertices = centre_between_faces(&mut ctx.sheet, &part, params, ctx.voxel);
+    Ok(())
+}
+
+/// Junction fillets folded onto the plates.
+fn junction_fold(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let Some(params) = &ctx.params.repairs.junction_fold else {
+        return Ok(());
+    };
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    ctx.repairs.junction_folded_vertices =
+        fold_junction_vertices(&mut ctx.sheet, &part, params, ctx.voxel);
+    Ok(())
+}
+
+/// Junction bands snapped onto the sheets' planes.
+fn junction_planes(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    if let Some(params) = &ctx.params.repairs.junction_planes {
+        ctx.repairs.junction_snapped_vertices =
+            snap_to_junction_planes(&mut ctx.sheet, params, ctx.voxel);
+    }
+    Ok(())
+}
+
+/// Smoothing across the sheet.
+fn smoothing(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    if let Some(params) = &ctx.params.repairs.smoothing {
+        smooth_across(&mut ctx.sheet, params);
+    }
+    Ok(())
+}
+
+/// The sheet's topology; an empty sheet is an error.
+fn topology(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    if ctx.sheet.triangles.is_empty() {
+        return Err(SkeletonError::EmptyResult {
+            stage: "patching and cleaning",
+            hint: "the ridge points form no surface",
+        });
+    }
+    ctx.topology = Some(MeshTopology::of(&ctx.sheet));
+    Ok(())
+}
