@@ -6,7 +6,6 @@ mod byte_size;
 mod commands;
 mod exit;
 mod interrupt;
-mod render;
 mod report;
 mod skeleton_memory;
 mod value_samples;

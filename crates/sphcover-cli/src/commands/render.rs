@@ -4,13 +4,13 @@
 use std::path::Path;
 
 use sphcover_core::io::{self, Format, Geometry};
+use sphcover_render::colour_bar::label;
+use sphcover_render::{
+    Background, Projection, RenderOptions, Scene, Shading, UpAxis, ViewAngles, render,
+};
 
 use crate::args::RenderArgs;
 use crate::exit::BadInput;
-use crate::render::colour_bar::label;
-use crate::render::{
-    Background, Projection, RenderOptions, Scene, Shading, UpAxis, ViewAngles, render,
-};
 use crate::report::Reporter;
 
 /// Runs `sphcover render`.
