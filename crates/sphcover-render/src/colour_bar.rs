@@ -1,8 +1,8 @@
-//! The colour bar drawn beside a colour-by-scalar image: the colormap from the lowest value
+//! The colour bar drawn beside a colour-by-scalar image: the colour map from the lowest value
 //! (bottom) to the highest (top), labelled at both ends and the middle in a small bitmap
 //! font, so that an image pasted into a report still says what its colours mean.
 
-use super::colormap::{ColourScale, viridis_srgb};
+use super::colour_map::{ColourScale, viridis_srgb};
 use super::image::Image;
 
 /// Glyph width and height in font pixels; one more column separates characters.

@@ -8,7 +8,7 @@
 //! options always give the same bytes.
 
 pub mod camera;
-pub mod colormap;
+pub mod colour_map;
 pub mod colour_bar;
 pub mod image;
 pub mod raster;
@@ -20,7 +20,7 @@ use rayon::prelude::*;
 pub use camera::{Camera, Projection, UpAxis, ViewAngles, Viewport};
 pub use image::Image;
 
-use colormap::{ColourScale, linear_to_srgb, srgb_to_linear};
+use colour_map::{ColourScale, linear_to_srgb, srgb_to_linear};
 use colour_bar::ColourBar;
 use raster::{Band, Bins, EMPTY, Fixed, INVALID, Setup, Splat, to_fixed};
 
@@ -93,7 +93,7 @@ pub struct RenderOptions {
     pub point_diameter: Option<f64>,
     /// Background.
     pub background: Background,
-    /// Values mapped to the ends of the colormap; `None` uses the range of the values.
+    /// Values mapped to the ends of the colour map; `None` uses the range of the values.
     pub colour_range: Option<(f64, f64)>,
     /// Draw a labelled colour bar when colouring by a scalar (if the image is large enough).
     pub colour_bar: bool,
@@ -165,7 +165,7 @@ pub struct Rendered {
     pub splats: usize,
     /// Splat diameter used, in pixels (point clouds without radii).
     pub point_diameter: Option<f64>,
-    /// Values at the ends of the colormap, when colouring by a scalar.
+    /// Values at the ends of the colour map, when colouring by a scalar.
     pub colour_range: Option<(f64, f64)>,
     /// Whether the colour bar fit in the image.
     pub colour_bar: bool,

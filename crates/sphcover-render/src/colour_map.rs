@@ -1,4 +1,4 @@
-//! Scalar → colour: the viridis colormap (perceptually uniform, readable in greyscale and by
+//! Scalar → colour: the viridis colour map (perceptually uniform, readable in greyscale and by
 //! most colour-blind readers) over a value range.
 
 /// Entries of the lookup table the shader uses.
@@ -80,7 +80,7 @@ pub fn linear_to_srgb(c: f64) -> f64 {
     }
 }
 
-/// A value range mapped onto the colormap, with the colours in linear light.
+/// A value range mapped onto the colour map, with the colours in linear light.
 #[derive(Clone, Debug)]
 pub struct ColourScale {
     /// The value drawn in the first colour.
@@ -118,7 +118,7 @@ impl ColourScale {
             })
     }
 
-    /// Position of `value` along the colormap, in [0, 1] (NaN for non-finite values).
+    /// Position of `value` along the colour map, in [0, 1] (NaN for non-finite values).
     pub fn position(&self, value: f64) -> f64 {
         if !value.is_finite() {
             return f64::NAN;
