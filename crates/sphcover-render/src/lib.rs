@@ -8,8 +8,8 @@
 //! options always give the same bytes.
 
 pub mod camera;
-pub mod colour_map;
 pub mod colour_bar;
+pub mod colour_map;
 pub mod image;
 pub mod raster;
 pub mod shading;
@@ -20,8 +20,8 @@ use rayon::prelude::*;
 pub use camera::{Camera, Projection, UpAxis, ViewAngles, Viewport};
 pub use image::Image;
 
-use colour_map::{ColourScale, linear_to_srgb, srgb_to_linear};
 use colour_bar::ColourBar;
+use colour_map::{ColourScale, linear_to_srgb, srgb_to_linear};
 use raster::{Band, Bins, EMPTY, Fixed, INVALID, Setup, Splat, to_fixed};
 
 /// Largest image side, in pixels.
@@ -262,10 +262,9 @@ pub fn render(scene: &Scene<'_>, options: &RenderOptions) -> Result<Rendered, Re
     let normals = match (mesh, options.shading, scene.normals) {
         (true, Shading::Flat, _) => None,
         (true, Shading::Smooth, Some(n)) => Some(n.to_vec()),
-        (true, Shading::Smooth, None) => Some(sphcover_core::vertex_normals(
-            scene.positions,
-            scene.triangles,
-        )),
+        (true, Shading::Smooth, None) => {
+            Some(shading::vertex_normals(scene.positions, scene.triangles))
+        }
         (false, _, n) => n.map(<[DVec3]>::to_vec),
     };
 
