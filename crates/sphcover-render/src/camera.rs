@@ -5,7 +5,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 /// Fraction of the viewport left free on each side of the fitted geometry.
-pub const MARGIN: f64 = 0.05;
+pub(crate) const MARGIN: f64 = 0.05;
 
 /// Elevation of the isometric view: the cube diagonal points at the camera.
 const ISO_ELEVATION_DEG: f64 = 35.264_389_682_754_654;
@@ -149,7 +149,7 @@ pub struct Viewport {
 }
 
 /// The view-frame axes of a direction: (toward viewer, right, up).
-pub fn view_frame(angles: ViewAngles, up_axis: UpAxis) -> (DVec3, DVec3, DVec3) {
+pub(crate) fn view_frame(angles: ViewAngles, up_axis: UpAxis) -> (DVec3, DVec3, DVec3) {
     let (up, front, right) = up_axis.frame();
     let (sa, ca) = angles.azimuth.to_radians().sin_cos();
     let (se, ce) = angles.elevation.to_radians().sin_cos();
@@ -161,8 +161,8 @@ pub fn view_frame(angles: ViewAngles, up_axis: UpAxis) -> (DVec3, DVec3, DVec3) 
 
 impl Camera {
     /// The camera looking from `angles` that fits `positions` (with optional ball radii)
-    /// into `viewport`, leaving [`MARGIN`] free on each side. Non-finite positions are
-    /// ignored. `None` when no position is finite.
+    /// into `viewport`, leaving 5% of the viewport free on each side. Non-finite positions
+    /// are ignored. `None` when no position is finite.
     pub fn fit(
         positions: &[DVec3],
         radii: Option<&[f64]>,

@@ -31,7 +31,8 @@ fn glyph(c: char) -> Option<[u8; GLYPH_H]> {
     })
 }
 
-/// A value as at most 4 significant digits, in exponent form outside [1e-3, 1e5).
+/// A value as the colour bar's labels print it: at most 4 significant digits, in exponent
+/// form outside [1e-3, 1e5).
 pub fn label(value: f64) -> String {
     if value == 0.0 || !value.is_finite() {
         return if value.is_nan() {
@@ -56,7 +57,7 @@ pub fn label(value: f64) -> String {
 
 /// Where the bar and its labels go, decided before the geometry is fitted into the rest.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ColourBar {
+pub(crate) struct ColourBar {
     labels: [String; 3],
     /// Font pixel size in image pixels.
     font: usize,

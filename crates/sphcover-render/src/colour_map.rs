@@ -5,13 +5,13 @@
 const TABLE_LEN: usize = 1024;
 
 /// Colour of values that are not finite (NaN labels, missing confidences): neutral grey.
-pub const NOT_FINITE_SRGB: [f64; 3] = [0.5, 0.5, 0.5];
+pub(crate) const NOT_FINITE_SRGB: [f64; 3] = [0.5, 0.5, 0.5];
 
 /// Viridis as sRGB components in [0, 1] for `t` in [0, 1] (clamped).
 ///
 /// A degree-6 polynomial fit of matplotlib's table (Matt Zucker's public-domain fit); it
 /// stays within about 1/255 of the table, below what 8-bit output resolves reliably.
-pub fn viridis_srgb(t: f64) -> [f64; 3] {
+pub(crate) fn viridis_srgb(t: f64) -> [f64; 3] {
     const C: [[f64; 3]; 7] = [
         [
             0.277_727_327_223_417_7,
@@ -62,7 +62,7 @@ pub fn viridis_srgb(t: f64) -> [f64; 3] {
 }
 
 /// The sRGB transfer function, inverted: an encoded component to linear light.
-pub fn srgb_to_linear(c: f64) -> f64 {
+pub(crate) fn srgb_to_linear(c: f64) -> f64 {
     if c <= 0.040_45 {
         c / 12.92
     } else {
@@ -71,7 +71,7 @@ pub fn srgb_to_linear(c: f64) -> f64 {
 }
 
 /// Linear light to an encoded sRGB component.
-pub fn linear_to_srgb(c: f64) -> f64 {
+pub(crate) fn linear_to_srgb(c: f64) -> f64 {
     let c = c.clamp(0.0, 1.0);
     if c <= 0.003_130_8 {
         12.92 * c
@@ -82,7 +82,7 @@ pub fn linear_to_srgb(c: f64) -> f64 {
 
 /// A value range mapped onto the colour map, with the colours in linear light.
 #[derive(Clone, Debug)]
-pub struct ColourScale {
+pub(crate) struct ColourScale {
     /// The value drawn in the first colour.
     pub low: f64,
     /// The value drawn in the last colour.

@@ -23,9 +23,14 @@ impl Image {
         }
     }
 
-    /// The pixel at column `x`, row `y`.
-    #[cfg(test)]
+    /// The pixel at column `x`, row `y`, as sRGBA bytes. Panics outside the image.
     pub fn get(&self, x: usize, y: usize) -> [u8; 4] {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside a {}x{} image",
+            self.width,
+            self.height
+        );
         let i = 4 * (y * self.width + x);
         [
             self.rgba[i],

@@ -1,23 +1,80 @@
-//! A small software renderer for previews on machines without a display: shaded triangles
-//! or point splats, z-buffered, supersampled, optionally coloured by a per-vertex scalar,
-//! written as PNG.
+//! A software rasteriser for previews on machines without a display: triangle meshes
+//! shaded flat or smooth, point clouds as splats, sphere sets as balls, optionally coloured
+//! by a per-vertex value through the viridis colour map with a labelled colour bar, and the
+//! picture written as PNG. It needs neither a GPU nor a window, so tests, servers and batch
+//! jobs can look at geometry too.
+//!
+//! ```
+//! use sphcover_render::{Background, DVec3, RenderOptions, Scene, render};
+//!
+//! // A regular tetrahedron around the origin, drawn from the default isometric view.
+//! let positions = [
+//!     DVec3::new(1.0, 1.0, 1.0),
+//!     DVec3::new(1.0, -1.0, -1.0),
+//!     DVec3::new(-1.0, 1.0, -1.0),
+//!     DVec3::new(-1.0, -1.0, 1.0),
+//! ];
+//! let triangles = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+//! let scene = Scene {
+//!     positions: &positions,
+//!     triangles: &triangles,
+//!     normals: None,
+//!     radii: None,
+//!     scalars: None,
+//! };
+//! let options = RenderOptions {
+//!     width: 64,
+//!     height: 48,
+//!     background: Background::Colour([255, 255, 255]),
+//!     ..RenderOptions::default()
+//! };
+//! let rendered = render(&scene, &options)?;
+//! let image = &rendered.image;
+//! assert_eq!((image.width, image.height), (64, 48));
+//! // The camera is fitted to the geometry, so the solid covers the centre of the picture
+//! // and leaves the corners to the background.
+//! let centre = image.get(32, 24);
+//! assert_ne!(centre, [255, 255, 255, 255]);
+//! assert!(centre[0] < 240 && centre[3] == 255, "{centre:?}");
+//! assert_eq!(image.get(0, 0), [255, 255, 255, 255]);
+//!
+//! let mut png = Vec::new();
+//! image.write_png(&mut png)?;
+//! assert!(png.starts_with(b"\x89PNG"));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! [`render`] draws a [`Scene`] (borrowed vertex and triangle arrays) with [`RenderOptions`]
+//! into the [`Image`] of a [`Rendered`]. [`Rendered::camera`] is the view the picture was
+//! drawn with, for callers that place their own marks over it, and [`colour_bar_label`]
+//! prints a value as the colour bar does.
+//!
+//! The input types are plain structs built with struct literals: [`RenderOptions`] with
+//! `..RenderOptions::default()` for the fields left alone, like the `Params` structs of the
+//! other sphcover crates. They are deliberately not `#[non_exhaustive]`, which would forbid
+//! that syntax outside this crate: the `sphcover render` command names every field, so an
+//! option added later is a compile error there until the command decides how to set it. The
+//! types only the renderer builds, [`Rendered`] and [`RenderError`], are `#[non_exhaustive]`,
+//! so that new statistics or refusals do not break their readers.
 //!
 //! The image is drawn in horizontal bands, one rayon task per band; within a band every
 //! primitive is drawn in index order with a strict depth test and every sample is shaded
 //! and averaged by the same arithmetic whatever the thread count, so the same input and
 //! options always give the same bytes.
+#![deny(missing_docs)]
 
-pub mod camera;
-pub mod colour_bar;
-pub mod colour_map;
-pub mod image;
-pub mod raster;
-pub mod shading;
+mod camera;
+mod colour_bar;
+mod colour_map;
+mod image;
+mod raster;
+mod shading;
 
-use glam::DVec3;
 use rayon::prelude::*;
 
-pub use camera::{Camera, Projection, UpAxis, ViewAngles, Viewport};
+pub use camera::{Camera, Projected, Projection, UpAxis, ViewAngles, Viewport};
+pub use colour_bar::label as colour_bar_label;
+pub use glam::DVec3;
 pub use image::Image;
 
 use colour_bar::ColourBar;
@@ -72,7 +129,8 @@ pub enum Background {
     Transparent,
 }
 
-/// Everything about the picture except the scene.
+/// Everything about the picture except the scene. Set the fields you need in a struct
+/// literal and take the rest from `..RenderOptions::default()`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderOptions {
     /// Width in pixels.
@@ -122,6 +180,7 @@ impl Default for RenderOptions {
 
 /// Why a scene could not be drawn.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum RenderError {
     /// The image size is out of range.
     #[error("image size {width}x{height}: each side must be between 1 and {MAX_SIDE} pixels")]
@@ -156,6 +215,7 @@ pub enum RenderError {
 
 /// A rendered picture and what was drawn.
 #[derive(Clone, Debug)]
+#[non_exhaustive]
 pub struct Rendered {
     /// The picture.
     pub image: Image,
@@ -169,6 +229,9 @@ pub struct Rendered {
     pub colour_range: Option<(f64, f64)>,
     /// Whether the colour bar fit in the image.
     pub colour_bar: bool,
+    /// The camera the picture was drawn with: [`Camera::project`] places further points in
+    /// it, in output pixels.
+    pub camera: Camera,
 }
 
 /// Everything the bands share.
@@ -229,7 +292,7 @@ pub fn render(scene: &Scene<'_>, options: &RenderOptions) -> Result<Rendered, Re
     .ok_or(RenderError::Empty)?;
     let light = shading::light_direction(camera.toward_viewer, camera.right, camera.up);
 
-    let projected: Vec<camera::Projected> = scene
+    let projected: Vec<Projected> = scene
         .positions
         .par_iter()
         .map(|&p| camera.project(p))
@@ -401,6 +464,7 @@ pub fn render(scene: &Scene<'_>, options: &RenderOptions) -> Result<Rendered, Re
         point_diameter,
         colour_range: frame.scale.as_ref().map(|s| (s.low, s.high)),
         colour_bar: bar.is_some(),
+        camera: frame.camera,
     })
 }
 
@@ -467,7 +531,7 @@ fn check(scene: &Scene<'_>, options: &RenderOptions) -> Result<(), RenderError> 
 /// points spread evenly over a closed surface whose silhouette fills their image box lie
 /// about √(π·area/n) pixels apart; scans are not even, so the splats are made half as
 /// large again.
-fn auto_diameter(projected: &[camera::Projected], fixed: &[Fixed]) -> f64 {
+fn auto_diameter(projected: &[Projected], fixed: &[Fixed]) -> f64 {
     let inside: Vec<usize> = (0..projected.len())
         .filter(|&i| fixed[i] != INVALID)
         .collect();

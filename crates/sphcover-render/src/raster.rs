@@ -9,23 +9,23 @@
 use rayon::prelude::*;
 
 /// Fixed-point steps per sample.
-pub const SUBPIXEL: i64 = 256;
+pub(crate) const SUBPIXEL: i64 = 256;
 
 /// Largest fixed-point coordinate magnitude kept: edge functions of such coordinates stay
 /// far inside `i64` (differences below 2^30, products below 2^60).
 const FIXED_LIMIT: f64 = (1u64 << 29) as f64;
 
 /// "No primitive here".
-pub const EMPTY: u32 = u32::MAX;
+pub(crate) const EMPTY: u32 = u32::MAX;
 
 /// A vertex in fixed-point sample coordinates (x right, y down), or [`INVALID`].
-pub type Fixed = [i64; 2];
+pub(crate) type Fixed = [i64; 2];
 
 /// A vertex that cannot be drawn (non-finite, behind the camera or absurdly far off).
-pub const INVALID: Fixed = [i64::MIN, i64::MIN];
+pub(crate) const INVALID: Fixed = [i64::MIN, i64::MIN];
 
 /// Snaps a position in samples to the fixed-point grid.
-pub fn to_fixed(x: f64, y: f64) -> Fixed {
+pub(crate) fn to_fixed(x: f64, y: f64) -> Fixed {
     let (fx, fy) = (x * SUBPIXEL as f64, y * SUBPIXEL as f64);
     if fx.abs() < FIXED_LIMIT && fy.abs() < FIXED_LIMIT {
         [fx.round() as i64, fy.round() as i64]
@@ -58,7 +58,7 @@ fn sample_centre(i: i64, j: i64) -> Fixed {
 
 /// A triangle ready to rasterise: positively oriented, non-degenerate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Setup {
+pub(crate) struct Setup {
     v: [Fixed; 3],
     /// `corners[k]` is the corner of the input triangle that vertex `k` of the setup is.
     corners: [usize; 3],
@@ -179,7 +179,7 @@ impl Setup {
 /// A disc drawn for a point: a small sphere facing the camera, so overlapping splats
 /// intersect like the balls they stand for.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Splat {
+pub(crate) struct Splat {
     /// Centre, in samples.
     pub x: f64,
     /// Centre, in samples.
@@ -221,7 +221,7 @@ impl Splat {
 
 /// Primitives sorted into bands: the primitives touching band `b`, in index order.
 #[derive(Clone, Debug, Default)]
-pub struct Bins {
+pub(crate) struct Bins {
     starts: Vec<usize>,
     items: Vec<u32>,
     /// Primitives that touch at least one band.
@@ -290,7 +290,7 @@ impl Bins {
 
 /// Depth and primitive of each sample of one band.
 #[derive(Debug)]
-pub struct Band {
+pub(crate) struct Band {
     /// First sample row.
     pub y0: usize,
     /// Rows.

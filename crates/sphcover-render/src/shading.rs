@@ -7,18 +7,18 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 /// Light reaching every surface whatever its orientation.
-pub const AMBIENT: f64 = 0.18;
+pub(crate) const AMBIENT: f64 = 0.18;
 /// Weight of the directional light.
-pub const DIFFUSE: f64 = 0.82;
+pub(crate) const DIFFUSE: f64 = 0.82;
 
 /// The light direction (unit, towards the light) for a camera frame.
-pub fn light_direction(toward_viewer: DVec3, right: DVec3, up: DVec3) -> DVec3 {
+pub(crate) fn light_direction(toward_viewer: DVec3, right: DVec3, up: DVec3) -> DVec3 {
     (toward_viewer + 0.55 * up - 0.35 * right).normalize()
 }
 
 /// Brightness of a surface with unit normal `n` (either orientation).
 #[inline]
-pub fn lambert(n: DVec3, light: DVec3) -> f64 {
+pub(crate) fn lambert(n: DVec3, light: DVec3) -> f64 {
     AMBIENT + DIFFUSE * n.dot(light).abs()
 }
 
@@ -27,7 +27,7 @@ pub fn lambert(n: DVec3, light: DVec3) -> f64 {
 ///
 /// The same arithmetic as `sphcover_core::vertex_normals`, repeated here so that a program
 /// that only draws does not need the core's file formats, solvers and their dependencies.
-pub fn vertex_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
+pub(crate) fn vertex_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
     let faces: Vec<DVec3> = triangles
         .par_iter()
         .map(|t| {

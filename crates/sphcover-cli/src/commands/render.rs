@@ -4,9 +4,9 @@
 use std::path::Path;
 
 use sphcover_core::io::{self, Format, Geometry};
-use sphcover_render::colour_bar::label;
 use sphcover_render::{
-    Background, Projection, RenderOptions, Scene, Shading, UpAxis, ViewAngles, render,
+    Background, Projection, RenderOptions, Scene, Shading, UpAxis, ViewAngles, colour_bar_label,
+    render,
 };
 
 use crate::args::RenderArgs;
@@ -83,8 +83,8 @@ pub fn run(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if let (Some(name), Some((lo, hi))) = (&args.color_by, rendered.colour_range) {
         summary.push_str(&format!(
             "\ncolour by {name}: {} (dark purple) to {} (yellow), viridis{}",
-            label(lo),
-            label(hi),
+            colour_bar_label(lo),
+            colour_bar_label(hi),
             if rendered.colour_bar {
                 ""
             } else {
