@@ -326,7 +326,7 @@ pub fn render(scene: &Scene<'_>, options: &RenderOptions) -> Result<Rendered, Re
         (true, Shading::Flat, _) => None,
         (true, Shading::Smooth, Some(n)) => Some(n.to_vec()),
         (true, Shading::Smooth, None) => {
-            Some(shading::vertex_normals(scene.positions, scene.triangles))
+            Some(sphcover_core::vertex_normals(scene.positions, scene.triangles))
         }
         (false, _, n) => n.map(<[DVec3]>::to_vec),
     };
