@@ -37,7 +37,6 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 use sphcover_core::{Cover, CoverError, DVec3, PuEvaluator, SphereIntersectionGraph, SupportLists};
-use sphcover_tetra::TetMesh;
 use thiserror::Error;
 
 use crate::maxflow::{FlowEdge, FlowGraph, MaxFlowError};
@@ -343,7 +342,8 @@ fn check_nodes(
 /// `neighbors[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`; `j` in row `i`
 /// exactly when `i` in row `j`), such as a sphere intersection graph. The flow network is
 /// built on the rows directly, without an edge list.
-pub fn graph_cut_csr(
+#[cfg(test)]
+fn graph_cut_csr(
     positions: &[DVec3],
     values: &[f64],
     offsets: &[u32],
@@ -354,7 +354,7 @@ pub fn graph_cut_csr(
         .map(|(cut, ())| cut)
 }
 
-/// [`graph_cut_csr`], running `alongside` on the other threads while the max-flow solve,
+/// [`graph_cut`] over compressed rows, running `alongside` on the other threads while the max-flow solve,
 /// which is sequential, runs on one.
 fn graph_cut_csr_alongside<R: Send>(
     positions: &[DVec3],
@@ -464,7 +464,7 @@ pub fn graph_cut_sig(
 /// refused, but may be when the graph proves not symmetric while the network is built. `f`
 /// at the centres comes from `at_centers`, the support lists gathered at `cover`'s centres
 /// (which later evaluations there can share).
-pub fn graph_cut_sig_alongside<R: Send>(
+pub(crate) fn graph_cut_sig_alongside<R: Send>(
     cover: &Cover,
     sig: &SphereIntersectionGraph,
     at_centers: &SupportLists,
@@ -489,25 +489,6 @@ pub fn graph_cut_sig_alongside<R: Send>(
     )?;
     cut.stats.undefined_values = undefined;
     Ok((cut, beside))
-}
-
-/// Graph cut on the edges of a tetrahedral mesh (thesis §5.2.2). `positions` and `values`
-/// are per mesh vertex (e.g. the support centres of [`TetMesh::vertices`] and `f` there).
-pub fn graph_cut_tet(
-    mesh: &TetMesh,
-    positions: &[DVec3],
-    values: &[f64],
-    params: &GraphCutParams,
-) -> Result<GraphCut, GraphCutError> {
-    let nv = mesh.vertices.len();
-    if positions.len() != nv {
-        return Err(GraphCutError::LengthMismatch {
-            array: "positions",
-            expected: nv,
-            found: positions.len(),
-        });
-    }
-    graph_cut(positions, values, &mesh.edges, params)
 }
 
 #[cfg(test)]

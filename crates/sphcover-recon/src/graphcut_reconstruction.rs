@@ -4,7 +4,7 @@
 //!
 //! 1. The dual complex of the cover with the radius shrink `σ_t` (thesis §3.5.2) gives a
 //!    tetrahedral mesh whose vertices are support centres.
-//! 2. [`crate::graph_cut::graph_cut_tet`] labels them inside/outside (`k` ≈ 5–15).
+//! 2. [`crate::graph_cut::graph_cut`] on the mesh edges labels them inside/outside (`k` ≈ 5–15).
 //!    Vertices on the boundary of the complex are then set outside (beyond the thesis,
 //!    [`GraphCutReconstructionParams::close_at_boundary`]): the
 //!    cut knows nothing of what lies beyond the complex, and an inside label there would
@@ -35,7 +35,7 @@ use sphcover_tetra::regular::NO_TET;
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 use thiserror::Error;
 
-use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut_tet, values_at};
+use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut, values_at};
 use crate::mesh_smoothing::{SmoothingError, smooth_two_step};
 
 /// Why the graph-cut reconstruction failed.
@@ -170,10 +170,10 @@ pub fn reconstruct_graphcut(
         .map(|&s| cover.centers()[s as usize])
         .collect();
     let (values, undefined) = values_at(cover, &positions)?;
-    let mut cut = graph_cut_tet(
-        &mesh,
+    let mut cut = graph_cut(
         &positions,
         &values,
+        &mesh.edges,
         &GraphCutParams::with_k(params.k),
     )?;
     // Nothing lies beyond the complex: its boundary vertices are outside, so the inside

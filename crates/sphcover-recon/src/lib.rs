@@ -59,8 +59,7 @@ pub use diffusion::{
     diffuse,
 };
 pub use graph_cut::{
-    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_csr,
-    graph_cut_sig, graph_cut_sig_alongside, graph_cut_tet,
+    GraphCut, GraphCutError, GraphCutParams, GraphCutStats, graph_cut, graph_cut_sig,
 };
 pub use graphcut_reconstruction::{
     GraphCutReconstructionError, GraphCutReconstructionParams, GraphCutReconstructionStats,

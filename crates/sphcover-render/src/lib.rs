@@ -325,9 +325,10 @@ pub fn render(scene: &Scene<'_>, options: &RenderOptions) -> Result<Rendered, Re
     let normals = match (mesh, options.shading, scene.normals) {
         (true, Shading::Flat, _) => None,
         (true, Shading::Smooth, Some(n)) => Some(n.to_vec()),
-        (true, Shading::Smooth, None) => {
-            Some(sphcover_core::vertex_normals(scene.positions, scene.triangles))
-        }
+        (true, Shading::Smooth, None) => Some(sphcover_core::vertex_normals(
+            scene.positions,
+            scene.triangles,
+        )),
         (false, _, n) => n.map(<[DVec3]>::to_vec),
     };
 

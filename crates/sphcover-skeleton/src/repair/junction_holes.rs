@@ -286,7 +286,10 @@ mod tests {
             max_perimeter_voxels: 3.9,
             ..params()
         };
-        assert_eq!(fill_holes_within_sheets(&mut mesh, &small, 1.0, |_| true), 0);
+        assert_eq!(
+            fill_holes_within_sheets(&mut mesh, &small, 1.0, |_| true),
+            0
+        );
         assert_eq!(
             fill_holes_within_sheets(&mut mesh, &params(), 1.0, |_| true),
             1
