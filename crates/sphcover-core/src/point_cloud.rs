@@ -7,7 +7,7 @@ use crate::geometry::{Aabb, Normalisation};
 /// A set of scanned points stored as parallel arrays (struct of arrays).
 ///
 /// Every present attribute has exactly one entry per point; [`PointCloud::check`] verifies
-/// that. Normals point outward (SPEC convention) when the scanner or exporter got them right;
+/// that. Normals point outward (the convention of thesis §3.4.1) when the scanner or exporter got them right;
 /// they need not be unit length in files, and readers keep them as written.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PointCloud {

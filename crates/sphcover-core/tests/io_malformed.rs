@@ -110,8 +110,8 @@ fn corpus_errors_name_the_right_place() {
 
 #[test]
 fn absurd_counts_fail_fast_without_allocating() {
-    // 10^18 vertex records of 12 bytes would be 12 EB: the size check must come first.
-    let start = std::time::Instant::now();
+    // 10^18 vertex records of 12 bytes would be 12 EB: the size check must come first, or
+    // the allocation aborts the test process.
     for name in [
         "ply_absurd_vertex_count.ply",
         "ply_absurd_face_count.ply",
@@ -121,7 +121,6 @@ fn absurd_counts_fail_fast_without_allocating() {
     ] {
         assert!(read_geometry(&corpus_dir().join(name), &ReadOptions::default()).is_err());
     }
-    assert!(start.elapsed().as_secs_f64() < 1.0);
 }
 
 /// Valid files of every format and variant, as bytes.

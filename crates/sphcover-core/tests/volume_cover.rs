@@ -83,7 +83,7 @@ fn thin_plate_phantom_is_covered_compactly_within_tolerance() {
         stats.max_rms
     );
     assert_eq!(stats.above_tolerance, 0);
-    // The goal: at least 20 object voxels per support (20.7 measured; 7.7 without
+    // The goal: at least 20 object voxels per support (20.7 measured; 7.7 without
     // the elimination pass, 34.1 with voxel-centre elimination; see the module docs).
     let ratio = object.len() as f64 / cover.len() as f64;
     assert!(ratio >= 20.0, "ratio {ratio}");

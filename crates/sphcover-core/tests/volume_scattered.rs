@@ -1,4 +1,4 @@
-//! The volume cover of scattered samples with values (SPEC §4 beyond), checked by brute
+//! The volume cover of scattered samples with values (beyond thesis §3.4.2), checked by brute
 //! force: the voxel centres of a CT phantom given as scattered samples, jittered samples of
 //! an analytic field, determinism, and bad input.
 

@@ -101,7 +101,7 @@ impl GraphCutParams {
     /// The thesis value for the tetrahedral mesh (§5.2.2: 5–15).
     pub const TET_K: f64 = 10.0;
 
-    /// The mean degree of the thesis's sphere intersection graphs (shrink 0.7, SPEC §5).
+    /// The mean degree of the thesis's sphere intersection graphs (shrink 0.7, thesis Appendix B).
     pub const SIG_REFERENCE_DEGREE: f64 = 40.0;
 
     /// Parameters for the sphere intersection graph: `k` = [`GraphCutParams::SIG_K`],

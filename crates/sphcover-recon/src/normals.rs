@@ -1,4 +1,4 @@
-//! Normals for unoriented points (SPEC §8.6, beyond the thesis, which needs oriented input).
+//! Normals for unoriented points (beyond the thesis, which needs oriented input).
 //!
 //! 1. **Estimation.** The normal of each point is the direction of least variance of its `k`
 //!    nearest neighbours (itself included) — the PCA plane fit of Hoppe et al., "Surface

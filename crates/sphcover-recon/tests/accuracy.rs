@@ -1,5 +1,5 @@
-//! Accuracy of the default reconstruction on analytic shapes (issue #6: clean scans must not
-//! be smoothed away, while noisy normals and uniform outliers stay harmless).
+//! Accuracy of the default reconstruction on analytic shapes: clean scans must not be
+//! smoothed away, while noisy normals and uniform outliers stay harmless.
 //!
 //! Clean and outlier scans are sampled from the bundled bunny (`fixtures/real/bunny00.off`,
 //! the benchmark's ground truth), whose detail is what over-smoothing loses; the error of a

@@ -1,6 +1,6 @@
-//! The goals on generated CT phantoms, with ONE parameter set
+//! The skeleton's goals on generated CT phantoms, with ONE parameter set
 //! (`SkeletonParams::default()`) for every shape and noise level. Each assertion is a goal
-//! the pipeline meets as measured; where it falls short of the goal, the bound
+//! the pipeline meets as measured; where it falls short of the goal, the bound
 //! asserted is the measured one and the comment says so.
 
 use sphcover_core::mesh_topology::MeshTopology;

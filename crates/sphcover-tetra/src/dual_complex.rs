@@ -1,5 +1,5 @@
 //! The dual complex of a cover: the tetrahedra of the regular triangulation of the support
-//! centres (weights `r²`) whose orthocentre has non-positive power (thesis §3.5, SPEC §7).
+//! centres (weights `r²`) whose orthocentre has non-positive power (thesis §3.5).
 //!
 //! Thesis definition: lift each ball to a 4D ball of the same centre and radius; four
 //! supports form a tetrahedron when their 4D spheres share a point inside no other 4D sphere.

@@ -7,7 +7,7 @@
 //! inside towards the outside, consistently over the whole surface, because every tetrahedron
 //! is positively oriented and the winding is chosen from the parity of its vertex order.
 //!
-//! SPEC §8.1: with a label per vertex (e.g. inside/outside from a graph cut) the cut edges are
+//! Thesis §5.2.2: with a label per vertex (e.g. inside/outside from a graph cut) the cut edges are
 //! those whose labels differ, and the vertex goes to the zero of the scalar when its signs
 //! differ along the edge, otherwise to the end with the smaller `|value|`
 //! ([`marching_tetrahedra_scalar`]).

@@ -761,7 +761,7 @@ impl OrthoPower<'_> {
 
 /// Exact sign of the power of the orthocentre of the non-flat tetrahedron `p` (weights `w`):
 /// negative when the four balls share interior points lying in no other of the four's
-/// complement (the 4D spheres of SPEC §7 meet), zero when they touch at one point.
+/// complement (the lifted 4D spheres of thesis §3.5 meet), zero when they touch at one point.
 pub fn orthocentre_power_sign(p: [&Point; 4], w: [f64; 4]) -> i32 {
     // Static filter: the polynomial of `OrthoPower` in f64, with its permanent. The longest
     // chain of roundings is 30 steps; 34u leaves slack for rounding the permanent itself.

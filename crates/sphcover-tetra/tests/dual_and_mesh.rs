@@ -17,7 +17,7 @@ fn no_shrink() -> DualComplexParams {
     }
 }
 
-/// SPEC §7 literally: four spheres form a tetrahedron when their orthocentre has power ≤ 0
+/// Thesis §3.5 literally: four spheres form a tetrahedron when their orthocentre has power ≤ 0
 /// and no other sphere has smaller power there. Returns the tetrahedra and the 4-subsets
 /// too close to a tie to decide in floating point.
 fn brute_force(c: &[DVec3], r: &[f64]) -> (Vec<[u32; 4]>, Vec<[u32; 4]>) {

@@ -1,4 +1,4 @@
-//! The volume cover of scattered samples with values (SPEC §4 **beyond**: samples off any
+//! The volume cover of scattered samples with values (beyond thesis §3.4.2: samples off any
 //! grid, which the thesis names as an advantage over image methods).
 //!
 //! The algorithm is the one of the grid builder ([`super::build_volume_cover`]): the same
@@ -41,7 +41,7 @@ use super::{
 use crate::cover::Cover;
 use crate::point_index::PointIndex;
 
-/// Builds a cover of scattered samples `positions[j]` with values `values[j]` (SPEC §4 with
+/// Builds a cover of scattered samples `positions[j]` with values `values[j]` (thesis §3.4.2 with
 /// samples off any grid): the object is where the value exceeds the threshold, and every
 /// object sample ends strictly inside a support whose local function fits the normalised
 /// values of the samples in its ball with an RMS error of at most ε where the sampling

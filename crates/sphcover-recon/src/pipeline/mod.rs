@@ -82,7 +82,7 @@ pub struct ReconParams {
     pub method: Method,
     /// Surface cover: ε, `n_min`, kernel, seed (thesis §3.4.1).
     pub cover: SurfaceCoverParams,
-    /// Shrink factor of the sphere intersection graph (SPEC: 0.7).
+    /// Shrink factor of the sphere intersection graph (thesis Appendix B: 0.7).
     pub graph_shrink: f64,
     /// Graph cut on the sphere intersection graph.
     pub graph_cut: GraphCutParams,
