@@ -42,6 +42,7 @@
 pub mod ball_index;
 mod concat;
 pub mod cover;
+pub mod disjoint_sets;
 pub mod geometry;
 pub mod io;
 pub mod kernel;
@@ -56,17 +57,22 @@ pub mod sphere_intersection_graph;
 pub mod stages;
 pub mod support_samples;
 pub mod surface_cover;
+pub mod symmetric_eigen;
 pub mod synthetic;
 pub mod volume;
 pub mod volume_cover;
 
 pub use ball_index::{BallIndex, BallIndexError};
 pub use cover::{Cover, CoverError};
+pub use disjoint_sets::DisjointSets;
 pub use geometry::{Aabb, Normalisation};
 pub use glam::{DMat3, DVec3};
 pub use kernel::Kernel;
 pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, QuadraticFunction};
-pub use mesh::{TriMesh, vertex_normals};
+pub use mesh::{
+    SmallComponentsError, SmallComponentsStats, TriMesh, VertexTriangles, remove_small_components,
+    remove_unused_vertices, triangle_area, vertex_normals,
+};
 pub use mesh_topology::MeshTopology;
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
@@ -78,6 +84,7 @@ pub use surface_cover::{
     build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,
     build_surface_cover_with_index,
 };
+pub use symmetric_eigen::SymmetricEigen3;
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
     CentreOrder, Elimination, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,

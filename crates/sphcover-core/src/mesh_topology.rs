@@ -19,7 +19,8 @@
 
 use rayon::prelude::*;
 
-use crate::mesh::TriMesh;
+use crate::disjoint_sets::DisjointSets;
+use crate::mesh::{TriMesh, bucketed};
 
 /// Counts describing the topology of a [`TriMesh`].
 ///
@@ -197,29 +198,6 @@ fn label_components(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) {
     }
 }
 
-/// The values of `entries()` (bucket, value) grouped by bucket, in their order within each
-/// (a counting sort over `n` buckets): CSR offsets and the values. `entries` is called twice,
-/// to count and to fill.
-fn bucketed<T: Copy + Default, I: Iterator<Item = (usize, T)>>(
-    n: usize,
-    entries: impl Fn() -> I,
-) -> (Vec<u32>, Vec<T>) {
-    let mut offsets = vec![0u32; n + 1];
-    for (b, _) in entries() {
-        offsets[b + 1] += 1;
-    }
-    for i in 0..n {
-        offsets[i + 1] += offsets[i];
-    }
-    let mut fill = offsets.clone();
-    let mut values = vec![T::default(); offsets[n] as usize];
-    for (b, value) in entries() {
-        values[fill[b] as usize] = value;
-        fill[b] += 1;
-    }
-    (offsets, values)
-}
-
 /// Counts vertices whose incident triangles do not form one edge-connected fan.
 fn count_non_manifold_vertices(mesh: &TriMesh, valid: &[bool]) -> usize {
     let nv = mesh.vertices.len();
@@ -272,42 +250,6 @@ fn is_single_fan(
     }
     let root = sets.find(0);
     (1..fan.len() as u32).all(|i| sets.find(i) == root)
-}
-
-/// Union–find with path halving and union by index (deterministic roots).
-struct DisjointSets {
-    parent: Vec<u32>,
-}
-
-impl DisjointSets {
-    fn new(n: usize) -> DisjointSets {
-        DisjointSets {
-            parent: (0..n as u32).collect(),
-        }
-    }
-
-    /// `n` singletons again, keeping the allocation.
-    fn reset(&mut self, n: usize) {
-        self.parent.clear();
-        self.parent.extend(0..n as u32);
-    }
-
-    fn find(&mut self, mut x: u32) -> u32 {
-        while self.parent[x as usize] != x {
-            let grand = self.parent[self.parent[x as usize] as usize];
-            self.parent[x as usize] = grand;
-            x = grand;
-        }
-        x
-    }
-
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            let (lo, hi) = (ra.min(rb), ra.max(rb));
-            self.parent[hi as usize] = lo;
-        }
-    }
 }
 
 #[cfg(test)]

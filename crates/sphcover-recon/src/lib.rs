@@ -70,8 +70,10 @@ pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryMod
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
 pub mod mesh_smoothing;
 pub mod polygonise;
-pub mod small_components;
-pub mod unused_vertices;
+// Polygonisation imports the core's function under its old path until it is split.
+mod unused_vertices {
+    pub(crate) use sphcover_core::remove_unused_vertices;
+}
 pub mod vertex_refinement;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
@@ -83,8 +85,6 @@ pub use polygonise::{
     GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,
 };
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
-pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
-pub use unused_vertices::remove_unused_vertices;
 pub use vertex_refinement::{
     RefinementSamples, RefinementScale, VertexRefinementError, VertexRefinementParams,
     VertexRefinementStats, refine_vertices,

@@ -1,8 +1,7 @@
 //! Principal component analysis of small point sets: centroid, covariance and its
 //! eigen-decomposition, shared by the confidence of samples and the normal estimation.
 
-use nalgebra::Matrix3;
-use sphcover_core::DVec3;
+use sphcover_core::{DMat3, DVec3, SymmetricEigen3};
 
 /// The centroid and the principal axes of a point set.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,18 +36,16 @@ impl Pca {
         if !(centroid.is_finite() && c.iter().all(|v| v.is_finite())) {
             return None;
         }
-        let m = Matrix3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5]);
-        let eig = m.symmetric_eigen();
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-        let axis = |i: usize| {
-            let v = eig.eigenvectors.column(i);
-            DVec3::new(v[0], v[1], v[2]).normalize_or_zero()
-        };
+        let m = DMat3::from_cols(
+            DVec3::new(c[0], c[1], c[2]),
+            DVec3::new(c[1], c[3], c[4]),
+            DVec3::new(c[2], c[4], c[5]),
+        );
+        let eig = SymmetricEigen3::of(&m)?;
         Some(Pca {
             centroid,
-            eigenvalues: order.map(|i| eig.eigenvalues[i].max(0.0)),
-            axes: order.map(axis),
+            eigenvalues: eig.values.map(|l| l.max(0.0)),
+            axes: eig.vectors,
         })
     }
 

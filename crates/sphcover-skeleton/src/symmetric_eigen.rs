@@ -1,6 +1,7 @@
 //! The smallest eigenpair of a symmetric 3×3 matrix (the Hessian's ridge direction).
 
 use glam::{DMat3, DVec3};
+use sphcover_core::SymmetricEigen3;
 
 /// Eigenvalues of a symmetric 3×3 matrix in ascending order, with the unit eigenvector of
 /// the smallest one.
@@ -12,27 +13,14 @@ pub struct SmallestEigen {
     pub vector: DVec3,
 }
 
-/// Decomposes the symmetric matrix `m` (only its lower triangle is read) with nalgebra's
-/// symmetric QR iteration. Returns `None` when `m` is not finite.
+/// The smallest eigenpair of the symmetric matrix `m` (only its lower triangle is read),
+/// from the core's decomposition. `None` when `m` is not finite or the solver's vector
+/// vanished.
 pub fn smallest_eigen(m: &DMat3) -> Option<SmallestEigen> {
-    if !m.is_finite() {
-        return None;
-    }
-    let a = nalgebra::Matrix3::new(
-        m.x_axis.x, m.y_axis.x, m.z_axis.x, //
-        m.x_axis.y, m.y_axis.y, m.z_axis.y, //
-        m.x_axis.z, m.y_axis.z, m.z_axis.z,
-    );
-    let eig = a.symmetric_eigen();
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
-    let col = eig.eigenvectors.column(order[0]);
-    let vector = DVec3::new(col[0], col[1], col[2]).normalize_or_zero();
-    if vector == DVec3::ZERO {
-        return None;
-    }
-    Some(SmallestEigen {
-        values: order.map(|i| eig.eigenvalues[i]),
+    let eig = SymmetricEigen3::of(m)?;
+    let vector = eig.vectors[0];
+    (vector != DVec3::ZERO).then_some(SmallestEigen {
+        values: eig.values,
         vector,
     })
 }

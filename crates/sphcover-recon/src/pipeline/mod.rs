@@ -26,8 +26,8 @@ use std::time::Duration;
 
 use sphcover_core::stages::{StageProgress, run_stages};
 use sphcover_core::{
-    Cover, CoverError, Normalisation, PointCloud, PointIndexError, SigError, SurfaceCoverError,
-    SurfaceCoverParams, SurfaceCoverStats, TriMesh,
+    Cover, CoverError, Normalisation, PointCloud, PointIndexError, SigError, SmallComponentsError,
+    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, TriMesh,
 };
 use sphcover_ops::OpsError;
 use thiserror::Error;
@@ -39,7 +39,6 @@ use crate::graphcut_reconstruction::{GraphCutReconstructionError, GraphCutRecons
 use crate::normals::{NormalError, NormalParams};
 use crate::polygonise::{PolygoniseError, PolygoniseStats};
 use crate::scan_statistics::{ScanStatistics, ScanStatisticsParams};
-use crate::small_components::SmallComponentsError;
 use crate::vertex_refinement::{
     VertexRefinementError, VertexRefinementParams, VertexRefinementStats,
 };

@@ -24,7 +24,6 @@ use crate::graphcut_reconstruction::reconstruct_graphcut;
 use crate::normals::estimate_normals;
 use crate::polygonise::{GridStep, PolygoniseParams, polygonise_blending};
 use crate::scan_statistics::{ScanStatistics, scan_statistics};
-use crate::small_components::remove_small_components_of;
 use crate::vertex_refinement::{RefinementSamples, RefinementScale, refine_vertices};
 
 /// A stage of the reconstruction.
@@ -500,8 +499,11 @@ fn clean(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         );
     }
     let topology = MeshTopology::of(&ctx.mesh);
-    let removal =
-        remove_small_components_of(&mut ctx.mesh, &topology, ctx.params.min_component_fraction)?;
+    let removal = sphcover_core::remove_small_components(
+        &mut ctx.mesh,
+        &topology,
+        ctx.params.min_component_fraction,
+    )?;
     ctx.stats.dropped_components = removal.components_removed;
     // Neither the refinement nor the change of frame touches the triangles, so the topology
     // stays valid unless triangles or vertices went here.

@@ -16,8 +16,10 @@
 use std::collections::HashMap;
 
 use glam::DVec3;
-use sphcover_core::TriMesh;
 use sphcover_core::mesh_topology::MeshTopology;
+use sphcover_core::{
+    DisjointSets, TriMesh, VertexTriangles, remove_unused_vertices, triangle_area,
+};
 
 /// Parameters of [`clean_sheet`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -116,7 +118,8 @@ pub fn clean_sheet(
     fill_small_holes(&mut mesh, params, &is_material, &mut stats);
     resolve_pinches(&mut mesh, &mut stats);
     drop_fragments(&mut mesh, params, &mut stats);
-    (compact(&mesh), stats)
+    remove_unused_vertices(&mut mesh);
+    (mesh, stats)
 }
 
 fn weld_coincident(mesh: &TriMesh, stats: &mut CleaningStats) -> TriMesh {
@@ -154,57 +157,33 @@ fn weld_coincident(mesh: &TriMesh, stats: &mut CleaningStats) -> TriMesh {
 /// lowest triangle index). Repeats while removals create new pinches (at most 4 rounds).
 fn resolve_pinches(mesh: &mut TriMesh, stats: &mut CleaningStats) {
     for _ in 0..4 {
-        let n = mesh.vertices.len();
-        let mut offsets = vec![0u32; n + 1];
-        for t in &mesh.triangles {
-            for &v in t {
-                offsets[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut incident = vec![0u32; 3 * mesh.triangles.len()];
-        for (ti, t) in mesh.triangles.iter().enumerate() {
-            for &v in t {
-                incident[fill[v as usize] as usize] = ti as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let incident = VertexTriangles::of(mesh);
         let mut remove = vec![false; mesh.triangles.len()];
         let mut any = false;
-        for v in 0..n {
-            let around = &incident[offsets[v] as usize..offsets[v + 1] as usize];
+        let mut fans = DisjointSets::new(0);
+        for v in 0..mesh.vertices.len() {
+            let around = incident.triangles_at(v);
             if around.len() < 2 {
                 continue;
             }
-            // Union-find over the triangles around v, joined through a shared second vertex.
-            let mut parent: Vec<usize> = (0..around.len()).collect();
-            fn find(p: &mut [usize], mut x: usize) -> usize {
-                while p[x] != x {
-                    p[x] = p[p[x]];
-                    x = p[x];
-                }
-                x
-            }
-            let mut by_vertex: HashMap<u32, usize> = HashMap::new();
+            // The triangles around v, joined through a shared second vertex.
+            fans.reset(around.len());
+            let mut by_vertex: HashMap<u32, u32> = HashMap::new();
             for (k, &t) in around.iter().enumerate() {
                 for &w in &mesh.triangles[t as usize] {
                     if w as usize == v {
                         continue;
                     }
                     if let Some(&j) = by_vertex.get(&w) {
-                        let (a, b) = (find(&mut parent, k), find(&mut parent, j));
-                        parent[a.max(b)] = a.min(b);
+                        fans.union(k as u32, j);
                     } else {
-                        by_vertex.insert(w, k);
+                        by_vertex.insert(w, k as u32);
                     }
                 }
             }
-            let mut size: HashMap<usize, usize> = HashMap::new();
-            for k in 0..around.len() {
-                *size.entry(find(&mut parent, k)).or_insert(0) += 1;
+            let mut size: HashMap<u32, usize> = HashMap::new();
+            for k in 0..around.len() as u32 {
+                *size.entry(fans.find(k)).or_insert(0) += 1;
             }
             if size.len() < 2 {
                 continue;
@@ -214,9 +193,9 @@ fn resolve_pinches(mesh: &mut TriMesh, stats: &mut CleaningStats) {
                 .max_by(|a, b| a.1.cmp(b.1).then_with(|| b.0.cmp(a.0)))
                 .map(|(&root, _)| root)
                 .unwrap_or(0);
-            for k in 0..around.len() {
-                if find(&mut parent, k) != best {
-                    remove[around[k] as usize] = true;
+            for (k, &t) in around.iter().enumerate() {
+                if fans.find(k as u32) != best {
+                    remove[t as usize] = true;
                     any = true;
                 }
             }
@@ -233,12 +212,6 @@ fn resolve_pinches(mesh: &mut TriMesh, stats: &mut CleaningStats) {
         });
         stats.pinch_triangles += before - mesh.triangles.len();
     }
-}
-
-/// Area of a triangle.
-pub fn triangle_area(mesh: &TriMesh, tri: &[u32; 3]) -> f64 {
-    let [a, b, c] = tri.map(|v| mesh.vertices[v as usize]);
-    0.5 * (b - a).cross(c - a).length()
 }
 
 fn drop_fragments(mesh: &mut TriMesh, params: &Limits, stats: &mut CleaningStats) {
@@ -366,42 +339,6 @@ fn fill_small_holes(
             mesh.triangles.push([a, b, c]);
         }
         stats.holes_filled += 1;
-    }
-}
-
-/// Drops unused vertices, keeping the order of the used ones.
-fn compact(mesh: &TriMesh) -> TriMesh {
-    let mut map = vec![u32::MAX; mesh.vertices.len()];
-    let mut vertices = Vec::new();
-    let mut values = mesh.values.as_ref().map(|_| Vec::new());
-    let mut normals = mesh.normals.as_ref().map(|_| Vec::new());
-    for tri in &mesh.triangles {
-        for &v in tri {
-            map[v as usize] = 0;
-        }
-    }
-    for (i, m) in map.iter_mut().enumerate() {
-        if *m == 0 {
-            *m = vertices.len() as u32;
-            vertices.push(mesh.vertices[i]);
-            if let (Some(out), Some(src)) = (&mut values, &mesh.values) {
-                out.push(src[i]);
-            }
-            if let (Some(out), Some(src)) = (&mut normals, &mesh.normals) {
-                out.push(src[i]);
-            }
-        }
-    }
-    let triangles = mesh
-        .triangles
-        .iter()
-        .map(|t| t.map(|v| map[v as usize]))
-        .collect();
-    TriMesh {
-        vertices,
-        triangles,
-        normals,
-        values,
     }
 }
 

@@ -13,7 +13,7 @@
 use std::collections::HashMap;
 
 use glam::DVec3;
-use sphcover_core::TriMesh;
+use sphcover_core::{TriMesh, VertexTriangles};
 
 /// `|n · ē|` of each triangle: `n` its normal, `ē` the mean across direction of its corners
 /// (signs aligned to the first corner's); 1 without normals.
@@ -76,13 +76,10 @@ pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usi
             alive_count[e as usize] += 1;
         }
     }
-    let mut vertex_triangles: Vec<Vec<u32>> = vec![Vec::new(); mesh.vertices.len()];
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        for &v in tri {
-            vertex_triangles[v as usize].push(t as u32);
-        }
-    }
-    let mut vertex_count: Vec<u32> = vertex_triangles.iter().map(|t| t.len() as u32).collect();
+    let vertex_triangles = VertexTriangles::of(mesh);
+    let mut vertex_count: Vec<u32> = (0..mesh.vertices.len())
+        .map(|v| vertex_triangles.triangles_at(v).len() as u32)
+        .collect();
     let mut removed = vec![false; mesh.triangles.len()];
     // Candidates in index order, revisited when a neighbour goes (deterministic).
     let mut queue: Vec<u32> = (0..mesh.triangles.len() as u32).rev().collect();
@@ -117,7 +114,7 @@ pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usi
         // Every triangle sharing a corner may have become collapsible.
         for &v in &mesh.triangles[ti] {
             vertex_count[v as usize] -= 1;
-            for &n in &vertex_triangles[v as usize] {
+            for &n in vertex_triangles.triangles_at(v as usize) {
                 if !removed[n as usize] {
                     queue.push(n);
                 }

@@ -27,7 +27,7 @@
 use std::collections::{HashMap, HashSet};
 
 use glam::DVec3;
-use sphcover_core::TriMesh;
+use sphcover_core::{DisjointSets, TriMesh};
 
 /// Parameters of [`fill_holes_within_sheets`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -80,22 +80,14 @@ pub fn fill_holes_within_sheets(
     }
     let mut edges: Vec<((u32, u32), Vec<u32>)> = edge_triangles.into_iter().collect();
     edges.sort_unstable();
-    let mut parent: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
-    fn find(p: &mut [u32], mut x: u32) -> u32 {
-        while p[x as usize] != x {
-            p[x as usize] = p[p[x as usize] as usize];
-            x = p[x as usize];
-        }
-        x
-    }
+    let mut sheets = DisjointSets::new(mesh.triangles.len());
     let cos_max = params.min_angle_degrees.to_radians().cos();
     for (_, tris) in &edges {
         for i in 0..tris.len() {
             for j in i + 1..tris.len() {
                 let (s, t) = (tris[i], tris[j]);
                 if normals[s as usize].dot(normals[t as usize]).abs() >= cos_max {
-                    let (rs, rt) = (find(&mut parent, s), find(&mut parent, t));
-                    parent[rs.max(rt) as usize] = rs.min(rt);
+                    sheets.union(s, t);
                 }
             }
         }
@@ -103,7 +95,7 @@ pub fn fill_holes_within_sheets(
     // Boundary edges of each group: edges with exactly one triangle of the group.
     let mut group_boundary: HashMap<u32, Vec<(u32, u32)>> = HashMap::new();
     for ((a, b), tris) in &edges {
-        let mut groups: Vec<u32> = tris.iter().map(|&t| find(&mut parent, t)).collect();
+        let mut groups: Vec<u32> = tris.iter().map(|&t| sheets.find(t)).collect();
         groups.sort_unstable();
         for (k, &g) in groups.iter().enumerate() {
             let once = (k == 0 || groups[k - 1] != g) && groups.get(k + 1) != Some(&g);

@@ -23,7 +23,7 @@ use std::collections::BinaryHeap;
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::TriMesh;
+use sphcover_core::{TriMesh, triangle_area};
 
 use super::part_surface::PartSurface;
 
@@ -136,10 +136,7 @@ pub fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area: f64) 
         }
         i = j;
     }
-    let area = |t: usize| {
-        let [a, b, c] = mesh.triangles[t].map(|v| mesh.vertices[v as usize]);
-        0.5 * (b - a).cross(c - a).length()
-    };
+    let area = |t: usize| triangle_area(mesh, &mesh.triangles[t]);
     // Components of the whole mesh, and pieces of the kept triangles, by flood fill.
     let label = |mask: &dyn Fn(usize) -> bool| {
         let mut id = vec![u32::MAX; nt];

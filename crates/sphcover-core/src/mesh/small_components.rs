@@ -6,10 +6,10 @@
 //! rule does not depend on how finely each piece is triangulated.
 
 use rayon::prelude::*;
-use sphcover_core::TriMesh;
-use sphcover_core::mesh_topology::MeshTopology;
 
-use crate::unused_vertices::remove_unused_vertices;
+use super::TriMesh;
+use super::unused_vertices::remove_unused_vertices;
+use crate::mesh_topology::MeshTopology;
 
 /// Why components could not be filtered. The mesh is left unchanged.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -19,6 +19,14 @@ pub enum SmallComponentsError {
     InvalidFraction {
         /// The value given.
         value: f64,
+    },
+    /// The topology given is not the mesh's.
+    #[error("the topology describes {found} triangles, the mesh has {expected}")]
+    TopologyMismatch {
+        /// Triangles of the mesh.
+        expected: usize,
+        /// Triangles the topology describes.
+        found: usize,
     },
 }
 
@@ -42,17 +50,10 @@ pub struct SmallComponentsStats {
 /// then the vertices no triangle uses. Invalid triangles (an index out of range or repeated)
 /// belong to no component and are removed too.
 ///
-/// Deterministic: areas are summed in triangle order.
+/// `topo` is the mesh's topology ([`MeshTopology::of`]), which callers usually have already;
+/// when nothing is removed it stays the mesh's. Deterministic: areas are summed in triangle
+/// order.
 pub fn remove_small_components(
-    mesh: &mut TriMesh,
-    min_fraction: f64,
-) -> Result<SmallComponentsStats, SmallComponentsError> {
-    remove_small_components_of(mesh, &MeshTopology::of(mesh), min_fraction)
-}
-
-/// As [`remove_small_components`], with the mesh's topology already computed (`topo` must be
-/// `MeshTopology::of(mesh)`). When nothing is removed, `topo` stays the mesh's topology.
-pub(crate) fn remove_small_components_of(
     mesh: &mut TriMesh,
     topo: &MeshTopology,
     min_fraction: f64,
@@ -60,6 +61,12 @@ pub(crate) fn remove_small_components_of(
     if !(0.0..=1.0).contains(&min_fraction) {
         return Err(SmallComponentsError::InvalidFraction {
             value: min_fraction,
+        });
+    }
+    if topo.triangle_component.len() != mesh.triangles.len() {
+        return Err(SmallComponentsError::TopologyMismatch {
+            expected: mesh.triangles.len(),
+            found: topo.triangle_component.len(),
         });
     }
     let triangle_areas: Vec<f64> = mesh
@@ -104,6 +111,29 @@ mod tests {
     use glam::DVec3;
     use proptest::prelude::*;
 
+    /// [`remove_small_components`] with the mesh's own topology.
+    fn drop_small(
+        mesh: &mut TriMesh,
+        min_fraction: f64,
+    ) -> Result<SmallComponentsStats, SmallComponentsError> {
+        let topo = MeshTopology::of(mesh);
+        remove_small_components(mesh, &topo, min_fraction)
+    }
+
+    #[test]
+    fn a_topology_of_another_mesh_is_refused() {
+        let mut mesh = TriMesh::default();
+        add_tetrahedron(&mut mesh, DVec3::ZERO, 1.0);
+        let other = MeshTopology::of(&TriMesh::default());
+        assert_eq!(
+            remove_small_components(&mut mesh, &other, 0.5),
+            Err(SmallComponentsError::TopologyMismatch {
+                expected: 4,
+                found: 0
+            })
+        );
+    }
+
     /// A closed tetrahedron scaled by `s` and moved by `at`, appended to `mesh`.
     fn add_tetrahedron(mesh: &mut TriMesh, at: DVec3, s: f64) {
         let base = mesh.vertices.len() as u32;
@@ -121,7 +151,7 @@ mod tests {
         add_tetrahedron(&mut mesh, DVec3::splat(5.0), 0.1);
         add_tetrahedron(&mut mesh, DVec3::splat(-5.0), 0.5);
         mesh.values = Some((0..12).map(f64::from).collect());
-        let stats = remove_small_components(&mut mesh, 0.05).unwrap();
+        let stats = drop_small(&mut mesh, 0.05).unwrap();
         assert_eq!(stats.components_before, 3);
         assert_eq!(stats.components_removed, 1);
         assert_eq!(stats.triangles_removed, 4);
@@ -131,7 +161,7 @@ mod tests {
         assert_eq!(mesh.values.as_ref().map(|v| v[4]), Some(8.0));
         let topo = MeshTopology::of(&mesh);
         assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
-        let stats = remove_small_components(&mut mesh, 1.0).unwrap();
+        let stats = drop_small(&mut mesh, 1.0).unwrap();
         assert_eq!(stats.components_removed, 1);
         assert_eq!(MeshTopology::of(&mesh).components, 1);
     }
@@ -142,19 +172,14 @@ mod tests {
         add_tetrahedron(&mut mesh, DVec3::ZERO, 1.0);
         let original = mesh.clone();
         for bad in [-0.1, 1.5, f64::NAN] {
-            assert!(remove_small_components(&mut mesh, bad).is_err());
+            assert!(drop_small(&mut mesh, bad).is_err());
         }
         assert_eq!(mesh, original);
         let mut empty = TriMesh::default();
-        assert_eq!(
-            remove_small_components(&mut empty, 0.5)
-                .unwrap()
-                .components_before,
-            0
-        );
+        assert_eq!(drop_small(&mut empty, 0.5).unwrap().components_before, 0);
         // An invalid triangle goes; the valid ones stay.
         mesh.triangles.push([0, 99, 1]);
-        let stats = remove_small_components(&mut mesh, 0.0).unwrap();
+        let stats = drop_small(&mut mesh, 0.0).unwrap();
         assert_eq!(stats.triangles_removed, 1);
         assert_eq!(mesh, original);
     }
@@ -177,7 +202,7 @@ mod tests {
             let ratio = |s: f64| (s / largest).powi(2);
             prop_assume!(scales.iter().all(|&s| (ratio(s) - fraction).abs() > 1e-9));
             let expected = scales.iter().filter(|&&s| ratio(s) >= fraction).count();
-            let stats = remove_small_components(&mut mesh, fraction).unwrap();
+            let stats = drop_small(&mut mesh, fraction).unwrap();
             prop_assert_eq!(stats.components_before - stats.components_removed, expected);
             let topo = MeshTopology::of(&mesh);
             prop_assert_eq!(topo.components, expected);

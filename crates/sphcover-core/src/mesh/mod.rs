@@ -1,4 +1,14 @@
-//! Indexed triangle meshes.
+//! Indexed triangle meshes, and the tools every pipeline applies to them: the triangles
+//! at each vertex ([`VertexTriangles`]), unused vertices and small components removed.
+
+mod adjacency;
+mod small_components;
+mod unused_vertices;
+
+pub use adjacency::VertexTriangles;
+pub(crate) use adjacency::bucketed;
+pub use small_components::{SmallComponentsError, SmallComponentsStats, remove_small_components};
+pub use unused_vertices::remove_unused_vertices;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -108,6 +118,12 @@ pub fn vertex_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3>
             }
         });
     sums
+}
+
+/// Area of triangle `tri` of `mesh`.
+pub fn triangle_area(mesh: &TriMesh, tri: &[u32; 3]) -> f64 {
+    let [a, b, c] = tri.map(|v| mesh.vertices[v as usize]);
+    0.5 * (b - a).cross(c - a).length()
 }
 
 #[cfg(test)]

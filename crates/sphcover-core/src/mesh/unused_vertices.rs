@@ -1,7 +1,7 @@
 //! Removal of the vertices no triangle uses, after triangles were dropped (trimming, small
 //! components).
 
-use sphcover_core::TriMesh;
+use super::TriMesh;
 
 /// Removes the vertices no triangle refers to, keeping the order of the others and their
 /// normals and values; returns how many were removed.
