@@ -250,7 +250,8 @@ pub struct SkeletonArgs {
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// The object is where the value exceeds T, in the file's own units (HU for CT).
-    /// Default: Otsu's threshold.
+    /// Default: halfway between the air and material levels on either side of Otsu's split
+    /// of the smoothed histogram.
     #[arg(long, value_name = "T")]
     pub threshold: Option<f64>,
     /// Ridge method: support expansion σ for the derivatives (default 4, thesis §6.2.2).

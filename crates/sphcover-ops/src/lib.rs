@@ -12,7 +12,7 @@
 //! Operator families behind [`DiscreteOperators`]: the thesis form ([`ThesisOperators`]), the
 //! consistent second-order least-squares fit ([`QuadraticFitOperators`], exact on quadratics),
 //! and power-cell finite volumes ([`LaguerreOperators`], symmetric and closed, consistent only
-//! where the radii vary slowly; see `docs/algorithms.md` §6 for the measured trade-offs).
+//! where the radii vary slowly; see `docs/algorithms.md`, *Discrete differential operators*, for the measured trade-offs).
 //! Least-squares fits are solved by pivoted Householder QR, never by normal equations.
 //!
 //! ```

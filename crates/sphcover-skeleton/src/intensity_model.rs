@@ -1,5 +1,5 @@
-//! Automatic threshold and tolerance from the intensity histogram: Otsu's threshold
-//! between background and object, the two class levels (the contrast), and the noise level
+//! Automatic threshold and tolerance from the intensity histogram: a threshold between
+//! background and object placed from Otsu's split, the two class levels (the contrast), and the noise level
 //! from the background's median absolute deviation.
 //!
 //! The automatic threshold works on the volume smoothed by a Gaussian of [`OTSU_SMOOTHING`]
@@ -36,7 +36,8 @@ pub struct IntensityModel {
     pub value_range: (f64, f64),
     /// Object voxels are those with a value above this (volume units).
     pub threshold: f64,
-    /// True when the threshold came from Otsu's method rather than the caller.
+    /// True when the threshold was chosen automatically (around Otsu's split) rather than
+    /// given by the caller.
     pub automatic_threshold: bool,
     /// Median of the voxels at or below the threshold.
     pub background_level: f64,

@@ -26,7 +26,8 @@ use crate::symmetric_eigen::smallest_eigen;
 pub struct NmsParams {
     /// Gaussian σ in voxels.
     pub sigma: f64,
-    /// Object threshold (volume units); `None`: Otsu.
+    /// Object threshold (volume units); `None`: automatic, as the ridge pipeline's (see
+    /// [`crate::IntensityModel`]).
     pub threshold: Option<f64>,
     /// Smallest `−λ1` kept, as a fraction of the largest over the candidates.
     pub min_relative_strength: f64,

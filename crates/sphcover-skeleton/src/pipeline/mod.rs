@@ -28,7 +28,8 @@ use sheet_stages::{SheetContext, built};
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct SkeletonParams {
-    /// Object voxels are those above this value (volume units, e.g. HU); `None`: Otsu.
+    /// Object voxels are those above this value (volume units, e.g. HU); `None`: automatic
+    /// (see [`IntensityModel`]).
     pub threshold: Option<f64>,
     /// Fit tolerance ε of the cover (fraction of the value range); `None`: from the noise
     /// and contrast, see [`IntensityModel::tolerance`].
