@@ -9,8 +9,8 @@
 //! On a virtual machine the hypervisor may run other guests on the cores this one was
 //! given; the time it takes is the *steal* column of Linux's `/proc/stat`. Read before and
 //! after the run, it tells a slow run on a shared host from a slow program: on the 2-core
-//! VM of `docs/benchmarks.md`, a `sphcover recon` run that took 2.2–2.95 s unshared took
-//! 4.0–4.5 s while 21–29% of the machine's CPU time was stolen.
+//! VM of `docs/benchmarks.md`, a run with more than a few percent stolen measures the host's
+//! load, not the tool (*Reading the times* there).
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

@@ -46,8 +46,9 @@ struct Args {
     /// A CT phantom as NAME=PATH (repeatable).
     #[arg(long = "phantom")]
     phantoms: Vec<String>,
-    /// A folder of phantom folders, each holding `ct_n*.nii.gz` (and optionally `meta.json`,
-    /// `gt_sheet_mesh.ply`); every CT file found is a phantom.
+    /// A folder of phantom folders, each holding `ct_n*.nii.gz` (and optionally the ground
+    /// truth: `meta.json`, `gt_sheet.ply`, `gt_boundary.ply`, `gt_junction.ply`); every CT file
+    /// found is a phantom.
     #[arg(long)]
     phantoms_dir: Option<PathBuf>,
     /// Methods of `sphcover skeleton --method`.

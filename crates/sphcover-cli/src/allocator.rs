@@ -4,19 +4,14 @@
 //! stage (per-point and per-support arrays, candidate lists, surface-net bricks). By default
 //! glibc serves every block above its mmap threshold (128 KiB at first, adapting up to
 //! 32 MiB) with its own `mmap` and returns it to the kernel on `free`, and trims the heap
-//! whenever more than 128 KiB is free at its top. Each stage then faults its pages in afresh:
-//! 0.27–0.32 s of system time in a 362K-point run. Serving blocks below 32 MiB from the heap
-//! and trimming only past 1 GiB lets later stages reuse the pages earlier ones freed.
-//! Measured on the 2-core machine, 362K points, with the same settings given through the
-//! environment (`MALLOC_MMAP_THRESHOLD_`, `MALLOC_TRIM_THRESHOLD_`): wall 3.31–3.49 s
-//! instead of 3.40–3.75 s, system time 0.12–0.22 s instead of 0.27–0.32 s. Set here: system
-//! time 0.19–0.23 s instead of 0.34–0.41 s, peak resident set 264–274 MiB instead of
-//! 248–257 MiB (`docs/benchmarks.md`, *Batched expansion, allocator thresholds, PU block
-//! limit*).
-//! The trim threshold alone was slower; the mmap threshold alone raised the system time to
-//! 0.61–0.73 s.
+//! whenever more than 128 KiB is free at its top. Each stage then faults its pages in afresh,
+//! which shows as system time. Serving blocks below 32 MiB from the heap and trimming only
+//! past 1 GiB lets later stages reuse the pages earlier ones freed, at the cost of a slightly
+//! higher peak resident set (`docs/benchmarks.md`, *Memory*). Either threshold alone is worse:
+//! the trim threshold alone is slower, and the mmap threshold alone raises the system time
+//! above glibc's default.
 //!
-//! Only `recon` asks for it: the other commands' memory budgets were calibrated without it.
+//! Only `recon` asks for it: the other commands' memory budgets are calibrated without it.
 
 /// Keeps freed memory in the process for reuse (see the module docs). Call before any other
 /// thread starts. A no-op where the C library is not glibc.

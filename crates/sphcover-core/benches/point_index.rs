@@ -3,8 +3,8 @@
 //! points near the surface (the size of the reconstructed mesh's vertex set), one tree query
 //! per point against [`PointIndex::map_within`].
 //!
-//! `cargo bench -p sphcover-core --bench point_index`. On the 2-core machine (2026-12-03):
-//! build 28–38 ms; the balls 98 ms one query each, 76 ms with `map_within`.
+//! `cargo bench -p sphcover-core --bench point_index`; the current figures are in the
+//! *sphcover-core* table of `docs/benchmarks.md`.
 
 use std::hint::black_box;
 

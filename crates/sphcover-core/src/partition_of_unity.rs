@@ -294,8 +294,8 @@ impl<'a> PuEvaluator<'a> {
                 .collect();
         };
         // One result per position of the plan's order, collected straight into place:
-        // collecting per block went through a list of per-task vectors that one thread then
-        // copied into one, faulting in fresh pages while the others waited.
+        // collecting per block would go through a list of per-task vectors that one thread
+        // then copies into one, faulting in fresh pages while the others wait.
         let in_order: Vec<R> = (0..plan.order.len())
             .into_par_iter()
             .with_min_len(BATCH_MIN_LEN)
@@ -457,11 +457,9 @@ const BLOCK_LEN: usize = 256;
 
 /// Consecutive points of a block that sum over one list: the block's candidates that may
 /// reach them. A block's candidates are several times the supports at any one of its points,
-/// and each would cost every point a distance test. On the 362K-point bunny (one thread, 3
-/// runs each) the polygonisation's 447K grid evaluations took 0.505 s with blocks of 16
-/// points and no runs (the earlier scheme), 0.436 s with blocks of 64 in runs of 8, and
-/// 0.403 s with blocks of 256 in runs of 16; its 224K vertex evaluations 0.352, 0.320 and
-/// 0.278 s.
+/// and each would cost every point a distance test. On the 362K-point bunny's grid and
+/// vertex evaluations, blocks of 256 points in runs of 16 are about a fifth faster than
+/// blocks of 16 points without runs, and about a tenth faster than blocks of 64 in runs of 8.
 const SUB_BLOCK_LEN: usize = 16;
 
 /// A batch block's bounding box has a diagonal of at most this many times the cover's median
@@ -469,9 +467,8 @@ const SUB_BLOCK_LEN: usize = 16;
 /// surface cover: small supports on the surface, large ones in empty space) can span many
 /// radii, and then every point of the block sums over the candidates of the whole span: at
 /// the 67K centres of the 362K-point bunny's cover, 542 candidates per point with blocks of
-/// 16. Closing such blocks early made the three evaluations at the centres 35–45% faster
-/// (100–120 → 57–70 ms each at two threads); spans of 2 and 4 radii measured the same, 1.5
-/// slower.
+/// 16. Closing such blocks early makes the three evaluations at the centres about 40%
+/// faster; spans of 2 and 4 radii are as fast, spans of 1.5 radii slower.
 const BLOCK_SPAN_PER_RADIUS: f64 = 3.0;
 
 /// [`value_gradient_sum`] and [`blend_sum`] of `values` in one pass over `ids`, each summed

@@ -25,9 +25,8 @@ use std::collections::BinaryHeap;
 
 /// Points per leaf bucket at most (a split halves a node, so leaves hold 16–32). Larger
 /// buckets mean fewer nodes to test and longer sequential runs of points: on the 362K-point
-/// bunny (leaves of 22 points instead of 11) `sphcover recon` took 2.96 s against 3.05 s
-/// (6 alternating runs each), 0.14 s less CPU, most of it in the cover's gathers; 48 (leaves
-/// of 44) was no faster than 12.
+/// bunny, leaves of 22 points instead of 11 make `sphcover recon` use less CPU, most of the
+/// saving in the cover's gathers; larger buckets (leaves of 44) are no faster.
 const BUCKET: usize = 32;
 /// Subtrees with at least this many points are built on two threads.
 const PARALLEL_BUILD: usize = 1 << 14;
@@ -288,8 +287,8 @@ impl PointIndex {
     /// the query's own instead of the previous answer: slot order follows the tree, so `k` of
     /// them nearly always lie close, even where slot order jumps between subtrees and the
     /// previous query lies far. On the noise estimate of a 362K-point scan (12,929 queries of
-    /// 174 neighbours, every 28th sample) the previous answer left 4,038 plain searches, and
-    /// the scan statistics took 0.19–0.20 s instead of 0.21–0.23.
+    /// 174 neighbours, every 28th sample) a bound by the previous answer falls back to a
+    /// plain search 4,038 times.
     ///
     /// # Panics
     ///
@@ -587,7 +586,7 @@ fn less(a: (f64, u32), b: (f64, u32)) -> bool {
 
 /// Up to this many nearest points are kept in a sorted vector during a search, more in a
 /// heap: inserting into the vector moves half of it, which for the hundreds of neighbours
-/// of a scan's noise estimate cost more than the search itself.
+/// of a scan's noise estimate costs more than the search itself.
 const SORTED_INSERTION_MAX: usize = 48;
 
 /// The best `(distance², index)` pairs a nearest-point search has met, at most `k`.

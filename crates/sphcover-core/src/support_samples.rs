@@ -3,10 +3,11 @@
 //! A reconstruction visits the samples of every support several times: the support
 //! confidence (thesis eq. 5.38) takes their principal axes, the sample confidence
 //! (eq. 5.39–5.40) blends the support confidences at every sample, and the fitting terms of
-//! the diffusion (eq. 5.33) sum over them again. Each of those asked the point index (or,
-//! for the blend, the index over the balls) for the same incidences. [`SupportSamples`]
-//! asks once and keeps, per support, the slots of the point index inside a ball a hair
-//! larger than the support's (so that every test below is a filter of the stored slots):
+//! the diffusion (eq. 5.33) sum over them again. Each of those would otherwise ask the point
+//! index (or, for the blend, the index over the balls) for the same incidences.
+//! [`SupportSamples`] asks once and keeps, per support, the slots of the point index inside
+//! a ball a hair larger than the support's (so that every test below is a filter of the
+//! stored slots):
 //!
 //! * [`SupportSamples::for_each_slot_within`] reports exactly what
 //!   [`PointIndex::for_each_slot_within`] reports for the support's ball: the same slots in
@@ -76,7 +77,7 @@ pub struct SupportSamples {
     offsets: Vec<usize>,
     /// One list, not a vector per support: a large allocation goes back to the system when
     /// it is freed, where the support-sized pieces of the same bytes (34 MB for the
-    /// 362K-point bunny, 280 MB for 3M points) stayed in the allocator, beside the later
+    /// 362K-point bunny, 280 MB for 3M points) would stay in the allocator, beside the later
     /// stages' large buffers.
     slots: Vec<u32>,
 }
@@ -89,7 +90,7 @@ impl SupportSamples {
         // is appended to the one list: the appending (a copy, and the first touch of the
         // list's memory) holds one thread, and the run being gathered keeps the other busy.
         // Only two runs' blocks are alive at a time, so the list is the only large
-        // allocation, as when each support's row was appended in turn.
+        // allocation, as if each support's row were appended in turn.
         let n = cover.len();
         let gather_run = |run: std::ops::Range<usize>| -> Vec<(Vec<u32>, Vec<u32>)> {
             cover.centers()[run.clone()]

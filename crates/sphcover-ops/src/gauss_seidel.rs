@@ -5,10 +5,10 @@
 //! keeps neighbours close in memory); inside a block, `M_b = (D + L) D⁻¹ (D + Lᵀ)` with `L` the
 //! strictly lower part of the block's diagonal block of `A`, and couplings between blocks are
 //! left out. `M = diag(M_b)` is symmetric positive definite when `A` is, and the blocks never
-//! depend on the thread pool, so iterates are bit-identical for any thread count. A first
-//! version on a global greedy multicolour ordering took 184 iterations instead of Jacobi's 350
-//! on the 205K benchmark but ran 7× slower: the colour order scatters every row's neighbours
-//! over the whole vector.
+//! depend on the thread pool, so iterates are bit-identical for any thread count. A global
+//! greedy multicolour ordering would take 184 iterations instead of Jacobi's 350 on the 205K
+//! benchmark but runs 7× slower: the colour order scatters every row's neighbours over the
+//! whole vector.
 
 use rayon::prelude::*;
 

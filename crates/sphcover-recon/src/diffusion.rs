@@ -40,19 +40,19 @@
 //!   resultant length of the samples' normals), is 0.995 for exact normals on the bunny,
 //!   0.954 for normals rotated by up to 30° and 0.843 for up to 60°. The normal strength used
 //!   is `max(μ_n ĉ^q, 1)` (q = 32: ×0.85, ×0.22, ×0.004), so noisy normals are smoothed
-//!   and the positions carry the shape, but never less than the earlier default 1. The floor
-//!   keeps some normal fit where the normals are wrong but unbiased: with a fifth of a
-//!   600-point sphere's normals flipped (ĉ = 0.57) the largest vertex error (depth 6) was
-//!   8.5% of the radius with no floor, 6.6%, 6.1% and 5.8% with floors 0.5, 0.75 and 1; on
-//!   the 100K bunny with normals rotated by up to 60°, normal strengths 0.27 (no floor),
-//!   0.5, 0.75 and 1 gave Chamfer 0.0106, 0.0108, 0.0113, 0.0117 and Hausdorff-99 0.0477,
+//!   and the positions carry the shape, but never less than 1. The floor keeps some normal
+//!   fit where the normals are wrong but unbiased: with a fifth of a 600-point sphere's
+//!   normals flipped (ĉ = 0.57) the largest vertex error (depth 6) is 8.5% of the radius
+//!   with no floor, 6.6%, 6.1% and 5.8% with floors 0.5, 0.75 and 1; on the 100K bunny
+//!   with normals rotated by up to 60°, normal strengths 0.27 (no floor), 0.5, 0.75 and 1
+//!   give Chamfer 0.0106, 0.0108, 0.0113, 0.0117 and Hausdorff-99 0.0477,
 //!   0.0458, 0.0449, 0.0454 (% of the diagonal).
 //! - *Mean confidence*: both strengths of support `i` are multiplied by `W_i / K_i`, the mean
 //!   confidence of its samples. Surface supports score about 0.65, supports around the
-//!   outliers that the graph cut and the isolation test missed about 0.16. Without this gate
-//!   a position strength μ_p = 16 already let 5% uniform outliers of the 100K bunny form
-//!   floating sheets; with it 64 did not. μ_p stays at 8 because the 2K-point noisy sphere
-//!   with 2% outliers (none isolated at that density) split into 3 components from μ_p = 12
+//!   outliers that the graph cut and the isolation test miss about 0.16. Without this gate
+//!   a position strength μ_p = 16 already lets 5% uniform outliers of the 100K bunny form
+//!   floating sheets; with it 64 does not. μ_p stays at 8 because the 2K-point noisy sphere
+//!   with 2% outliers (none isolated at that density) splits into 3 components from μ_p = 12
 //!   on without the graph cut.
 //!
 //! The per-support sample sums `W_i`, `N_i = Σ σ w ñ`, `P_i` do not change between rounds,
@@ -123,13 +123,13 @@ pub struct DiffusionParams {
 
 impl Default for DiffusionParams {
     /// Two rounds (the thesis has 5; with the strong fit and the vertex refinement of the
-    /// pipeline, 1, 2 and 3 rounds gave the same scores on every case of the 100K-bunny
-    /// benchmark within 0.0004% of the diagonal, and each round costs about 0.15 s at 362K
-    /// points; one round leaves the 2K-point noisy sphere in 3 pieces without the graph cut,
-    /// and a sphere with a fifth of its normals flipped 0.064 radii off), relative fitting
-    /// μ_n = 64 gated by the normal coherence with exponent 32 down to 1, μ_p = 8, both gated
-    /// by the mean confidence (power 1), anisotropic, converged Poisson step to a relative
-    /// residual of 1e-6 (module docs: how these were chosen).
+    /// pipeline, 1, 2 and 3 rounds give the same scores on every case of the 100K-bunny
+    /// benchmark within 0.0004% of the diagonal, and each round is a full Poisson solve
+    /// (`docs/benchmarks.md`, *Stages at 362K*); one round leaves the 2K-point noisy sphere in
+    /// 3 pieces without the graph cut, and a sphere with a fifth of its normals flipped 0.064
+    /// radii off), relative fitting μ_n = 64 gated by the normal coherence with exponent 32
+    /// down to 1, μ_p = 8, both gated by the mean confidence (power 1), anisotropic, converged
+    /// Poisson step to a relative residual of 1e-6 (module docs: how these were chosen).
     fn default() -> Self {
         DiffusionParams {
             rounds: 2,
@@ -233,7 +233,8 @@ impl FittingTerms {
         let kernel = cover.kernel();
         // The samples' normals and confidences in the index's slot order, so the per-support
         // loops read them as contiguously as the positions instead of at random (the input
-        // order of a scan can be anything). The sums run in the same order as before.
+        // order of a scan can be anything). Only where the values are read from changes: the
+        // sums still run over each support's slots in tree order.
         let slot_points = index.slot_points();
         let (slot_normals, slot_confidence): (Vec<DVec3>, Vec<f64>) = index
             .order()

@@ -211,7 +211,7 @@ pub struct PolygoniseStats {
 /// Seeds should be samples the caller trusts (high confidence, not outliers): every surface
 /// component that passes through a seed's cell, or that a seed's Newton steps reach within
 /// [`PolygoniseParams::seed_reach`], is meshed, including a small piece of `f = 0` around
-/// an outlier that was given as a seed. [`crate::remove_small_components`] removes such
+/// an outlier that was given as a seed. [`sphcover_core::remove_small_components`] removes such
 /// pieces afterwards if needed.
 pub fn polygonise(
     eval: &PuEvaluator<'_>,

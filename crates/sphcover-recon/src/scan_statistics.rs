@@ -5,11 +5,13 @@
 //! cut and the confidence of samples (§5.2.4). Both fall short on real scans:
 //!
 //! - With Gaussian noise of standard deviation σ larger than ε no plane fits any support
-//!   within ε, so the octree refines until every support had to grow to reach its `n_min`
-//!   samples: on a 100K-point bunny with noise of 0.5% of the diagonal, 1.2 GB and 95 s
-//!   where the clean scan takes 0.4 GB. The tolerance a scan supports is about the largest
-//!   residual of its noise, so the pipeline uses `max(ε, 4σ̂)`, with σ̂ the median RMS
-//!   distance of samples to the plane of their `k` nearest neighbours.
+//!   within ε, so the octree refines until every support has to grow to reach its `n_min`
+//!   samples: on a 100K-point bunny with noise of 0.5% of the diagonal, the cover has over
+//!   ten times the supports, and the run many times the time and memory, of one with the
+//!   raised tolerance below (`docs/algorithms.md`, *Surface reconstruction*). The tolerance
+//!   a scan supports is about the largest residual of its noise, so the pipeline uses
+//!   `max(ε, 4σ̂)`, with σ̂ the median RMS distance of samples to the plane of their `k`
+//!   nearest neighbours.
 //! - The confidence of samples (eq. 5.39–5.40) rarely falls below its outlier threshold for
 //!   uniform outliers (supports centred on a surface have centroid offsets in random
 //!   directions, so surface samples score about as low as outliers). Uniform outliers are
@@ -35,10 +37,10 @@ const WINDOW: usize = 16;
 const SPACING_SAMPLES: usize = 12_500;
 
 /// The noise is a median over about this many samples (at most). Each costs a search for
-/// hundreds of neighbours and a plane fit, ten times a spacing query: on the 362K-point bunny
-/// the noise pass took 0.12 s over 12,929 samples, 0.05 s over 4,023. The medians barely
-/// move: on the 100K-point bunny with noise of 0.25% and 0.5% of the diagonal, 3.67e-3 and
-/// 5.99e-3 over 12,500 samples, 3.68e-3 and 6.01e-3 over 4,000.
+/// hundreds of neighbours and a plane fit, ten times a spacing query, so the pass costs in
+/// proportion to the samples it takes. The medians barely move: on the 100K-point bunny with
+/// noise of 0.25% and 0.5% of the diagonal, 3.67e-3 and 5.99e-3 over 12,500 samples,
+/// 3.68e-3 and 6.01e-3 over 4,000.
 const NOISE_SAMPLES: usize = 4_000;
 
 /// Parameters of [`scan_statistics`].
@@ -55,9 +57,9 @@ pub struct ScanStatisticsParams {
     pub noise_stride: usize,
     /// Neighbours of the plane fits of the noise estimate per 100,000 samples (at least
     /// this many, at most 1024): more than `k`, because a plane through few neighbours
-    /// follows the noise (with 16, σ came out at half its value on a scan whose noise is
+    /// follows the noise (with 16, σ comes out at half its value on a scan whose noise is
     /// comparable to its spacing), and growing with the sample count so that the fitted
-    /// patch keeps its size (with a fixed 48, the noise of a 362K-point scan came out 28%
+    /// patch keeps its size (with a fixed 48, the noise of a 362K-point scan comes out 28%
     /// lower than that of a 100K-point scan with the same σ).
     pub noise_k: usize,
 }
@@ -166,7 +168,7 @@ pub fn scan_statistics(
     // The noise pass asks for hundreds of neighbours (up to 1024), where inserting each
     // found point into a sorted list costs O(k): searches bounded by the query's slot
     // neighbours collect a ball and select instead (exact, so the median does not move).
-    // For the spacing pass (17 neighbours) such runs measured no faster than single queries.
+    // For the spacing pass (17 neighbours) such runs are no faster than single queries.
     let residuals: Vec<f64> = queries
         .par_chunks(NOISE_RUN)
         .flat_map_iter(|run| {

@@ -20,8 +20,8 @@
 //!   beyond their own scatter is not taken. On a scan whose noise raised the cover tolerance
 //!   (by `r = ε_used / ε`) the diffused function averages far more samples than one fit,
 //!   so `g = r⁴`: on the bunny with noise of 0.25% of the diagonal (`r` = 5.9) unshrunk
-//!   fits over the 24 nearest samples dropped the normal consistency from 0.996 to 0.89 (a
-//!   prototype); shrunk, every noisy benchmark case scores as without the step.
+//!   fits over the 24 nearest samples drop the normal consistency from 0.996 to 0.89;
+//!   shrunk, every noisy benchmark case scores as without the step.
 //! - **Holes.** A vertex farther than `reach` from every sample, measured in its tangent
 //!   plane, keeps the position the function gave it (a filled hole is the function's, not
 //!   the samples'); the move fades out between half the reach and the reach.

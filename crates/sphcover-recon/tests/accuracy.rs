@@ -4,9 +4,9 @@
 //! Clean and outlier scans are sampled from the bundled bunny (`fixtures/real/bunny00.off`,
 //! the benchmark's ground truth), whose detail is what over-smoothing loses; the error of a
 //! mesh vertex is its distance to the mesh. Noisy normals are tried on a torus, where the
-//! distance is exact. The clean bound sits between what the current defaults reach and what
-//! the earlier, weakly fitted defaults (μ_n = 1, μ_p = 4, no gates) reached, so a return to
-//! over-smoothing fails it; the refined vertices (the default) must beat the zero set.
+//! distance is exact. The clean bound sits between what the defaults reach and what the
+//! weakly fitted setting (μ_n = 1, μ_p = 4, no gates) reaches, so a return to over-smoothing
+//! fails it; the refined vertices (the default) must beat the zero set.
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -125,7 +125,7 @@ fn run(cloud: &PointCloud, params: &ReconParams) -> (f64, f64, usize) {
     score(&rec.mesh)
 }
 
-/// The earlier defaults: weak fitting and no gates.
+/// The weakly fitted setting: μ_n = 1, μ_p = 4 and no gates, which smooths clean scans away.
 fn weak_fitting() -> ReconParams {
     ReconParams {
         diffusion: DiffusionParams {
@@ -219,7 +219,7 @@ fn uniform_outliers_stay_out_of_the_strong_fit() {
     assert!(max < 4.0 * clean.1, "max {max:.3e} against {:.3e}", clean.1);
 }
 
-/// Between the defaults' and the weak fitting's mean vertex error on the clean torus.
+/// Between the defaults' and the weak fitting's mean vertex error on the clean bunny.
 const MEAN_BOUND: f64 = 2.5e-4;
 /// Between the refined vertices' and the zero set's mean error on the clean bunny.
 const REFINED_MEAN_BOUND: f64 = 1.8e-4;

@@ -1,6 +1,6 @@
 //! Criterion benchmark: dual complex (triangulation + filter) of an adaptive octree cover of
-//! a torus. `SPHCOVER_BENCH_LARGE=1` adds the 1M-sphere case (about 10 s per iteration on
-//! a loaded 2-core machine).
+//! a torus. `SPHCOVER_BENCH_LARGE=1` adds the 1M-sphere case, which is slow enough to be left
+//! out by default.
 
 #[path = "../examples/common/octree_torus.rs"]
 mod octree_torus;

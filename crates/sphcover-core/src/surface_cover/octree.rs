@@ -18,14 +18,14 @@
 //! octant is subdivided only while its grown radius is at most [`REFINABLE_GROWTH`] times its
 //! own radius, and an *empty* octant (own ball without any point) never is. The factor is 1
 //! (a grown octant is never subdivided): with 2, the 5,210-point kitten scan at ε = 2.5e-3
-//! got 47,081 supports (9 per point) and a sphere intersection graph of mean degree 265;
+//! gets 47,081 supports (9 per point) and a sphere intersection graph of mean degree 265;
 //! with 1, 15,370 supports and degree 84, and the same reconstruction.
 //!
 //! The same holds one level up, where the octant's own ball still holds `n_min` points but
 //! its children's balls (half the radius: about a quarter of the points on a surface) do
 //! not. On sparse scans with ε below what the sampling supports, every child then grows to
 //! its `n_min` nearest points and still misses ε, and the subdivision multiplies supports
-//! for nothing (the 2,000-point sphere at ε = 2.5e-3 got 5,793 supports, 4,681 over ε; the
+//! for nothing (the 2,000-point sphere at ε = 2.5e-3 gets 5,793 supports, 4,681 over ε; the
 //! 5,210-point kitten 15,370, 11,295 over). So a subdivision whose non-empty children are
 //! all grown and over ε is undone: the octant stays a leaf with its own fit, whose error is
 //! reported (the supports over ε, and [`SurfaceCoverStats::sampling_limited_octants`]),
@@ -40,11 +40,10 @@
 //! concavity and no plane fits them.)
 //!
 //! Balance: a leaf at level `l` has no face neighbour coarser than level `l − 1` (the
-//! usual 2:1 face balance; balancing across edges and corners as well made 2.4 times as
+//! usual 2:1 face balance; balancing across edges and corners as well makes 2.4 times as
 //! many balance octants on a scanned bunny, nearly all in empty space, for no gain in the
-//! fit). Leaves created to restore the
-//! balance are fitted and refined like the others, and balancing repeats until nothing
-//! changes.
+//! fit). Leaves created to restore the balance are fitted and refined like the others, and
+//! balancing repeats until nothing changes.
 //!
 //! Near the root an octant's ball holds a large part of the scan and its fit always misses
 //! ε, yet gathering and fitting its points cost as much as a whole level of leaves. So an
@@ -228,7 +227,7 @@ struct Octree<'a> {
     /// Fitted cells that became leaves, in the order fitted. A cell that the balance
     /// subdivided later stays here; it is dropped at the end, where `internal` holds it. (A
     /// list, not a map per level: inserting 112-byte leaves into maps, and reading them back
-    /// out, held one thread for 15–25 ms between the parallel waves.)
+    /// out, holds one thread alone between the parallel waves.)
     leaves: Vec<Leaf>,
 }
 

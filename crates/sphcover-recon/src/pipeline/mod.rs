@@ -143,8 +143,9 @@ impl Default for ReconParams {
 /// The polygonisation depth chosen for `points` samples: `log₂(0.7 √n)` rounded, clamped to
 /// 6..=8 below a million samples and 9 from there. The grid step follows the sample spacing
 /// (`∝ 1/√n` on a surface): 2–5 triangles per sample on the bunny. On the 362K-point bunny
-/// depth 9 gave 1.79M triangles, 446 MB and Chamfer 0.0107% of the diagonal; depth 8 gives
-/// 447K triangles, 255 MB and 0.0111%: the function, not the grid, limits the accuracy.
+/// depth 9 instead of 8 quadruples the triangles and raises the peak memory by about two
+/// thirds (`docs/benchmarks.md`, *Memory*) for hardly any gain in Chamfer distance: the
+/// function, not the grid, limits the accuracy.
 pub fn default_depth(points: usize) -> u32 {
     let d = (0.7 * (points.max(1) as f64).sqrt()).log2().round();
     let finest = if points >= 1_000_000 { 9.0 } else { 8.0 };

@@ -1,7 +1,7 @@
 //! The skeletal-sheet pipeline (thesis §6.2): intensity cover (quadratic) → dual-complex
 //! tetrahedral mesh → ridge points on its edges → patches → repairs, in world coordinates.
 //!
-//! The pipeline is two lists of stages: the front ([`front_stages`]: intensity model,
+//! The pipeline is two lists of stages: the front (`front_stages`: intensity model,
 //! object mask, cover), which differs between volumes and scattered samples, and the stages
 //! after the cover (`sheet_stages`), common to both, whose repairs [`SheetRepairs`] switches
 //! one by one. [`stage_names`] lists them for a parameter set.

@@ -10,21 +10,28 @@
 //!
 //! Each plate is known away from the junction. A *plate vertex* is one whose across direction
 //! `e` agrees, within [`JunctionPlaneParams::max_ring_angle_degrees`], with those of all its
-//! neighbours in the mesh (the fillet, where `e` turns, fails this test). Around each vertex
-//! `p`, the plate vertices within `reach` are grouped by orientation (greedily, nearest
-//! first: a vertex joins the first group whose seed's `e` is within `min_angle / 2` of its
-//! own, up to sign). When at least two groups of [`JunctionPlaneParams::min_group`] vertices
-//! each have seed directions at least `min_angle` apart, `p` lies in a junction band: each
-//! such group gives a plane, normal the sign-aligned mean of its `e`, offset the median of
-//! its vertices' offsets (robust to the fillet's own plate-like pieces), and `p` is projected
-//! onto the nearest of these planes, if it is at most `max_shift` away. Its normal becomes
-//! that plane's normal. A flat or gently curved plate (normals turning less than `min_angle`
-//! within `reach`) never has two groups, so nothing moves there. Only vertices within
-//! `reach` of an edge with three or more triangles (where sheets actually meet) are
-//! candidates: a curved sheet without a junction, such as a skull's vault, whose normals turn
-//! by `min_angle` within `reach`, would otherwise be faceted onto its tangent planes
-//! (measured on CGAL's 64³ skull CT: mean dihedral angle between neighbouring triangles
-//! 0.197 rad without the step, 0.234 with it unrestricted, 0.195 restricted; the
+//! neighbours in the mesh (the fillet, where `e` turns, fails this test). Its *support* is
+//! the number of plate vertices within `reach` whose directions lie within `max_fit_angle`
+//! of its own, up to sign: a plate's own direction is well supported, the fillet's, turning
+//! from one plate to the other, is not. Around each vertex `p`, the plate vertices within
+//! `reach` are examined. When all their directions are within `min_angle / 2` of the nearest
+//! vertex's, only one sheet is there and `p` stays. Otherwise they are ranked
+//! by support, and each direction with support at least [`JunctionPlaneParams::min_group`]
+//! that is at least `min_angle` from every direction taken so far seeds a sheet; ranking by
+//! support means the directions between the plates (the fillet's) never win against the
+//! plates' own. With at least two seeds, `p` lies in a junction band: each plate vertex near
+//! `p` joins the seed closest to its direction (if within `min_angle / 2` of it), and each
+//! group gives a plane: normal the sign-aligned mean of its `e`, refined over the members
+//! whose directions lie near it; offset the median of the offsets of the members within
+//! `max_fit_angle` of that normal (robust to the fillet's own plate-like pieces). `p` is
+//! projected onto the nearest of these planes, if it is at most `max_shift` away, and its
+//! normal becomes that plane's normal. A flat or gently curved plate (normals turning less
+//! than `min_angle` within `reach`) never has two seeds, so nothing moves there. Only
+//! vertices within `reach` of an edge with three or more triangles (where sheets actually
+//! meet) are candidates: a curved sheet without a junction, such as a skull's vault, whose
+//! normals turn by `min_angle` within `reach`, would otherwise be faceted onto its tangent
+//! planes (measured on CGAL's 64³ skull CT: mean dihedral angle between neighbouring
+//! triangles 0.197 rad without the step, 0.234 with it unrestricted, 0.195 restricted; the
 //! T-junction phantoms' figures are unchanged).
 
 use std::collections::HashMap;
@@ -48,9 +55,11 @@ pub struct JunctionPlaneParams {
     /// every neighbour's.
     pub max_ring_angle_degrees: f64,
     /// A sheet's plane is fitted to its plate vertices whose directions are within this angle
-    /// (degrees) of the plane's normal.
+    /// (degrees) of the plane's normal; a plate vertex's support counts the plate vertices
+    /// within reach whose directions are within this angle of its own.
     pub max_fit_angle_degrees: f64,
-    /// Smallest number of plate vertices of a group that defines a plane.
+    /// Smallest support (module docs) of a plate vertex whose direction seeds a sheet's
+    /// plane.
     pub min_group: usize,
 }
 
@@ -314,11 +323,12 @@ impl PointGrid {
     }
 }
 
-/// The plane of one sheet from its plate vertices `members` (directions within `min_angle`
-/// of `seed`, up to sign): the normal is the sign-aligned mean direction, refined over the
-/// members within the angle `acos(fit_cos)` of the current normal, then twice within half of
-/// it (the beginnings of the fillet, tilted towards the other sheet, drop out); the offset is
-/// the median of the offsets along it of the members within `acos(fit_cos)`. `None` when no member is left.
+/// The plane of one sheet from its plate vertices `members` (directions within
+/// `min_angle / 2` of `seed`, up to sign): the normal is the sign-aligned mean direction,
+/// refined over the members within the angle `acos(fit_cos)` of the current normal, then
+/// twice within half of it (the beginnings of the fillet, tilted towards the other sheet,
+/// drop out); the offset is the median of the offsets along it of the members within
+/// `acos(fit_cos)`. `None` when no member is left.
 fn fit_plane(
     seed: DVec3,
     members: &[u32],
@@ -454,11 +464,11 @@ mod tests {
         #![proptest_config(ProptestConfig::with_cases(48))]
 
         /// A sheet bending through a fillet from the plane z = 0 into the plane x = 0 (its
-        /// middle up to `0.41 r` off both), the base continuing past the web: every vertex ends within 0.05 (a tenth of the
-        /// spacing) of the nearer plane, moving no farther than its distance to it plus that
-        /// (the planes are fitted to the plates' vertices, whose directions within 10° of the
-        /// plane's include the fillet's first ones); the triangles are unchanged, so is the
-        /// topology.
+        /// middle up to `0.41 r` off both), the base continuing past the web: every vertex
+        /// ends within 0.05 (a tenth of the spacing) of the nearer plane, moving no farther
+        /// than its distance to it plus that (the planes are fitted to the plates' vertices,
+        /// whose directions within 10° of the plane's include the fillet's first ones); the
+        /// triangles are unchanged, so is the topology.
         #[test]
         fn fillet_vertices_snap_to_the_nearer_plate(r in 0.5..1.5f64, flip in any::<bool>()) {
             let n = 25;

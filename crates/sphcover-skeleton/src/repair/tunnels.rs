@@ -4,8 +4,9 @@
 //! of the sheet that bounds no triangles of the sheet (a generator of its first homology)
 //! must go around air. Where a web stands on a base plate the ridge is ill-defined; the web
 //! reaches the base in several stubs and the fillets between them leave small loops that go
-//! around nothing but material. Each such loop lowers the Euler characteristic by one (the
-//! generated T-junction had χ −5 … −7, the reference one −12, for a true 1).
+//! around nothing but material. Each such loop lowers the Euler characteristic by one
+//! (without this repair the generated T-junction has χ −5 … −7, the reference one −12, for a
+//! true 1).
 //!
 //! Here the short loops of the sheet are enumerated (for every vertex, the loops closed by a
 //! non-tree edge of its shortest-path tree within a radius, whose two tree paths leave the
