@@ -70,10 +70,6 @@ pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryMod
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
 pub mod mesh_smoothing;
 pub mod polygonise;
-// Polygonisation imports the core's function under its old path until it is split.
-mod unused_vertices {
-    pub(crate) use sphcover_core::remove_unused_vertices;
-}
 pub mod vertex_refinement;
 
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
