@@ -3,7 +3,7 @@
 //! expansion stage.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sphcover_core::{DVec3, SurfaceCoverParams, build_surface_cover};
+use sphcover_core::{DVec3, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
 use std::hint::black_box;
 
 const POINTS: usize = 362_000;
@@ -47,7 +47,8 @@ fn bench(c: &mut Criterion) {
             expansion,
             ..SurfaceCoverParams::default()
         };
-        let (cover, stats) = build_surface_cover(&points, &normals, &params).expect("cover");
+        let (cover, stats) =
+            build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).expect("cover");
         eprintln!(
             "expansion {expansion}: {} supports ({} before expansion)",
             cover.len(),
@@ -59,7 +60,12 @@ fn bench(c: &mut Criterion) {
             "octree_only"
         };
         group.bench_function(name, |b| {
-            b.iter(|| build_surface_cover(black_box(&points), black_box(&normals), &params))
+            b.iter(|| {
+                build_surface_cover(
+                    &SurfaceSamples::new(black_box(&points), black_box(&normals)),
+                    &params,
+                )
+            })
         });
     }
     group.finish();

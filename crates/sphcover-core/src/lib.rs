@@ -8,7 +8,7 @@
 //!
 //! ```
 //! use sphcover_core::{DVec3, PuEvaluator, SphereIntersectionGraph, SurfaceCoverParams};
-//! use sphcover_core::build_surface_cover;
+//! use sphcover_core::{SurfaceSamples, build_surface_cover};
 //!
 //! // 1,000 oriented points on a sphere of radius 0.4 (a Fibonacci lattice).
 //! let n = 1000;
@@ -24,7 +24,7 @@
 //!
 //! // The cover of thesis §3.4.1: balls whose local quadratics fit the points to ε.
 //! let params = SurfaceCoverParams { eps: 1e-2, ..SurfaceCoverParams::default() };
-//! let (cover, _stats) = build_surface_cover(&points, &normals, &params)?;
+//! let (cover, _stats) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params)?;
 //!
 //! // Their blend f: positive inside, negative outside, zero on the surface.
 //! let f = PuEvaluator::new(&cover, 1.0)?;
@@ -80,9 +80,8 @@ pub use point_index::{PointIndex, PointIndexError};
 pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
 pub use support_samples::SupportSamples;
 pub use surface_cover::{
-    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings,
-    build_surface_cover, build_surface_cover_from_cloud, build_surface_cover_with_confidence,
-    build_surface_cover_with_index,
+    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings, SurfaceSamples,
+    build_surface_cover, build_surface_cover_from_cloud,
 };
 pub use symmetric_eigen::SymmetricEigen3;
 pub use volume::{Volume, VolumeError, VoxelValues};

@@ -2,8 +2,8 @@
 //! normals are skipped and counted.
 
 use sphcover_core::{
-    DVec3, PointCloud, SurfaceCoverError, SurfaceCoverParams, build_surface_cover,
-    build_surface_cover_from_cloud, build_surface_cover_with_confidence,
+    DVec3, PointCloud, SurfaceCoverError, SurfaceCoverParams, SurfaceSamples, build_surface_cover,
+    build_surface_cover_from_cloud,
 };
 
 /// A small plane patch z = 0 with upward normals.
@@ -34,14 +34,17 @@ fn inconsistent_or_non_finite_input_is_refused() {
     let (mut points, normals) = patch();
     let p = SurfaceCoverParams::default();
     assert!(matches!(
-        build_surface_cover(&points, &normals[1..], &p),
+        build_surface_cover(&SurfaceSamples::new(&points, &normals[1..]), &p),
         Err(SurfaceCoverError::LengthMismatch {
             array: "normals",
             ..
         })
     ));
     assert!(matches!(
-        build_surface_cover_with_confidence(&points, &normals, Some(&[1.0]), &p),
+        build_surface_cover(
+            &SurfaceSamples::new(&points, &normals).with_confidence(Some(&[1.0])),
+            &p
+        ),
         Err(SurfaceCoverError::LengthMismatch {
             array: "confidence",
             ..
@@ -50,16 +53,19 @@ fn inconsistent_or_non_finite_input_is_refused() {
     let mut conf = vec![1.0; points.len()];
     conf[3] = -1.0;
     assert!(matches!(
-        build_surface_cover_with_confidence(&points, &normals, Some(&conf), &p),
+        build_surface_cover(
+            &SurfaceSamples::new(&points, &normals).with_confidence(Some(&conf)),
+            &p
+        ),
         Err(SurfaceCoverError::InvalidConfidence { index: 3, .. })
     ));
     points[5] = DVec3::new(f64::NAN, 0.0, 0.0);
     assert!(matches!(
-        build_surface_cover(&points, &normals, &p),
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &p),
         Err(SurfaceCoverError::NonFinitePoint { index: 5, .. })
     ));
     points[5] = DVec3::new(2.0, 0.0, 0.0);
-    let err = build_surface_cover(&points, &normals, &p).unwrap_err();
+    let err = build_surface_cover(&SurfaceSamples::new(&points, &normals), &p).unwrap_err();
     assert!(matches!(
         err,
         SurfaceCoverError::NotNormalised { index: 5, .. }
@@ -110,7 +116,7 @@ fn invalid_parameters_are_named() {
         "growth_tolerance",
     ];
     for (params, name) in bad.iter().zip(names) {
-        match build_surface_cover(&points, &normals, params) {
+        match build_surface_cover(&SurfaceSamples::new(&points, &normals), params) {
             Err(SurfaceCoverError::InvalidParameter { name: got, .. }) => assert_eq!(got, name),
             other => panic!("{name}: expected InvalidParameter, got {other:?}"),
         }
@@ -128,7 +134,8 @@ fn unusable_normals_are_skipped_and_counted() {
         eps: 1e-3,
         ..Default::default()
     };
-    let (cover, stats) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (cover, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
     assert_eq!(stats.skipped_normals, 2);
     assert_eq!(stats.used_points, points.len() - 2);
     assert!(!cover.is_empty());
@@ -138,14 +145,14 @@ fn unusable_normals_are_skipped_and_counted() {
 
     let all_zero = vec![DVec3::ZERO; points.len()];
     assert!(matches!(
-        build_surface_cover(&points, &all_zero, &params),
+        build_surface_cover(&SurfaceSamples::new(&points, &all_zero), &params),
         Err(SurfaceCoverError::NoUsablePoints {
             skipped_normals: 400,
             ..
         })
     ));
     assert!(matches!(
-        build_surface_cover(&[], &[], &params),
+        build_surface_cover(&SurfaceSamples::new(&[], &[]), &params),
         Err(SurfaceCoverError::NoUsablePoints { points: 0, .. })
     ));
 }
@@ -159,8 +166,11 @@ fn tiny_inputs_still_give_a_cover_of_the_box() {
         DVec3::new(0.0, 0.1, 0.0),
     ];
     let normals = [DVec3::Z; 3];
-    let (cover, stats) =
-        build_surface_cover(&points, &normals, &SurfaceCoverParams::default()).unwrap();
+    let (cover, stats) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals),
+        &SurfaceCoverParams::default(),
+    )
+    .unwrap();
     assert!(!cover.is_empty());
     assert_eq!(stats.used_points, 3);
     let f = sphcover_core::PuEvaluator::new(&cover, 1.0).unwrap();
@@ -180,15 +190,21 @@ fn confidence_weights_the_fit() {
         ..Default::default()
     };
     let ones = vec![1.0; points.len()];
-    let (a, _) =
-        build_surface_cover_with_confidence(&points, &normals, Some(&ones), &params).unwrap();
-    let (b, _) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (a, _) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals).with_confidence(Some(&ones)),
+        &params,
+    )
+    .unwrap();
+    let (b, _) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
     assert_eq!(a, b, "unit confidence changes nothing");
     // Zero confidence removes points entirely.
     let mut half = ones.clone();
     half.iter_mut().step_by(2).for_each(|c| *c = 0.0);
-    let (_, stats) =
-        build_surface_cover_with_confidence(&points, &normals, Some(&half), &params).unwrap();
+    let (_, stats) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals).with_confidence(Some(&half)),
+        &params,
+    )
+    .unwrap();
     assert_eq!(stats.used_points, points.len() / 2);
 }
 
@@ -211,7 +227,11 @@ fn points_left_out_are_as_if_never_given() {
             .map(|i| v[i])
             .collect()
     };
-    let (reference, _) = build_surface_cover(&kept(&points), &kept(&normals), &params).unwrap();
+    let (reference, _) = build_surface_cover(
+        &SurfaceSamples::new(&kept(&points), &kept(&normals)),
+        &params,
+    )
+    .unwrap();
     // Left out for their normal, or for zero confidence.
     let mut broken = normals.clone();
     let mut confidence = vec![1.0; points.len()];
@@ -219,13 +239,19 @@ fn points_left_out_are_as_if_never_given() {
         broken[i] = DVec3::ZERO;
         confidence[i] = 0.0;
     }
-    let (by_normal, _) = build_surface_cover(&points, &broken, &params).unwrap();
+    let (by_normal, _) =
+        build_surface_cover(&SurfaceSamples::new(&points, &broken), &params).unwrap();
     assert_eq!(by_normal, reference);
-    let (by_confidence, _) =
-        build_surface_cover_with_confidence(&points, &normals, Some(&confidence), &params).unwrap();
+    let (by_confidence, _) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals).with_confidence(Some(&confidence)),
+        &params,
+    )
+    .unwrap();
     let unit = vec![1.0; kept(&points).len()];
-    let (reference_unit, _) =
-        build_surface_cover_with_confidence(&kept(&points), &kept(&normals), Some(&unit), &params)
-            .unwrap();
+    let (reference_unit, _) = build_surface_cover(
+        &SurfaceSamples::new(&kept(&points), &kept(&normals)).with_confidence(Some(&unit)),
+        &params,
+    )
+    .unwrap();
     assert_eq!(by_confidence, reference_unit);
 }

@@ -3,8 +3,8 @@
 //! sample; the same seed gives a bit-identical cover on 1 and 2 threads.
 
 use sphcover_core::{
-    Cover, DVec3, PointCloud, PointIndex, PuEvaluator, SurfaceCoverParams, build_surface_cover,
-    build_surface_cover_from_cloud, build_surface_cover_with_index,
+    Cover, DVec3, PointCloud, PointIndex, PuEvaluator, SurfaceCoverParams, SurfaceSamples,
+    build_surface_cover, build_surface_cover_from_cloud,
 };
 
 const SPHERE_R: f64 = 0.5;
@@ -127,7 +127,8 @@ fn check_shape(
 fn sphere_cover_approximates_the_signed_distance() {
     let (points, normals) = sphere(20_000);
     let params = SurfaceCoverParams::default();
-    let (cover, stats) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (cover, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
     assert_eq!(stats.used_points, points.len());
     assert!(stats.supports_after_expansion < stats.supports_before_expansion);
     assert_eq!(stats.supports_over_eps, 0);
@@ -150,7 +151,8 @@ fn torus_cover_approximates_the_signed_distance() {
         eps: 2e-3,
         ..SurfaceCoverParams::default()
     };
-    let (cover, stats) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (cover, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
     assert!(stats.supports_after_expansion > 100);
     check_shape(
         &cover,
@@ -175,7 +177,9 @@ fn same_seed_gives_the_same_cover_on_one_and_two_threads() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| build_surface_cover(&points, &normals, &params).unwrap())
+            .install(|| {
+                build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap()
+            })
     };
     let (one, stats_one) = build(1);
     let (two, stats_two) = build(2);
@@ -201,8 +205,7 @@ fn same_seed_gives_the_same_cover_on_one_and_two_threads() {
     );
     // Another seed visits the supports in another order: a different cover, same quality.
     let other = build_surface_cover(
-        &points,
-        &normals,
+        &SurfaceSamples::new(&points, &normals),
         &SurfaceCoverParams {
             seed: 8,
             ..params.clone()
@@ -246,7 +249,8 @@ fn without_expansion_the_cover_is_the_octree() {
         expansion: false,
         ..SurfaceCoverParams::default()
     };
-    let (cover, stats) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (cover, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
     assert_eq!(cover.len(), stats.supports_before_expansion);
     assert_eq!(
         stats.supports_after_expansion,
@@ -280,12 +284,14 @@ fn sampling_stop_keeps_a_sparse_scan_below_its_point_count_and_reports_the_error
         eps: 2.5e-3,
         ..SurfaceCoverParams::default()
     };
-    let (plain, plain_stats) = build_surface_cover(&points, &normals, &base).unwrap();
+    let (plain, plain_stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &base).unwrap();
     let stop = SurfaceCoverParams {
         sampling_stop: true,
         ..base.clone()
     };
-    let (cover, stats) = build_surface_cover(&points, &normals, &stop).unwrap();
+    let (cover, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &stop).unwrap();
     // ε is below what 2,000 points support: without the rule the cover outnumbers them.
     assert!(plain.len() > points.len(), "{} supports", plain.len());
     assert!(cover.len() < points.len(), "{} supports", cover.len());
@@ -326,8 +332,9 @@ fn sampling_stop_changes_nothing_where_the_sampling_supports_eps() {
         sampling_stop: true,
         ..base.clone()
     };
-    let (plain, _) = build_surface_cover(&points, &normals, &base).unwrap();
-    let (cover, stats) = build_surface_cover(&points, &normals, &stop).unwrap();
+    let (plain, _) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &base).unwrap();
+    let (cover, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &stop).unwrap();
     assert_eq!(stats.sampling_limited_octants, 0);
     assert_eq!(stats.supports_over_eps, 0);
     assert_eq!(plain, cover);
@@ -340,23 +347,33 @@ fn a_given_index_gives_the_same_cover_and_a_wrong_one_is_ignored() {
         eps: 5e-3,
         ..SurfaceCoverParams::default()
     };
-    let (plain, _) = build_surface_cover(&points, &normals, &params).unwrap();
+    let (plain, _) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
     let own = PointIndex::new(&points).unwrap();
-    let (reused, _) =
-        build_surface_cover_with_index(&points, &normals, None, &own, &params).unwrap();
+    let (reused, _) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals).with_index(&own),
+        &params,
+    )
+    .unwrap();
     assert!(plain == reused, "covers differ");
     // An index over other points (same count, one moved) is not used.
     let mut moved = points.clone();
     moved[17] *= 0.9;
     let other = PointIndex::new(&moved).unwrap();
-    let (ignored, _) =
-        build_surface_cover_with_index(&points, &normals, None, &other, &params).unwrap();
+    let (ignored, _) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals).with_index(&other),
+        &params,
+    )
+    .unwrap();
     assert!(plain == ignored, "covers differ");
     // With a point left out (zero normal) the index cannot serve either.
     normals[5] = DVec3::ZERO;
-    let (filtered, stats) = build_surface_cover(&points, &normals, &params).unwrap();
-    let (filtered_given, _) =
-        build_surface_cover_with_index(&points, &normals, None, &own, &params).unwrap();
+    let (filtered, stats) =
+        build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
+    let (filtered_given, _) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals).with_index(&own),
+        &params,
+    )
+    .unwrap();
     assert_eq!(stats.skipped_normals, 1);
     assert!(filtered == filtered_given, "covers differ");
 }

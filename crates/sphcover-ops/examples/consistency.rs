@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use sphcover_core::synthetic::{self, AdaptiveCoverParams, Surface};
 use sphcover_core::{
-    Aabb, DVec3, SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover,
+    Aabb, DVec3, SphereIntersectionGraph, SurfaceCoverParams, SurfaceSamples, build_surface_cover,
 };
 use sphcover_ops::{
     CellBound, DiscreteOperators, FluxKind, LaguerreOperators, MassKind, PairGeometry,
@@ -298,7 +298,8 @@ fn surface_cover_levels() -> Vec<Level> {
                 max_depth: depth,
                 ..SurfaceCoverParams::default()
             };
-            let (cover, _) = build_surface_cover(&points, &normals, &params).expect("cover");
+            let (cover, _) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params)
+                .expect("cover");
             Level {
                 label: format!("max depth {depth}"),
                 h: 1.0 / (1u64 << depth) as f64,

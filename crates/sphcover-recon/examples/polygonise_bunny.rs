@@ -17,7 +17,8 @@ use std::time::Instant;
 use sphcover_core::io::{ReadOptions, WriteOptions, read_mesh, write_mesh};
 use sphcover_core::mesh_topology::MeshTopology;
 use sphcover_core::{
-    DVec3, Normalisation, PuEvaluator, SurfaceCoverParams, TriMesh, build_surface_cover,
+    DVec3, Normalisation, PuEvaluator, SurfaceCoverParams, SurfaceSamples, TriMesh,
+    build_surface_cover,
 };
 use sphcover_recon::{GridStep, PolygoniseParams, polygonise};
 
@@ -97,7 +98,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     let start = Instant::now();
-    let (cover, _) = build_surface_cover(&points, &normals, &SurfaceCoverParams::default())?;
+    let (cover, _) = build_surface_cover(
+        &SurfaceSamples::new(&points, &normals),
+        &SurfaceCoverParams::default(),
+    )?;
     let cover_time = start.elapsed();
     let eval = PuEvaluator::new(&cover, 1.0)?;
     let params = PolygoniseParams {

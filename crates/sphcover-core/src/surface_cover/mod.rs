@@ -22,7 +22,7 @@
 //! # Example
 //!
 //! ```
-//! use sphcover_core::{DVec3, PuEvaluator, SurfaceCoverParams, build_surface_cover};
+//! use sphcover_core::{DVec3, PuEvaluator, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
 //!
 //! // 2000 points on a sphere of radius 0.4 with outward normals (a Fibonacci lattice).
 //! let n = 2000;
@@ -38,7 +38,7 @@
 //! let points: Vec<DVec3> = normals.iter().map(|&u| 0.4 * u).collect();
 //!
 //! let params = SurfaceCoverParams { eps: 1e-2, ..SurfaceCoverParams::default() };
-//! let (cover, stats) = build_surface_cover(&points, &normals, &params)?;
+//! let (cover, stats) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params)?;
 //! assert_eq!(stats.supports_after_expansion, cover.len());
 //!
 //! // Positive inside, negative outside, near zero on the surface.
@@ -252,43 +252,78 @@ pub struct SurfaceCoverStats {
     pub timings: SurfaceCoverTimings,
 }
 
+/// The oriented points a surface cover is built from, in the unit frame, with what the
+/// caller may add: a confidence per point, and a point index it has built already.
+///
+/// ```
+/// use sphcover_core::{DVec3, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
+///
+/// // A 20 × 20 patch of the plane z = 0 with upward normals.
+/// let points: Vec<DVec3> = (0..400)
+///     .map(|i| DVec3::new((i % 20) as f64 / 40.0 - 0.25, (i / 20) as f64 / 40.0 - 0.25, 0.0))
+///     .collect();
+/// let normals = vec![DVec3::Z; points.len()];
+/// let samples = SurfaceSamples::new(&points, &normals);
+/// let (cover, stats) = build_surface_cover(&samples, &SurfaceCoverParams::default())?;
+/// assert_eq!(stats.used_points, 400);
+/// assert!(cover.len() > 0);
+/// # Ok::<(), sphcover_core::SurfaceCoverError>(())
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceSamples<'a> {
+    /// Positions in the unit frame.
+    pub points: &'a [DVec3],
+    /// Outward normals, one per point; they need not be unit length (they are normalised).
+    pub normals: &'a [DVec3],
+    /// A confidence per point: each fit weight is multiplied by it, and points of zero
+    /// confidence neither weigh in nor count in the error (they are left out entirely).
+    pub confidence: Option<&'a [f64]>,
+    /// A point index over exactly `points` ([`PointIndex::new`]), which the build uses
+    /// instead of indexing the points again whenever it uses every point (no zero normal, no
+    /// zero confidence). Any other index is ignored; the cover is the same either way.
+    pub index: Option<&'a PointIndex>,
+}
+
+impl<'a> SurfaceSamples<'a> {
+    /// Points and their normals, without confidence or index.
+    pub fn new(points: &'a [DVec3], normals: &'a [DVec3]) -> SurfaceSamples<'a> {
+        SurfaceSamples {
+            points,
+            normals,
+            confidence: None,
+            index: None,
+        }
+    }
+
+    /// The same samples with a confidence per point.
+    pub fn with_confidence(self, confidence: Option<&'a [f64]>) -> SurfaceSamples<'a> {
+        SurfaceSamples { confidence, ..self }
+    }
+
+    /// The same samples with a point index the caller has built over them.
+    pub fn with_index(self, index: &'a PointIndex) -> SurfaceSamples<'a> {
+        SurfaceSamples {
+            index: Some(index),
+            ..self
+        }
+    }
+}
+
 /// Builds the cover of oriented points given in the unit frame (thesis §3.4.1).
 ///
-/// `normals` point outward and need not be unit length (they are normalised); points whose
-/// normal is zero or not finite are skipped and counted in
+/// Points whose normal is zero or not finite are skipped and counted in
 /// [`SurfaceCoverStats::skipped_normals`].
 pub fn build_surface_cover(
-    points: &[DVec3],
-    normals: &[DVec3],
+    samples: &SurfaceSamples<'_>,
     params: &SurfaceCoverParams,
 ) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
-    build_surface_cover_with_confidence(points, normals, None, params)
-}
-
-/// As [`build_surface_cover`], with a confidence per point: each fit weight is multiplied by
-/// the point's confidence, and points of zero confidence neither weigh in nor count in the
-/// error (they are left out entirely).
-pub fn build_surface_cover_with_confidence(
-    points: &[DVec3],
-    normals: &[DVec3],
-    confidence: Option<&[f64]>,
-    params: &SurfaceCoverParams,
-) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
-    build(points, normals, confidence, None, params)
-}
-
-/// As [`build_surface_cover_with_confidence`], with `index` a point index the caller has
-/// built over `points` already ([`PointIndex::new`] of exactly these points): the build uses
-/// it instead of indexing the points again whenever it uses every point (no zero normal, no
-/// zero confidence). Any other index is ignored; the cover is the same either way.
-pub fn build_surface_cover_with_index(
-    points: &[DVec3],
-    normals: &[DVec3],
-    confidence: Option<&[f64]>,
-    index: &PointIndex,
-    params: &SurfaceCoverParams,
-) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
-    build(points, normals, confidence, Some(index), params)
+    build(
+        samples.points,
+        samples.normals,
+        samples.confidence,
+        samples.index,
+        params,
+    )
 }
 
 fn build(
@@ -480,8 +515,8 @@ pub fn build_surface_cover_from_cloud(
     let mut unit = cloud.positions.clone();
     normalisation.points_to_unit(&mut unit);
     // Rounding may put a coordinate a hair past ±0.5; the root cube's margin absorbs it.
-    let (cover, stats) =
-        build_surface_cover_with_confidence(&unit, normals, cloud.confidence.as_deref(), params)?;
+    let samples = SurfaceSamples::new(&unit, normals).with_confidence(cloud.confidence.as_deref());
+    let (cover, stats) = build_surface_cover(&samples, params)?;
     Ok((cover, normalisation, stats))
 }
 

@@ -10,7 +10,8 @@ use rayon::prelude::*;
 use sphcover_core::stages::Stage;
 use sphcover_core::{
     Cover, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex, PuEvaluator,
-    SphereIntersectionGraph, SupportLists, SupportSamples, TriMesh, build_surface_cover_with_index,
+    SphereIntersectionGraph, SupportLists, SupportSamples, SurfaceSamples, TriMesh,
+    build_surface_cover,
 };
 use sphcover_ops::{OpsError, PairGeometry};
 
@@ -268,8 +269,10 @@ fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         (&ctx.points[..], &ctx.normals[..], ctx.scanner.as_deref())
     };
     // The scan statistics' index serves the cover too when every sample is in it.
-    let (cover, cover_stats) =
-        build_surface_cover_with_index(points, normals, trust, ctx.index(), &cover_params)?;
+    let samples = SurfaceSamples::new(points, normals)
+        .with_confidence(trust)
+        .with_index(ctx.index());
+    let (cover, cover_stats) = build_surface_cover(&samples, &cover_params)?;
     ctx.stats.cover = cover_stats;
     ctx.stats.supports = cover.len();
     ctx.stats.depth = ctx

@@ -250,7 +250,7 @@ mod tests {
     use super::*;
     use crate::polygonise::{GridStep, polygonise};
     use sphcover_core::mesh_topology::MeshTopology;
-    use sphcover_core::{PuEvaluator, SurfaceCoverParams, build_surface_cover};
+    use sphcover_core::{PuEvaluator, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
 
     #[test]
     fn a_plate_thinner_than_a_cell_keeps_its_two_sides_apart() {
@@ -275,7 +275,8 @@ mod tests {
             eps: 2e-3,
             ..SurfaceCoverParams::default()
         };
-        let (cover, _) = build_surface_cover(&points, &normals, &params).unwrap();
+        let (cover, _) =
+            build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap();
         let eval = PuEvaluator::new(&cover, 1.0).unwrap();
         let p = PolygoniseParams {
             step: GridStep::Absolute(0.02),

@@ -379,7 +379,7 @@ fn check_params(params: &PolygoniseParams) -> Result<(), PolygoniseError> {
 mod tests {
     use super::*;
     use sphcover_core::mesh_topology::MeshTopology;
-    use sphcover_core::{Aabb, Cover, SurfaceCoverParams, build_surface_cover};
+    use sphcover_core::{Aabb, Cover, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
     use sphcover_fixtures::{sphere, sphere_signed_distance, torus, torus_signed_distance};
 
     pub(super) fn cover_of(cloud: &sphcover_core::PointCloud) -> Cover {
@@ -389,7 +389,7 @@ mod tests {
             eps: 5e-3,
             ..SurfaceCoverParams::default()
         };
-        build_surface_cover(&cloud.positions, normals, &params)
+        build_surface_cover(&SurfaceSamples::new(&cloud.positions, normals), &params)
             .expect("cover of a fixture")
             .0
     }
@@ -538,8 +538,11 @@ mod tests {
             })
             .collect();
         let normals = vec![DVec3::Z; points.len()];
-        let (cover, _) =
-            build_surface_cover(&points, &normals, &SurfaceCoverParams::default()).unwrap();
+        let (cover, _) = build_surface_cover(
+            &SurfaceSamples::new(&points, &normals),
+            &SurfaceCoverParams::default(),
+        )
+        .unwrap();
         let eval = PuEvaluator::new(&cover, 1.0).unwrap();
         let (mesh, stats) = polygonise(&eval, &points, &params(5)).unwrap();
         let topo = MeshTopology::of(&mesh);
