@@ -33,10 +33,13 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::covering::shuffle;
 use super::fit::{LINEAR, NormalEquations, QUADRATIC};
+use super::radii::radius_cap;
+use super::support::{Support, supports_to_cover};
 use super::{
-    Support, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
-    check_params, radius_cap, shuffle, supports_to_cover,
+    Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant,
+    check_params,
 };
 use crate::cover::Cover;
 use crate::point_index::PointIndex;
@@ -541,7 +544,7 @@ impl Samples<'_> {
         shuffle(&mut order, params.seed);
         let mut supports = Vec::new();
         let mut ball = Vec::new();
-        super::covering_loop(
+        super::covering::covering_loop(
             &order,
             n,
             |c| self.fit::<N>(c),
@@ -578,7 +581,7 @@ impl Samples<'_> {
 
     /// The grid builder's elimination pass, on samples.
     fn eliminate_redundant(&self, supports: Vec<Support>) -> Vec<Support> {
-        super::eliminate_redundant_supports(
+        super::elimination::eliminate_redundant_supports(
             supports,
             self.tolerance,
             self.positions.len(),
