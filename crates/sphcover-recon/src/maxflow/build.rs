@@ -198,8 +198,7 @@ impl<'a> FlowGraph<'a> {
         // `j > v`) in order meets the entries below the diagonal of every row `j` in their
         // own order. A cursor per row hands them out; an entry the cursor does not name
         // `v` has no reverse, and one never handed out keeps `u32::MAX`. (A binary search
-        // per entry cost 40–50 ms at two threads on the 3.5 million entries of a 362K-point
-        // scan's sphere intersection graph, its branches unpredictable.)
+        // per entry would cost more: its branches are unpredictable.)
         let mut sister = vec![u32::MAX; neighbors.len()];
         let mut cursor: Vec<u32> = offsets[..n].to_vec();
         for v in 0..n {
