@@ -3,9 +3,9 @@
 //! Two binaries live here:
 //!
 //! * `recon-bench` generates the standard synthetic scans of ground-truth meshes
-//!   (`sphcover_fixtures::scan`), runs `sphcover recon` and any peer given as a command
+//!   (`sphcover_evaluation::scan_simulation`), runs `sphcover recon` and any peer given as a command
 //!   template on each, measures wall time, CPU time and peak memory, scores every output
-//!   against the ground truth (`sphcover_fixtures::recon_metrics`) and prints one markdown
+//!   against the ground truth (`sphcover_evaluation::recon_metrics`) and prints one markdown
 //!   table;
 //! * `skeleton-bench` runs `sphcover skeleton` with `--method ridge` and `--method nms` on the
 //!   CT phantoms and tabulates cost and topology.

@@ -7,7 +7,7 @@ use std::process::Command;
 
 use sphcover_core::DVec3;
 use sphcover_core::io::{self, WriteOptions};
-use sphcover_fixtures::ground_truth_meshes::icosphere;
+use sphcover_evaluation::ground_truth_meshes::icosphere;
 
 fn temp_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("sphcover-benches-{name}-{}", std::process::id()));

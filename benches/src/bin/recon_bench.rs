@@ -21,9 +21,9 @@ use sphcover_benches::measured_run::{RunMeasurement, RunOutcome, run_measured};
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptions, WriteOptions};
 use sphcover_core::{DVec3, TriMesh};
-use sphcover_fixtures::ground_truth_meshes::{icosphere, torus_mesh};
-use sphcover_fixtures::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
-use sphcover_fixtures::scan::{ScanCase, generate_scan};
+use sphcover_evaluation::ground_truth_meshes::{icosphere, torus_mesh};
+use sphcover_evaluation::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
+use sphcover_evaluation::scan_simulation::{ScanCase, generate_scan};
 
 /// The ground truth used when no `--mesh` is given (relative to the workspace root).
 const DEFAULT_MESH: &str = "bunny=fixtures/real/bunny00.off";

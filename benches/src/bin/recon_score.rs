@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::Parser;
 use sphcover_core::io::{self, NonFinitePolicy, ReadOptions};
-use sphcover_fixtures::recon_metrics::{ReconMetricsParams, score_reconstruction};
+use sphcover_evaluation::recon_metrics::{ReconMetricsParams, score_reconstruction};
 
 #[derive(Debug, Parser)]
 #[command(

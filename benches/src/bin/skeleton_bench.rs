@@ -9,7 +9,7 @@
 //!
 //! A phantom is a CT volume (`.nii.gz`). When the folder of the volume holds the phantom
 //! generator's ground truth (`meta.json`, `gt_sheet.ply`, `gt_boundary.ply`, optionally
-//! `gt_junction.ply`), the output is scored with `sphcover_fixtures::sheet_metrics` at τ = 1
+//! `gt_junction.ply`), the output is scored with `sphcover_evaluation::sheet_metrics` at τ = 1
 //! voxel: coverage of the true sheet, spurious fraction (everywhere and away from the
 //! rounded rims), the 95th-percentile distance away from the rims, components and Euler
 //! characteristic against the expected ones, and how close the output comes to the true
@@ -28,8 +28,8 @@ use sphcover_benches::measured_run::{RunOutcome, run_measured};
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::io::{self, NonFinitePolicy, ReadOptions};
 use sphcover_core::{MeshTopology, TriMesh};
-use sphcover_fixtures::sheet_metrics::{read_ground_truth, score_mesh, score_points};
-use sphcover_fixtures::thin_phantoms::GroundTruthSheet;
+use sphcover_evaluation::sheet_metrics::{read_ground_truth, score_mesh, score_points};
+use sphcover_evaluation::thin_phantoms::GroundTruthSheet;
 
 /// Columns of the table.
 const COLUMNS: usize = 14;
@@ -182,7 +182,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     println!("{rendered}");
     if let Some(out) = &args.out {
         let text = format!(
-            "Command: `{}`\n\nScores of `sphcover_fixtures::sheet_metrics` at τ = 1 voxel \
+            "Command: `{}`\n\nScores of `sphcover_evaluation::sheet_metrics` at τ = 1 voxel \
              (distances in voxels; \"off rim\" = away from the rounded rims of the plates); \
              χ = Euler characteristic; true values from each phantom's `meta.json`.\n\n{rendered}",
             command_line()

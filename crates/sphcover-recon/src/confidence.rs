@@ -374,8 +374,8 @@ mod tests {
     #[test]
     fn scattered_cloud_is_less_confident_than_the_surface() {
         let n = 3000;
-        let mut cloud = sphcover_fixtures::sphere(DVec3::ZERO, 0.5, n);
-        sphcover_fixtures::add_uniform_outliers(
+        let mut cloud = sphcover_evaluation::sphere(DVec3::ZERO, 0.5, n);
+        sphcover_evaluation::add_uniform_outliers(
             &mut cloud,
             300,
             DVec3::new(0.55, -0.15, -0.15),

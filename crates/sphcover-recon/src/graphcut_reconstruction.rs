@@ -289,9 +289,9 @@ mod tests {
     use crate::graph_cut::{graph_cut_sig, graph_cut_sig_alongside, values_at};
 
     fn sphere_cover(outliers: usize) -> (Cover, Vec<DVec3>) {
-        let mut cloud = sphcover_fixtures::sphere(DVec3::ZERO, 0.5, 3000);
-        sphcover_fixtures::add_position_noise(&mut cloud, 0.002, 3);
-        sphcover_fixtures::add_uniform_outliers(
+        let mut cloud = sphcover_evaluation::sphere(DVec3::ZERO, 0.5, 3000);
+        sphcover_evaluation::add_position_noise(&mut cloud, 0.002, 3);
+        sphcover_evaluation::add_uniform_outliers(
             &mut cloud,
             outliers,
             DVec3::splat(-0.5),
@@ -421,10 +421,10 @@ mod speed {
     #[ignore]
     fn graphcut_speed() {
         let n = 100_000;
-        let mut cloud = sphcover_fixtures::torus(0.35, 0.15, n);
-        sphcover_fixtures::add_position_noise(&mut cloud, 0.001, 1);
+        let mut cloud = sphcover_evaluation::torus(0.35, 0.15, n);
+        sphcover_evaluation::add_position_noise(&mut cloud, 0.001, 1);
         let m = cloud.len();
-        sphcover_fixtures::add_uniform_outliers(
+        sphcover_evaluation::add_uniform_outliers(
             &mut cloud,
             m / 100,
             DVec3::new(-0.5, -0.5, -0.15),

@@ -236,7 +236,7 @@ mod tests {
 
     /// An icosahedron subdivided `levels` times on the unit sphere.
     pub(crate) fn icosphere(levels: usize) -> TriMesh {
-        sphcover_fixtures::ground_truth_meshes::icosphere(DVec3::ZERO, 1.0, levels as u32)
+        sphcover_evaluation::ground_truth_meshes::icosphere(DVec3::ZERO, 1.0, levels as u32)
     }
 
     /// A deterministic pseudo-random value in [−1, 1) from an integer (splitmix64).

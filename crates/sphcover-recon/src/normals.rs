@@ -313,10 +313,10 @@ mod tests {
 
     #[test]
     fn sphere_torus_and_noisy_sphere_are_oriented_outward() {
-        let sphere = sphcover_fixtures::sphere(DVec3::new(0.3, -0.2, 0.1), 0.5, 2000);
-        let torus = sphcover_fixtures::torus(0.35, 0.15, 3000);
-        let mut noisy = sphcover_fixtures::sphere(DVec3::ZERO, 0.5, 2000);
-        sphcover_fixtures::add_position_noise(&mut noisy, 0.0025, 1);
+        let sphere = sphcover_evaluation::sphere(DVec3::new(0.3, -0.2, 0.1), 0.5, 2000);
+        let torus = sphcover_evaluation::torus(0.35, 0.15, 3000);
+        let mut noisy = sphcover_evaluation::sphere(DVec3::ZERO, 0.5, 2000);
+        sphcover_evaluation::add_position_noise(&mut noisy, 0.0025, 1);
         for (name, cloud) in [
             ("sphere", &sphere),
             ("torus", &torus),
@@ -340,8 +340,8 @@ mod tests {
 
     #[test]
     fn two_separate_spheres_are_each_outward() {
-        let mut a = sphcover_fixtures::sphere(DVec3::ZERO, 0.3, 800);
-        let b = sphcover_fixtures::sphere(DVec3::new(2.0, 0.0, 0.0), 0.2, 500);
+        let mut a = sphcover_evaluation::sphere(DVec3::ZERO, 0.3, 800);
+        let b = sphcover_evaluation::sphere(DVec3::new(2.0, 0.0, 0.0), 0.2, 500);
         a.positions.extend(&b.positions);
         a.normals
             .as_mut()
@@ -354,7 +354,7 @@ mod tests {
 
     #[test]
     fn thread_count_does_not_change_the_result() {
-        let cloud = sphcover_fixtures::torus(0.35, 0.15, 3000);
+        let cloud = sphcover_evaluation::torus(0.35, 0.15, 3000);
         let on = |threads| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -402,8 +402,8 @@ mod tests {
     #[test]
     #[ignore]
     fn normals_speed() {
-        let mut cloud = sphcover_fixtures::torus(0.35, 0.15, 362_000);
-        sphcover_fixtures::add_position_noise(&mut cloud, 0.0005, 5);
+        let mut cloud = sphcover_evaluation::torus(0.35, 0.15, 362_000);
+        sphcover_evaluation::add_position_noise(&mut cloud, 0.0005, 5);
         let t = Instant::now();
         let est = estimate_normals(&cloud.positions, &NormalParams::default()).unwrap();
         println!(

@@ -227,7 +227,7 @@ fn median(mut values: Vec<f64>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sphcover_fixtures::{add_position_noise, add_uniform_outliers, sphere};
+    use sphcover_evaluation::{add_position_noise, add_uniform_outliers, sphere};
 
     #[test]
     fn noise_is_measured_and_isolated_points_found() {

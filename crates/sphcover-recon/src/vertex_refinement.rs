@@ -525,7 +525,7 @@ impl Cholesky {
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use sphcover_fixtures::{ground_truth_meshes::icosphere, sphere};
+    use sphcover_evaluation::{ground_truth_meshes::icosphere, sphere};
 
     /// Refines `mesh` onto the samples of `cloud`, every sample weighing 1.
     fn refine(
@@ -714,7 +714,7 @@ mod tests {
     fn noise_that_raised_the_tolerance_holds_the_vertices_back() {
         // A noisy sphere: the shrunk moves with a high noise ratio are far shorter.
         let mut cloud = sphere(DVec3::ZERO, 1.0, 6000);
-        sphcover_fixtures::add_position_noise(&mut cloud, 0.01, 3);
+        sphcover_evaluation::add_position_noise(&mut cloud, 0.01, 3);
         let h = spacing(1.0, 6000);
         let normals = cloud.normals.clone().unwrap();
         let weights = vec![1.0; cloud.len()];

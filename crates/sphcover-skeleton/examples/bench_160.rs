@@ -4,8 +4,8 @@
 //!
 //! `cargo run --release -p sphcover-skeleton --example bench_160`
 use sphcover_core::{DVec3, Volume, VoxelValues};
-use sphcover_fixtures::sheet_metrics::score_mesh;
-use sphcover_fixtures::thin_phantoms::{
+use sphcover_evaluation::sheet_metrics::score_mesh;
+use sphcover_evaluation::thin_phantoms::{
     AIR_HU, MATERIAL_HU, PhantomParams, ThinShape, thin_phantom,
 };
 use sphcover_skeleton::{SkeletonParams, extract_skeleton};

@@ -8,8 +8,8 @@
 //! `PARAMS=name=value,...` overrides numeric fields of the default parameters (see
 //! `overridden`), for measuring alternatives with the same command.
 use sphcover_core::io::{self, PlyEncoding, WriteOptions};
-use sphcover_fixtures::sheet_metrics::{SheetMetrics, score_mesh, score_points};
-use sphcover_fixtures::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
+use sphcover_evaluation::sheet_metrics::{SheetMetrics, score_mesh, score_points};
+use sphcover_evaluation::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{NmsParams, SkeletonParams, extract_skeleton, nms_skeleton};
 
 fn row(name: &str, method: &str, noise: f64, m: &SheetMetrics, truth_euler: i64, secs: f64) {

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use sphcover_core::io::{self, ReadOptions};
-use sphcover_fixtures::sheet_metrics::{read_ground_truth, score_mesh, score_points};
+use sphcover_evaluation::sheet_metrics::{read_ground_truth, score_mesh, score_points};
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().collect();

@@ -3,8 +3,8 @@
 //! true sheet, and the same answer whatever the thread count.
 
 use glam::DVec3;
-use sphcover_fixtures::sheet_metrics::score_mesh;
-use sphcover_fixtures::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
+use sphcover_evaluation::sheet_metrics::score_mesh;
+use sphcover_evaluation::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{SkeletonError, SkeletonParams, extract_skeleton_from_samples};
 
 /// The voxel centres and values of `phantom`, keeping each voxel with probability `keep`.

@@ -4,8 +4,8 @@
 //! asserted is the measured one and the comment says so.
 
 use sphcover_core::mesh_topology::MeshTopology;
-use sphcover_fixtures::sheet_metrics::{SheetMetrics, score_mesh};
-use sphcover_fixtures::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
+use sphcover_evaluation::sheet_metrics::{SheetMetrics, score_mesh};
+use sphcover_evaluation::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{SkeletonParams, extract_skeleton};
 
 fn run(shape: ThinShape, noise: f64) -> (Phantom, SheetMetrics) {

@@ -3,7 +3,7 @@
 
 use std::sync::Mutex;
 
-use sphcover_fixtures::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
+use sphcover_evaluation::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{
     SheetRepairs, SkeletonError, SkeletonParams, extract_skeleton, stage_names,
 };

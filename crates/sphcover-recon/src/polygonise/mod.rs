@@ -380,7 +380,7 @@ mod tests {
     use super::*;
     use sphcover_core::mesh_topology::MeshTopology;
     use sphcover_core::{Aabb, Cover, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
-    use sphcover_fixtures::{sphere, sphere_signed_distance, torus, torus_signed_distance};
+    use sphcover_evaluation::{sphere, sphere_signed_distance, torus, torus_signed_distance};
 
     pub(super) fn cover_of(cloud: &sphcover_core::PointCloud) -> Cover {
         let normals = cloud.normals.as_ref().expect("fixtures carry normals");

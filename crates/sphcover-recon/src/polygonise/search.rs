@@ -199,7 +199,7 @@ fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
 mod tests {
     use super::*;
     use crate::polygonise::tests::cover_of;
-    use sphcover_fixtures::{sphere, torus};
+    use sphcover_evaluation::{sphere, torus};
 
     /// The search from seeds on every component finds exactly the active cells (with the
     /// same sheets) that classifying every cell of the grid finds.

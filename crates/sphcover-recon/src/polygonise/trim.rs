@@ -41,7 +41,7 @@ mod tests {
     use glam::DVec3;
     use sphcover_core::PuEvaluator;
     use sphcover_core::mesh_topology::MeshTopology;
-    use sphcover_fixtures::sphere;
+    use sphcover_evaluation::sphere;
 
     #[test]
     fn trimming_a_sphere_seeded_on_one_half_opens_it() {
