@@ -30,7 +30,7 @@ fn count_containing(index: &BallIndex, points: &[DVec3]) -> usize {
 fn ball_query(c: &mut Criterion) {
     let params = AdaptiveCoverParams {
         surface: Surface::Sphere {
-            center: DVec3::ZERO,
+            centre: DVec3::ZERO,
             radius: SPHERE_RADIUS,
         },
         max_depth: 9,
@@ -38,7 +38,7 @@ fn ball_query(c: &mut Criterion) {
     };
     let cover = adaptive_surface_cover(&params).expect("valid parameters");
     let start = Instant::now();
-    let index = BallIndex::new(&cover.centers, &cover.radii);
+    let index = BallIndex::new(&cover.centres, &cover.radii);
     eprintln!(
         "adaptive cover: {} supports; index built in {:.2?}",
         cover.len(),
@@ -82,7 +82,7 @@ fn ball_query(c: &mut Criterion) {
     c.bench_function("ball_index_build_adaptive_1m", |b| {
         b.iter(|| {
             black_box(BallIndex::new(
-                black_box(&cover.centers),
+                black_box(&cover.centres),
                 black_box(&cover.radii),
             ))
         })

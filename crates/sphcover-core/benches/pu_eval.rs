@@ -39,23 +39,23 @@ fn random_direction(rng: &mut impl Rng) -> DVec3 {
 /// with acceptance `(r_min/r)²`, the shell width supplying the remaining `1/r`), each carrying
 /// the tangent plane of the signed distance `R − ‖x‖` (positive inside).
 fn sphere_cover(rng: &mut impl Rng) -> Cover {
-    let mut centers = Vec::with_capacity(SUPPORTS);
+    let mut centres = Vec::with_capacity(SUPPORTS);
     let mut radii = Vec::with_capacity(SUPPORTS);
-    while centers.len() < SUPPORTS {
+    while centres.len() < SUPPORTS {
         let n = random_direction(rng);
         let r = radius_along(n);
         if rng.random::<f64>() >= (R_MIN / r).powi(2) {
             continue;
         }
         let offset = rng.random_range(-1.0..1.0) * r;
-        centers.push(n * (SPHERE + offset));
+        centres.push(n * (SPHERE + offset));
         radii.push(r);
     }
-    let funcs = LocalFunctions::from_linear(centers.iter().map(|&c| LinearFunction {
+    let funcs = LocalFunctions::from_linear(centres.iter().map(|&c| LinearFunction {
         alpha: -c.normalize(),
         beta: SPHERE - c.length(),
     }));
-    Cover::new(centers, radii, funcs, Kernel::QuadraticBSpline).expect("valid cover")
+    Cover::new(centres, radii, funcs, Kernel::QuadraticBSpline).expect("valid cover")
 }
 
 fn near_surface_points(rng: &mut impl Rng, count: usize) -> Vec<DVec3> {

@@ -19,7 +19,7 @@ const SHRINK: f64 = 0.7;
 fn million_support_cover() -> SyntheticCover {
     let params = AdaptiveCoverParams {
         surface: Surface::Sphere {
-            center: DVec3::ZERO,
+            centre: DVec3::ZERO,
             radius: 0.225,
         },
         max_depth: 9,
@@ -40,7 +40,7 @@ fn million_support_cover() -> SyntheticCover {
 fn sig_build(c: &mut Criterion) {
     let cover = million_support_cover();
     let graph =
-        SphereIntersectionGraph::build(&cover.centers, &cover.radii, SHRINK).expect("valid cover");
+        SphereIntersectionGraph::build(&cover.centres, &cover.radii, SHRINK).expect("valid cover");
     let max_degree = (0..graph.len()).map(|i| graph.degree(i)).max().unwrap_or(0);
     eprintln!(
         "SIG (s = {SHRINK}): {} nodes, {} edges, mean degree {:.2}, max degree {max_degree}, \
@@ -54,7 +54,7 @@ fn sig_build(c: &mut Criterion) {
         b.iter(|| {
             black_box(
                 SphereIntersectionGraph::build(
-                    black_box(&cover.centers),
+                    black_box(&cover.centres),
                     black_box(&cover.radii),
                     SHRINK,
                 )

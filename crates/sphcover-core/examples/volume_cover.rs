@@ -110,7 +110,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // Non-finite voxels are no samples, as for the grid builder.
         let (points, values): (Vec<DVec3>, Vec<f64>) = (0..volume.len())
             .filter(|&i| volume.value(i).is_finite())
-            .map(|i| (volume.voxel_center(volume.ijk(i)), volume.value(i)))
+            .map(|i| (volume.voxel_centre(volume.ijk(i)), volume.value(i)))
             .unzip();
         build_scattered_cover(&points, &values, &params)?
     } else {
@@ -163,7 +163,7 @@ fn blend_check(
         .collect();
     let centres: Vec<DVec3> = object
         .iter()
-        .map(|&i| volume.voxel_center(volume.ijk(i)))
+        .map(|&i| volume.voxel_centre(volume.ijk(i)))
         .collect();
     let values = f.values(&centres);
     let (mut sum, mut worst, mut outside) = (0.0, 0.0f64, 0usize);

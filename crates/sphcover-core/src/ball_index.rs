@@ -74,11 +74,11 @@ const TINY_BOUND: f64 = 1e-140;
 /// Why a [`BallIndex`] could not be built.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]
 pub enum BallIndexError {
-    /// `centers` and `radii` have different lengths.
-    #[error("{centers} centres but {radii} radii")]
+    /// `centres` and `radii` have different lengths.
+    #[error("{centres} centres but {radii} radii")]
     LengthMismatch {
         /// Number of centres given.
-        centers: usize,
+        centres: usize,
         /// Number of radii given.
         radii: usize,
     },
@@ -94,7 +94,7 @@ pub enum BallIndexError {
 /// candidate costs one cache line at most.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PackedBall {
-    pub(crate) center: DVec3,
+    pub(crate) centre: DVec3,
     pub(crate) radius: f64,
     pub(crate) id: u32,
 }
@@ -132,29 +132,29 @@ pub struct BallIndex {
 }
 
 impl BallIndex {
-    /// Builds the index. `centers` and `radii` have the same length; radii are finite and
+    /// Builds the index. `centres` and `radii` have the same length; radii are finite and
     /// non-negative (other values are tolerated: every query applies its test literally).
     ///
     /// # Panics
     ///
     /// When the lengths differ or there are more than `u32::MAX` balls; use
     /// [`BallIndex::try_new`] to get an error instead.
-    pub fn new(centers: &[DVec3], radii: &[f64]) -> BallIndex {
-        match BallIndex::try_new(centers, radii) {
+    pub fn new(centres: &[DVec3], radii: &[f64]) -> BallIndex {
+        match BallIndex::try_new(centres, radii) {
             Ok(index) => index,
             Err(e) => panic!("BallIndex::new: {e}"),
         }
     }
 
     /// Builds the index, or says why the input cannot be indexed.
-    pub fn try_new(centers: &[DVec3], radii: &[f64]) -> Result<BallIndex, BallIndexError> {
-        if centers.len() != radii.len() {
+    pub fn try_new(centres: &[DVec3], radii: &[f64]) -> Result<BallIndex, BallIndexError> {
+        if centres.len() != radii.len() {
             return Err(BallIndexError::LengthMismatch {
-                centers: centers.len(),
+                centres: centres.len(),
                 radii: radii.len(),
             });
         }
-        let len = centers.len();
+        let len = centres.len();
         if u32::try_from(len).is_err() {
             return Err(BallIndexError::TooManyBalls { len });
         }
@@ -164,11 +164,11 @@ impl BallIndex {
         const NOT_IN_LEVEL: u8 = u8::MAX;
         let reference_radius = radii
             .par_iter()
-            .zip(centers)
+            .zip(centres)
             .filter(|(r, c)| r.is_finite() && **r > 0.0 && c.is_finite())
             .map(|(r, _)| *r)
             .reduce(|| f64::INFINITY, f64::min);
-        let level_of: Vec<u8> = centers
+        let level_of: Vec<u8> = centres
             .par_iter()
             .zip(radii)
             .map(|(c, &r)| {
@@ -179,10 +179,10 @@ impl BallIndex {
                 }
             })
             .collect();
-        for (j, (c, &r)) in centers.iter().zip(radii).enumerate() {
+        for (j, (c, &r)) in centres.iter().zip(radii).enumerate() {
             if c.is_finite() && !r.is_finite() {
                 unbounded.push(PackedBall {
-                    center: *c,
+                    centre: *c,
                     radius: r,
                     id: j as u32,
                 });
@@ -198,7 +198,7 @@ impl BallIndex {
         let levels = members
             .into_par_iter()
             .filter(|m| !m.is_empty())
-            .map(|m| Level::build(&m, centers, radii))
+            .map(|m| Level::build(&m, centres, radii))
             .collect();
 
         Ok(BallIndex {
@@ -226,7 +226,7 @@ impl BallIndex {
     pub fn for_each_within(&self, x: DVec3, scale: f64, extra: f64, mut visit: impl FnMut(u32)) {
         self.for_each_candidate_run(x, scale, extra, |balls| {
             for ball in balls {
-                if ball.center.distance(x) < scale * ball.radius + extra {
+                if ball.centre.distance(x) < scale * ball.radius + extra {
                     visit(ball.id);
                 }
             }
@@ -250,12 +250,12 @@ impl BallIndex {
             let mut hits = 0;
             for ball in balls {
                 let t = scale * ball.radius + extra;
-                let d2 = ball.center.distance_squared(x);
+                let d2 = ball.centre.distance_squared(x);
                 run_out[hits] = ball.id;
                 // Below about 1e-150 the square of the bound loses its precision to
                 // underflow: such balls get the literal test.
                 let hit =
-                    d2 < t * t * LOOSE_SQ_FACTOR || (t < TINY_BOUND && ball.center.distance(x) < t);
+                    d2 < t * t * LOOSE_SQ_FACTOR || (t < TINY_BOUND && ball.centre.distance(x) < t);
                 hits += usize::from(hit);
             }
             len += hits;
@@ -278,7 +278,7 @@ impl BallIndex {
             let mut hits = 0;
             for ball in balls {
                 run_out[hits] = ball.id;
-                hits += usize::from(ball.center.distance(x) < ball.radius);
+                hits += usize::from(ball.centre.distance(x) < ball.radius);
             }
             len += hits;
         });
@@ -417,11 +417,11 @@ impl GridAxis {
 impl Level {
     /// Builds the level holding the balls `members` (ascending original indices; centres and
     /// radii finite).
-    fn build(members: &[u32], centers: &[DVec3], radii: &[f64]) -> Level {
+    fn build(members: &[u32], centres: &[DVec3], radii: &[f64]) -> Level {
         let (radius_lo, radius_hi, lo, hi) = members
             .par_iter()
             .map(|&j| {
-                let (c, r) = (centers[j as usize], radii[j as usize]);
+                let (c, r) = (centres[j as usize], radii[j as usize]);
                 (r, r, c, c)
             })
             .reduce(
@@ -469,7 +469,7 @@ impl Level {
         let mut keys: Vec<u64> = members
             .par_iter()
             .map(|&j| {
-                let c = centers[j as usize];
+                let c = centres[j as usize];
                 let cell = (z.cell(c.z) * y.cells + y.cell(c.y)) * x.cells + x.cell(c.x);
                 ((cell as u64) << 32) | u64::from(j)
             })
@@ -493,7 +493,7 @@ impl Level {
             .map(|&key| {
                 let j = key as u32 as usize;
                 PackedBall {
-                    center: centers[j],
+                    centre: centres[j],
                     radius: radii[j],
                     id: j as u32,
                 }
@@ -620,14 +620,14 @@ mod tests {
             on_sphere in any::<prop::sample::Index>(),
             extra in prop_oneof![Just(0.0), 0.0f64..0.3],
         ) {
-            let centers: Vec<DVec3> = balls.iter().map(|b| DVec3::new(b.0, b.1, b.2)).collect();
+            let centres: Vec<DVec3> = balls.iter().map(|b| DVec3::new(b.0, b.1, b.2)).collect();
             let radii: Vec<f64> = balls.iter().map(|b| b.3).collect();
-            let index = BallIndex::new(&centers, &radii);
+            let index = BallIndex::new(&centres, &radii);
             // Half of the queries sit on a sphere, where the two tests are closest.
             let mut queries = vec![DVec3::new(qx, qy, qz)];
-            let j = on_sphere.index(centers.len());
+            let j = on_sphere.index(centres.len());
             let dir = DVec3::new(qx, qy, qz).normalize_or(DVec3::X);
-            queries.push(centers[j] + dir * (radii[j] + extra));
+            queries.push(centres[j] + dir * (radii[j] + extra));
             for x in queries {
                 let mut literal = Vec::new();
                 index.for_each_within(x, 1.0, extra, |j| literal.push(j));
@@ -642,7 +642,7 @@ mod tests {
                 }
                 for &j in &loose {
                     let bound = radii[j as usize] + extra;
-                    prop_assert!(centers[j as usize].distance(x) < bound * (1.0 + 1e-9));
+                    prop_assert!(centres[j as usize].distance(x) < bound * (1.0 + 1e-9));
                 }
             }
         }

@@ -12,7 +12,7 @@ pub enum CoverError {
     LengthMismatch {
         /// Name of the offending array (`radii`, or a local-function coefficient array).
         array: &'static str,
-        /// Number of supports (length of `centers`).
+        /// Number of supports (length of `centres`).
         expected: usize,
         /// Length of the offending array.
         found: usize,
@@ -24,12 +24,12 @@ pub enum CoverError {
         count: usize,
     },
     /// A centre has a NaN or infinite coordinate.
-    #[error("support {index}: centre {center} is not finite")]
-    NonFiniteCenter {
+    #[error("support {index}: centre {centre} is not finite")]
+    NonFiniteCentre {
         /// Index of the support.
         index: usize,
         /// The centre given.
-        center: DVec3,
+        centre: DVec3,
     },
     /// A radius is NaN, infinite, zero, negative or subnormal (its reciprocal must be finite).
     #[error("support {index}: radius {radius} is not a finite positive normal number")]
@@ -84,7 +84,7 @@ pub enum CoverError {
 /// f(x) = Σ_i w_i(x) g_i(x) / Σ_i w_i(x),   w_i(x) = ψ(‖x − c_i‖ / r_i)
 /// ```
 ///
-/// Stored as struct-of-arrays; support `i` is `(centers[i], radii[i], funcs.get(i))`. The
+/// Stored as struct-of-arrays; support `i` is `(centres[i], radii[i], funcs.get(i))`. The
 /// constructor validates every entry, so a `Cover` always has finite centres, finite positive
 /// radii and finite local functions, one per support. Evaluate it with
 /// [`crate::PuEvaluator`].
@@ -95,12 +95,12 @@ pub enum CoverError {
 /// use sphcover_core::{Cover, DVec3, Kernel, LinearFunction, LocalFunctions, PuEvaluator};
 ///
 /// // Two overlapping supports on the x axis, both carrying g(x) = 1 − x (in centred form).
-/// let centers = vec![DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0)];
+/// let centres = vec![DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0)];
 /// let radii = vec![1.0, 1.5];
 /// let funcs = LocalFunctions::from_linear(
-///     centers.iter().map(|&c| LinearFunction::from_global(DVec3::new(-1.0, 0.0, 0.0), 1.0, c)),
+///     centres.iter().map(|&c| LinearFunction::from_global(DVec3::new(-1.0, 0.0, 0.0), 1.0, c)),
 /// );
-/// let cover = Cover::new(centers, radii, funcs, Kernel::WendlandC2)?;
+/// let cover = Cover::new(centres, radii, funcs, Kernel::WendlandC2)?;
 ///
 /// let eval = PuEvaluator::new(&cover, 1.0)?;
 /// let x = DVec3::new(0.5, 0.2, 0.0);
@@ -113,7 +113,7 @@ pub enum CoverError {
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cover {
-    centers: Vec<DVec3>,
+    centres: Vec<DVec3>,
     radii: Vec<f64>,
     funcs: LocalFunctions,
     kernel: Kernel,
@@ -124,12 +124,12 @@ impl Cover {
     /// and local functions are finite, that radii are finite, positive and normal (not
     /// subnormal, so `1/r` is finite), and that the supports can be indexed by `u32`.
     pub fn new(
-        centers: Vec<DVec3>,
+        centres: Vec<DVec3>,
         radii: Vec<f64>,
         funcs: LocalFunctions,
         kernel: Kernel,
     ) -> Result<Cover, CoverError> {
-        let n = centers.len();
+        let n = centres.len();
         if u32::try_from(n).is_err() {
             return Err(CoverError::TooManySupports { count: n });
         }
@@ -141,10 +141,10 @@ impl Cover {
             });
         }
         check_funcs(&funcs, n)?;
-        if let Some(index) = centers.iter().position(|c| !c.is_finite()) {
-            return Err(CoverError::NonFiniteCenter {
+        if let Some(index) = centres.iter().position(|c| !c.is_finite()) {
+            return Err(CoverError::NonFiniteCentre {
                 index,
-                center: centers[index],
+                centre: centres[index],
             });
         }
         if let Some(index) = radii.iter().position(|&r| !(r.is_normal() && r > 0.0)) {
@@ -154,7 +154,7 @@ impl Cover {
             });
         }
         Ok(Cover {
-            centers,
+            centres,
             radii,
             funcs,
             kernel,
@@ -163,17 +163,17 @@ impl Cover {
 
     /// Number of supports.
     pub fn len(&self) -> usize {
-        self.centers.len()
+        self.centres.len()
     }
 
     /// True when the cover has no support.
     pub fn is_empty(&self) -> bool {
-        self.centers.is_empty()
+        self.centres.is_empty()
     }
 
     /// Support centres `c_i`.
-    pub fn centers(&self) -> &[DVec3] {
-        &self.centers
+    pub fn centres(&self) -> &[DVec3] {
+        &self.centres
     }
 
     /// Support radii `r_i`.
@@ -209,9 +209,9 @@ impl Cover {
         Ok(())
     }
 
-    /// Takes the cover apart: `(centers, radii, funcs, kernel)`.
+    /// Takes the cover apart: `(centres, radii, funcs, kernel)`.
     pub fn into_parts(self) -> (Vec<DVec3>, Vec<f64>, LocalFunctions, Kernel) {
-        (self.centers, self.radii, self.funcs, self.kernel)
+        (self.centres, self.radii, self.funcs, self.kernel)
     }
 }
 

@@ -49,7 +49,7 @@ impl Aabb {
     }
 
     /// Centre of the box (origin for an empty box).
-    pub fn center(&self) -> DVec3 {
+    pub fn centre(&self) -> DVec3 {
         if self.is_empty() {
             DVec3::ZERO
         } else {
@@ -82,7 +82,7 @@ impl Aabb {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Normalisation {
     /// Centre of the input bounding box, in input coordinates.
-    pub center: DVec3,
+    pub centre: DVec3,
     /// Longest edge of the input bounding box: one unit-frame length in input units.
     pub scale: f64,
 }
@@ -90,7 +90,7 @@ pub struct Normalisation {
 impl Normalisation {
     /// The identity map.
     pub const IDENTITY: Normalisation = Normalisation {
-        center: DVec3::ZERO,
+        centre: DVec3::ZERO,
         scale: 1.0,
     };
 
@@ -102,12 +102,12 @@ impl Normalisation {
             return None;
         }
         let edge = bbox.longest_edge();
-        let center = bbox.center();
-        if !edge.is_finite() || !center.is_finite() {
+        let centre = bbox.centre();
+        if !edge.is_finite() || !centre.is_finite() {
             return None;
         }
         let scale = if edge > 0.0 { edge } else { 1.0 };
-        Some(Normalisation { center, scale })
+        Some(Normalisation { centre, scale })
     }
 
     /// The normalisation of the bounding box of `points`.
@@ -118,13 +118,13 @@ impl Normalisation {
     /// Input coordinates → unit frame.
     #[inline]
     pub fn to_unit(&self, p: DVec3) -> DVec3 {
-        (p - self.center) / self.scale
+        (p - self.centre) / self.scale
     }
 
     /// Unit frame → input coordinates.
     #[inline]
     pub fn to_input(&self, p: DVec3) -> DVec3 {
-        p * self.scale + self.center
+        p * self.scale + self.centre
     }
 
     /// A length in the unit frame → input units.
@@ -162,7 +162,7 @@ mod tests {
         n.points_to_unit(&mut unit);
         let b = Aabb::from_points(&unit);
         assert!((b.longest_edge() - 1.0).abs() < 1e-15);
-        assert!(b.center().length() < 1e-15);
+        assert!(b.centre().length() < 1e-15);
         n.points_to_input(&mut unit);
         for (a, b) in unit.iter().zip(pts.iter()) {
             assert!((*a - *b).length() < 1e-14);

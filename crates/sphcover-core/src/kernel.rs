@@ -113,17 +113,17 @@ impl Kernel {
         }
     }
 
-    /// The weight at `x` of a support with centre `center` and radius `radius > 0`.
-    pub fn weight(self, x: DVec3, center: DVec3, radius: f64) -> f64 {
+    /// The weight at `x` of a support with centre `centre` and radius `radius > 0`.
+    pub fn weight(self, x: DVec3, centre: DVec3, radius: f64) -> f64 {
         // Multiplying by the reciprocal, like the derivative paths, keeps them bitwise equal.
-        let u = (x - center) * (1.0 / radius);
+        let u = (x - centre) * (1.0 / radius);
         self.value_sq(u.length_squared())
     }
 
     /// The weight and its gradient with respect to `x`.
-    pub fn weight_gradient(self, x: DVec3, center: DVec3, radius: f64) -> (f64, DVec3) {
+    pub fn weight_gradient(self, x: DVec3, centre: DVec3, radius: f64) -> (f64, DVec3) {
         let inv_r = 1.0 / radius;
-        let u = (x - center) * inv_r;
+        let u = (x - centre) * inv_r;
         let (w, a) = self.value_slope_sq(u.length_squared());
         (w, u * (a * inv_r))
     }
@@ -132,11 +132,11 @@ impl Kernel {
     pub fn weight_gradient_hessian(
         self,
         x: DVec3,
-        center: DVec3,
+        centre: DVec3,
         radius: f64,
     ) -> (f64, DVec3, DMat3) {
         let inv_r = 1.0 / radius;
-        let u = (x - center) * inv_r;
+        let u = (x - centre) * inv_r;
         let (w, a, b) = self.value_slope_curvature_sq(u.length_squared());
         let (grad, hess) = gradient_hessian(u, inv_r, a, b);
         (w, grad, hess)

@@ -33,7 +33,7 @@
 //! assert!(f.value(points[0]).unwrap().abs() <= 2.0 * params.eps);
 //!
 //! // Which supports overlap (thesis Appendix B): every support meets another.
-//! let graph = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 1.0)?;
+//! let graph = SphereIntersectionGraph::build(cover.centres(), cover.radii(), 1.0)?;
 //! assert!((0..cover.len()).all(|i| graph.degree(i) > 0));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -59,6 +59,7 @@ pub mod support_samples;
 pub mod surface_cover;
 pub mod symmetric_eigen;
 pub mod synthetic;
+pub mod threads;
 pub mod volume;
 pub mod volume_cover;
 

@@ -80,12 +80,12 @@ impl QuadraticFunction {
     }
 
     /// The quadratic `xᵀQx + p·x + q` of the raw coordinates, rewritten in the form centred at
-    /// `center`: `A = Q`, `b = (Q + Qᵀ)c + p`, `k = cᵀQc + p·c + q`.
-    pub fn from_global(q_mat: DMat3, p: DVec3, q: f64, center: DVec3) -> QuadraticFunction {
+    /// `centre`: `A = Q`, `b = (Q + Qᵀ)c + p`, `k = cᵀQc + p·c + q`.
+    pub fn from_global(q_mat: DMat3, p: DVec3, q: f64, centre: DVec3) -> QuadraticFunction {
         QuadraticFunction {
             a: q_mat,
-            b: q_mat * center + q_mat.transpose() * center + p,
-            k: center.dot(q_mat * center) + p.dot(center) + q,
+            b: q_mat * centre + q_mat.transpose() * centre + p,
+            k: centre.dot(q_mat * centre) + p.dot(centre) + q,
         }
     }
 
@@ -97,11 +97,11 @@ impl QuadraticFunction {
 
 impl LinearFunction {
     /// The linear function `p·x + q` of the raw coordinates, rewritten in the form centred at
-    /// `center`: `α = p`, `β = p·c + q`.
-    pub fn from_global(p: DVec3, q: f64, center: DVec3) -> LinearFunction {
+    /// `centre`: `α = p`, `β = p·c + q`.
+    pub fn from_global(p: DVec3, q: f64, centre: DVec3) -> LinearFunction {
         LinearFunction {
             alpha: p,
-            beta: p.dot(center) + q,
+            beta: p.dot(centre) + q,
         }
     }
 }

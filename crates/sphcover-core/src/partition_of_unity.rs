@@ -142,7 +142,7 @@ impl<'a> PuEvaluator<'a> {
             expanded.push(r);
         }
         let supports = PackedSupports::new(cover, sigma);
-        let index = BallIndex::new(cover.centers(), &expanded);
+        let index = BallIndex::new(cover.centres(), &expanded);
         let block_span = if expanded.is_empty() {
             0.0
         } else {
@@ -191,7 +191,7 @@ impl<'a> PuEvaluator<'a> {
         let kernel = self.cover.kernel();
         self.with_supports(x, |ids| {
             for &j in ids {
-                let (c, inv_r) = self.supports.center_inv_radius(j as usize);
+                let (c, inv_r) = self.supports.centre_inv_radius(j as usize);
                 let u = (x - c) * inv_r;
                 let w = kernel.value_sq(u.length_squared());
                 if w > 0.0 {
@@ -341,7 +341,7 @@ impl<'a> PuEvaluator<'a> {
             return;
         };
         near.extend(candidates.iter().copied().filter(|&j| {
-            let (c, inv_r) = self.supports.center_inv_radius(j as usize);
+            let (c, inv_r) = self.supports.centre_inv_radius(j as usize);
             let t = 1.0 + reach * inv_r;
             let d2 = ((m - c) * inv_r).length_squared();
             // A NaN on either side keeps the candidate.
@@ -417,9 +417,9 @@ impl BatchState {
             self.block = Some(b);
             self.run = None;
             self.candidates.clear();
-            if let Some((center, reach)) = bounding_sphere(bounds) {
+            if let Some((centre, reach)) = bounding_sphere(bounds) {
                 eval.index
-                    .extend_within_loose(center, GATHER_SCALE, reach, &mut self.candidates);
+                    .extend_within_loose(centre, GATHER_SCALE, reach, &mut self.candidates);
                 self.candidates.sort_unstable();
             }
         }
@@ -509,7 +509,7 @@ fn value_sum<K: FixedKernel, S: PackedSupport>(
     let mut n_sum = 0.0;
     for &j in ids {
         let sup = &supports[j as usize];
-        let d = x - sup.center();
+        let d = x - sup.centre();
         let u = d * sup.inv_radius();
         let s = u.length_squared();
         let w = K::KERNEL.value_sq_clamped(s);
@@ -530,7 +530,7 @@ fn blend_sum<K: FixedKernel, S: PackedSupport>(
     let (mut num, mut den) = (0.0, 0.0);
     for &j in ids {
         let sup = &supports[j as usize];
-        let u = (x - sup.center()) * sup.inv_radius();
+        let u = (x - sup.centre()) * sup.inv_radius();
         let s = u.length_squared();
         if s >= 1.0 {
             continue;
@@ -568,7 +568,7 @@ fn value_gradient_sum_visiting<K: FixedKernel, S: PackedSupport>(
     for &j in ids {
         let sup = &supports[j as usize];
         let inv_r = sup.inv_radius();
-        let d = x - sup.center();
+        let d = x - sup.centre();
         let u = d * inv_r;
         let s = u.length_squared();
         if s >= 1.0 {
@@ -611,7 +611,7 @@ fn value_gradient_hessian_sum<K: FixedKernel, S: PackedSupport>(
     for &j in ids {
         let sup = &supports[j as usize];
         let inv_r = sup.inv_radius();
-        let d = x - sup.center();
+        let d = x - sup.centre();
         let u = d * inv_r;
         let s = u.length_squared();
         if s >= 1.0 {

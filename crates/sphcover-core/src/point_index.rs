@@ -746,7 +746,7 @@ mod tests {
                     .prop_map(|(x, y, z)| DVec3::new(x, y, z)),
                 0..400,
             ),
-            center in (-1.2..1.2f64, -1.2..1.2f64, -1.2..1.2f64),
+            centre in (-1.2..1.2f64, -1.2..1.2f64, -1.2..1.2f64),
             radius in 0.0..2.5f64,
             grain in 0.0..1.0f64,
             on_a_point in any::<prop::sample::Index>(),
@@ -754,7 +754,7 @@ mod tests {
             let index = PointIndex::new(&points).unwrap();
             // Half the time the ball passes exactly through a point: the open ball leaves
             // it out.
-            let x = DVec3::new(center.0, center.1, center.2);
+            let x = DVec3::new(centre.0, centre.1, centre.2);
             let r = if points.is_empty() || radius < 1.0 {
                 radius
             } else {

@@ -115,9 +115,9 @@ pub(crate) fn bounding_sphere(bounds: &Aabb) -> Option<(DVec3, f64)> {
     if bounds.is_empty() {
         return None;
     }
-    let center = bounds.center();
-    let reach = 0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * center.abs().max_element();
-    Some((center, reach))
+    let centre = bounds.centre();
+    let reach = 0.5 * bounds.diagonal() * (1.0 + 1e-9) + f64::EPSILON * centre.abs().max_element();
+    Some((centre, reach))
 }
 
 /// Spreads the low 21 bits of `v` to every third bit.

@@ -11,7 +11,7 @@
 //! intersection graph. Every other computation uses the true radii.
 //!
 //! The graph is stored as compressed sparse rows with `u32` indices: row `i` is
-//! `neighbors[offsets[i]..offsets[i + 1]]`, sorted ascending, without `i` itself, and the
+//! `neighbours[offsets[i]..offsets[i + 1]]`, sorted ascending, without `i` itself, and the
 //! relation is symmetric. Pairs where one ball contains the other (see [`balls_nested`]) stay in
 //! the graph; they have no intersection circle and carry zero operator weight (thesis §4), which
 //! is for the operators to decide.
@@ -43,11 +43,11 @@ const ROWS_PER_CHUNK: usize = 512;
 /// Why a [`SphereIntersectionGraph`] could not be built.
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum SigError {
-    /// `centers` and `radii` have different lengths.
-    #[error("{centers} centres but {radii} radii")]
+    /// `centres` and `radii` have different lengths.
+    #[error("{centres} centres but {radii} radii")]
     LengthMismatch {
         /// Number of centres given.
-        centers: usize,
+        centres: usize,
         /// Number of radii given.
         radii: usize,
     },
@@ -58,12 +58,12 @@ pub enum SigError {
         shrink: f64,
     },
     /// A centre has a non-finite coordinate.
-    #[error("centre {index} is not finite: {center}")]
-    InvalidCenter {
+    #[error("centre {index} is not finite: {centre}")]
+    InvalidCentre {
         /// Index of the support.
         index: usize,
         /// The centre given.
-        center: DVec3,
+        centre: DVec3,
     },
     /// A radius is negative or not finite.
     #[error("radius {index} is not finite and non-negative: {radius}")]
@@ -91,7 +91,7 @@ pub enum SigError {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SphereIntersectionGraph {
     offsets: Vec<u32>,
-    neighbors: Vec<u32>,
+    neighbours: Vec<u32>,
     shrink: f64,
 }
 
@@ -117,43 +117,43 @@ pub fn balls_nested(c_i: DVec3, r_i: f64, c_j: DVec3, r_j: f64) -> bool {
 }
 
 impl SphereIntersectionGraph {
-    /// Builds the graph of the balls `(centers[i], radii[i])` with shrink factor `shrink`
+    /// Builds the graph of the balls `(centres[i], radii[i])` with shrink factor `shrink`
     /// (thesis default 0.7; 1 gives the true intersection graph).
     ///
     /// Centres must be finite, radii finite and non-negative, `shrink` finite and positive.
     pub fn build(
-        centers: &[DVec3],
+        centres: &[DVec3],
         radii: &[f64],
         shrink: f64,
     ) -> Result<SphereIntersectionGraph, SigError> {
-        SphereIntersectionGraph::build_with_entry_limit(centers, radii, shrink, u64::from(u32::MAX))
+        SphereIntersectionGraph::build_with_entry_limit(centres, radii, shrink, u64::from(u32::MAX))
     }
 
     /// [`SphereIntersectionGraph::build`] failing with [`SigError::TooManyEdges`] beyond
     /// `max_entries` directed entries (the u32 limit, or less in tests).
     fn build_with_entry_limit(
-        centers: &[DVec3],
+        centres: &[DVec3],
         radii: &[f64],
         shrink: f64,
         max_entries: u64,
     ) -> Result<SphereIntersectionGraph, SigError> {
-        if centers.len() != radii.len() {
+        if centres.len() != radii.len() {
             return Err(SigError::LengthMismatch {
-                centers: centers.len(),
+                centres: centres.len(),
                 radii: radii.len(),
             });
         }
         if !(shrink > 0.0 && shrink.is_finite()) {
             return Err(SigError::InvalidShrink { shrink });
         }
-        let n = centers.len();
+        let n = centres.len();
         if u32::try_from(n).is_err() {
             return Err(SigError::TooManySupports { len: n });
         }
-        if let Some(index) = centers.iter().position(|c| !c.is_finite()) {
-            return Err(SigError::InvalidCenter {
+        if let Some(index) = centres.iter().position(|c| !c.is_finite()) {
+            return Err(SigError::InvalidCentre {
                 index,
-                center: centers[index],
+                centre: centres[index],
             });
         }
         if let Some(index) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
@@ -163,9 +163,9 @@ impl SphereIntersectionGraph {
             });
         }
 
-        let index = BallIndex::try_new(centers, radii).map_err(|e| match e {
-            BallIndexError::LengthMismatch { centers, radii } => {
-                SigError::LengthMismatch { centers, radii }
+        let index = BallIndex::try_new(centres, radii).map_err(|e| match e {
+            BallIndexError::LengthMismatch { centres, radii } => {
+                SigError::LengthMismatch { centres, radii }
             }
             BallIndexError::TooManyBalls { len } => SigError::TooManySupports { len },
         })?;
@@ -184,7 +184,7 @@ impl SphereIntersectionGraph {
                     if overflow.load(Ordering::Relaxed) {
                         break;
                     }
-                    let (ci, ri) = (centers[i], radii[i]);
+                    let (ci, ri) = (centres[i], radii[i]);
                     let i = i as u32;
                     let start = len;
                     index.for_each_candidate_run(ci, shrink, shrink * ri, |balls| {
@@ -199,7 +199,7 @@ impl SphereIntersectionGraph {
                             let j = ball.id;
                             out[hits] = j;
                             hits += usize::from(
-                                j != i && adjacent(i, ci, ri, j, ball.center, ball.radius, shrink),
+                                j != i && adjacent(i, ci, ri, j, ball.centre, ball.radius, shrink),
                             );
                         }
                         len += hits;
@@ -232,11 +232,11 @@ impl SphereIntersectionGraph {
             }
         }
         let rows: Vec<&[u32]> = chunks.iter().map(|(_, rows)| &rows[..]).collect();
-        let neighbors = concat_in_parallel(&rows);
+        let neighbours = concat_in_parallel(&rows);
 
         Ok(SphereIntersectionGraph {
             offsets,
-            neighbors,
+            neighbours,
             shrink,
         })
     }
@@ -253,7 +253,7 @@ impl SphereIntersectionGraph {
 
     /// Number of undirected edges.
     pub fn num_edges(&self) -> usize {
-        self.neighbors.len() / 2
+        self.neighbours.len() / 2
     }
 
     /// The shrink factor the graph was built with.
@@ -262,8 +262,8 @@ impl SphereIntersectionGraph {
     }
 
     /// Neighbours of node `i`, ascending. Panics when `i ≥ len()`, like slice indexing.
-    pub fn neighbors(&self, i: usize) -> &[u32] {
-        &self.neighbors[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    pub fn neighbours(&self, i: usize) -> &[u32] {
+        &self.neighbours[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
 
     /// Number of neighbours of node `i`. Panics when `i ≥ len()`.
@@ -276,25 +276,25 @@ impl SphereIntersectionGraph {
         if self.is_empty() {
             0.0
         } else {
-            self.neighbors.len() as f64 / self.len() as f64
+            self.neighbours.len() as f64 / self.len() as f64
         }
     }
 
-    /// Row offsets: row `i` is `neighbor_array()[offsets()[i]..offsets()[i + 1]]`; length
+    /// Row offsets: row `i` is `neighbour_array()[offsets()[i]..offsets()[i + 1]]`; length
     /// `len() + 1`, starting at 0.
     pub fn offsets(&self) -> &[u32] {
         &self.offsets
     }
 
     /// All rows concatenated (each directed entry once, so every edge appears twice).
-    pub fn neighbor_array(&self) -> &[u32] {
-        &self.neighbors
+    pub fn neighbour_array(&self) -> &[u32] {
+        &self.neighbours
     }
 
     /// Every undirected edge once, as `(i, j)` with `i < j`, in ascending order of `i` then `j`.
     pub fn edges(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
         (0..self.len()).flat_map(move |i| {
-            let row = self.neighbors(i);
+            let row = self.neighbours(i);
             let i = i as u32;
             let above = row.partition_point(|&j| j < i);
             row[above..].iter().map(move |&j| (i, j))
@@ -309,13 +309,13 @@ mod tests {
     #[test]
     fn too_many_edges_is_an_error_not_an_allocation() {
         // 3000 identical balls: a complete graph of 3000·2999 directed entries.
-        let centers = vec![DVec3::ZERO; 3000];
+        let centres = vec![DVec3::ZERO; 3000];
         let radii = vec![1.0; 3000];
         let entries = 3000 * 2999;
         let build =
-            |limit| SphereIntersectionGraph::build_with_entry_limit(&centers, &radii, 0.7, limit);
+            |limit| SphereIntersectionGraph::build_with_entry_limit(&centres, &radii, 0.7, limit);
         assert_eq!(build(entries - 1), Err(SigError::TooManyEdges));
         let graph = build(entries).unwrap();
-        assert_eq!(graph.neighbor_array().len() as u64, entries);
+        assert_eq!(graph.neighbour_array().len() as u64, entries);
     }
 }

@@ -93,13 +93,13 @@ impl SupportSamples {
         // allocation, as if each support's row were appended in turn.
         let n = cover.len();
         let gather_run = |run: std::ops::Range<usize>| -> Vec<(Vec<u32>, Vec<u32>)> {
-            cover.centers()[run.clone()]
+            cover.centres()[run.clone()]
                 .par_chunks(GATHER_BLOCK)
                 .zip(cover.radii()[run].par_chunks(GATHER_BLOCK))
-                .map(|(centers, radii)| {
-                    let mut lengths = Vec::with_capacity(centers.len());
+                .map(|(centres, radii)| {
+                    let mut lengths = Vec::with_capacity(centres.len());
                     let mut slots = Vec::new();
-                    for (&c, &r) in centers.iter().zip(radii) {
+                    for (&c, &r) in centres.iter().zip(radii) {
                         let before = slots.len();
                         index.extend_within(c, r * (1.0 + MARGIN), &mut slots, None);
                         lengths.push((slots.len() - before) as u32);
@@ -190,7 +190,7 @@ impl SupportSamples {
         mut visit: impl FnMut(usize, f64),
     ) {
         self.assert_fits(cover, index);
-        let c = cover.centers()[i];
+        let c = cover.centres()[i];
         let r = cover.radii()[i];
         if r.is_nan() || r <= 0.0 {
             return;
@@ -263,7 +263,7 @@ impl SupportSamples {
         let n = index.len();
         let parts = rayon::current_num_threads().clamp(1, n.max(1));
         let points = index.slot_points();
-        let centers = cover.centers();
+        let centres = cover.centres();
         let radii = cover.radii();
         let mut sums = vec![(0.0, 0.0); n];
         let part_len = n.div_ceil(parts).max(1);
@@ -273,7 +273,7 @@ impl SupportSamples {
                 let lo = part * part_len;
                 let hi = lo + sums.len();
                 for i in 0..cover.len() {
-                    let (c, inv_r) = (centers[i], 1.0 / radii[i]);
+                    let (c, inv_r) = (centres[i], 1.0 / radii[i]);
                     let v = values[i];
                     for &s in self.row(i) {
                         let s = s as usize;
@@ -384,7 +384,7 @@ mod tests {
             .collect();
         let index = PointIndex::new(&points).unwrap();
         let n = 2 * GATHER_RUN + 3 * GATHER_BLOCK + 17;
-        let centers: Vec<DVec3> = (0..n)
+        let centres: Vec<DVec3> = (0..n)
             .map(|i| {
                 let t = i as f64 * 0.414_213_562_37;
                 DVec3::new(t.fract(), (t * 3.0).fract(), (t * 5.0).fract() * 1.5)
@@ -394,7 +394,7 @@ mod tests {
             .map(|i| 0.02 + 0.1 * ((i % 7) as f64 / 7.0))
             .collect();
         let cover = Cover::new(
-            centers.clone(),
+            centres.clone(),
             radii.clone(),
             LocalFunctions::zero_linear(n),
             Kernel::QuadraticBSpline,
@@ -404,7 +404,7 @@ mod tests {
         let mut total = 0;
         for i in 0..n {
             let mut direct = Vec::new();
-            index.for_each_slot_within(centers[i], radii[i], |s, d2| direct.push((s, d2)));
+            index.for_each_slot_within(centres[i], radii[i], |s, d2| direct.push((s, d2)));
             let mut stored = Vec::new();
             incidence.for_each_slot_within(&cover, &index, i, |s, d2| stored.push((s, d2)));
             assert_eq!(stored, direct, "support {i}");

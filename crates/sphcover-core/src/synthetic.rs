@@ -28,11 +28,11 @@ pub const MAX_OCTREE_DEPTH: u32 = 20;
 /// Largest number of supports a generator will produce (indices are `u32`).
 const MAX_SUPPORTS: u64 = u32::MAX as u64;
 
-/// A synthetic cover: support `i` is the ball `(centers[i], radii[i])`.
+/// A synthetic cover: support `i` is the ball `(centres[i], radii[i])`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SyntheticCover {
     /// Support centres.
-    pub centers: Vec<DVec3>,
+    pub centres: Vec<DVec3>,
     /// Support radii, one per centre.
     pub radii: Vec<f64>,
 }
@@ -40,12 +40,12 @@ pub struct SyntheticCover {
 impl SyntheticCover {
     /// Number of supports.
     pub fn len(&self) -> usize {
-        self.centers.len()
+        self.centres.len()
     }
 
     /// True when the cover has no support.
     pub fn is_empty(&self) -> bool {
-        self.centers.is_empty()
+        self.centres.is_empty()
     }
 }
 
@@ -148,9 +148,9 @@ pub fn regular_grid(
         radius_factor > 0.0 && radius_factor.is_finite(),
         "finite and > 0",
     )?;
-    let centers = lattice(&domain, spacing)?;
-    let radii = vec![radius_factor * spacing; centers.len()];
-    Ok(SyntheticCover { centers, radii })
+    let centres = lattice(&domain, spacing)?;
+    let radii = vec![radius_factor * spacing; centres.len()];
+    Ok(SyntheticCover { centres, radii })
 }
 
 /// A [`regular_grid`] with seeded random perturbations: each centre moves by a uniform offset
@@ -169,7 +169,7 @@ pub fn jittered_grid(
     let mut cover = regular_grid(domain, spacing, radius_factor)?;
     let mut rng = Pcg64::seed_from_u64(seed);
     let amplitude = jitter * spacing;
-    for (c, r) in cover.centers.iter_mut().zip(&mut cover.radii) {
+    for (c, r) in cover.centres.iter_mut().zip(&mut cover.radii) {
         let offset = DVec3::new(
             rng.random_range(-1.0..=1.0),
             rng.random_range(-1.0..=1.0),
@@ -184,18 +184,18 @@ pub fn jittered_grid(
 /// An analytic closed surface, given by its signed distance (negative inside).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Surface {
-    /// The sphere `‖p − center‖ = radius`.
+    /// The sphere `‖p − centre‖ = radius`.
     Sphere {
         /// Centre of the sphere.
-        center: DVec3,
+        centre: DVec3,
         /// Radius of the sphere.
         radius: f64,
     },
-    /// The torus around the axis through `center` parallel to z: points at distance
-    /// `minor_radius` from the circle of radius `major_radius` in the plane `z = center.z`.
+    /// The torus around the axis through `centre` parallel to z: points at distance
+    /// `minor_radius` from the circle of radius `major_radius` in the plane `z = centre.z`.
     Torus {
         /// Centre of the torus.
-        center: DVec3,
+        centre: DVec3,
         /// Radius of the core circle.
         major_radius: f64,
         /// Radius of the tube.
@@ -207,13 +207,13 @@ impl Surface {
     /// Signed Euclidean distance from `p` to the surface, negative inside.
     pub fn signed_distance(&self, p: DVec3) -> f64 {
         match *self {
-            Surface::Sphere { center, radius } => (p - center).length() - radius,
+            Surface::Sphere { centre, radius } => (p - centre).length() - radius,
             Surface::Torus {
-                center,
+                centre,
                 major_radius,
                 minor_radius,
             } => {
-                let q = p - center;
+                let q = p - centre;
                 let ring = q.truncate().length() - major_radius;
                 (ring * ring + q.z * q.z).sqrt() - minor_radius
             }
@@ -222,16 +222,16 @@ impl Surface {
 
     fn check(&self) -> Result<(), SyntheticError> {
         match *self {
-            Surface::Sphere { center, radius } => {
-                check("center", f64::NAN, center.is_finite(), "finite coordinates")?;
+            Surface::Sphere { centre, radius } => {
+                check("centre", f64::NAN, centre.is_finite(), "finite coordinates")?;
                 check("radius", radius, radius > 0.0 && radius.is_finite(), "> 0")
             }
             Surface::Torus {
-                center,
+                centre,
                 major_radius,
                 minor_radius,
             } => {
-                check("center", f64::NAN, center.is_finite(), "finite coordinates")?;
+                check("centre", f64::NAN, centre.is_finite(), "finite coordinates")?;
                 check(
                     "major_radius",
                     major_radius,
@@ -278,7 +278,7 @@ impl Default for AdaptiveCoverParams {
                 max: DVec3::splat(0.5),
             },
             surface: Surface::Sphere {
-                center: DVec3::ZERO,
+                centre: DVec3::ZERO,
                 radius: 0.35,
             },
             min_depth: 2,
@@ -360,8 +360,8 @@ pub fn adaptive_surface_cover(
     )?;
 
     let size = params.domain.longest_edge();
-    let origin = params.domain.center() - DVec3::splat(0.5 * size);
-    let cell_center = |key: u64, depth: u32| {
+    let origin = params.domain.centre() - DVec3::splat(0.5 * size);
+    let cell_centre = |key: u64, depth: u32| {
         let (a, b, c) = unpack(key);
         let width = size / (1u64 << depth) as f64;
         origin + width * DVec3::new(a as f64 + 0.5, b as f64 + 0.5, c as f64 + 0.5)
@@ -370,7 +370,7 @@ pub fn adaptive_surface_cover(
     let near_surface = |key: u64, depth: u32| {
         params
             .surface
-            .signed_distance(cell_center(key, depth))
+            .signed_distance(cell_centre(key, depth))
             .abs()
             < params.band * half_diagonal(depth)
     };
@@ -471,16 +471,16 @@ pub fn adaptive_surface_cover(
     ordered.par_sort_unstable();
 
     let diagonal = |depth: u32| 3f64.sqrt() * size / (1u64 << depth) as f64;
-    let (centers, radii) = ordered
+    let (centres, radii) = ordered
         .par_iter()
         .map(|&(_, key, depth)| {
             (
-                cell_center(key, depth),
+                cell_centre(key, depth),
                 params.radius_factor * diagonal(depth),
             )
         })
         .unzip();
-    Ok(SyntheticCover { centers, radii })
+    Ok(SyntheticCover { centres, radii })
 }
 
 fn guard_count(count: u64) -> Result<(), SyntheticError> {

@@ -166,7 +166,7 @@ impl Volume {
 
     /// World position of the centre of voxel `(i, j, k)`.
     #[inline]
-    pub fn voxel_center(&self, ijk: [usize; 3]) -> DVec3 {
+    pub fn voxel_centre(&self, ijk: [usize; 3]) -> DVec3 {
         self.affine
             .transform_point3(DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64))
     }
@@ -199,7 +199,7 @@ impl Volume {
     /// Every voxel centre in world coordinates with its value, in linear-index order.
     pub fn to_samples(&self) -> PointCloud {
         let positions = (0..self.len())
-            .map(|idx| self.voxel_center(self.ijk(idx)))
+            .map(|idx| self.voxel_centre(self.ijk(idx)))
             .collect();
         let values = (0..self.len()).map(|idx| self.value(idx)).collect();
         PointCloud {
@@ -244,7 +244,7 @@ mod tests {
             let [i, j, k] = vol.ijk(idx);
             assert_eq!(vol.index(i, j, k), idx);
         }
-        assert_eq!(vol.voxel_center([2, 3, 4]), DVec3::new(11.0, 3.0, 7.0));
+        assert_eq!(vol.voxel_centre([2, 3, 4]), DVec3::new(11.0, 3.0, 7.0));
         assert_eq!(vol.value_range(), Some((0.0, 59.0)));
         assert!((vol.voxel_diagonal() - (0.25f64 + 1.0 + 4.0).sqrt()).abs() < 1e-15);
         let s = vol.to_samples();

@@ -8,8 +8,8 @@ use sphcover_core::{BallIndex, BallIndexError, DVec3};
 
 /// The interim implementation, kept as the oracle: every ball with
 /// `c_j.distance(x) < scale * r_j + extra`, ascending.
-fn brute_within(centers: &[DVec3], radii: &[f64], x: DVec3, scale: f64, extra: f64) -> Vec<u32> {
-    let mut out: Vec<u32> = centers
+fn brute_within(centres: &[DVec3], radii: &[f64], x: DVec3, scale: f64, extra: f64) -> Vec<u32> {
+    let mut out: Vec<u32> = centres
         .iter()
         .zip(radii)
         .enumerate()
@@ -38,29 +38,29 @@ fn difference(got: &[u32], want: &[u32]) -> (Vec<u32>, Vec<u32>) {
 /// at the given points and at points placed just inside, on and just outside the query
 /// sphere `‖x − c_j‖ = scale·r_j + extra` of a few balls for every `(scale, extra)`.
 fn check_queries(
-    centers: &[DVec3],
+    centres: &[DVec3],
     radii: &[f64],
     queries: &[DVec3],
     scales: &[(f64, f64)],
     seed: u64,
 ) -> Result<(), TestCaseError> {
-    let index = BallIndex::new(centers, radii);
-    prop_assert_eq!(index.len(), centers.len());
-    prop_assert_eq!(index.is_empty(), centers.is_empty());
+    let index = BallIndex::new(centres, radii);
+    prop_assert_eq!(index.len(), centres.len());
+    prop_assert_eq!(index.is_empty(), centres.is_empty());
     let mut rng = Pcg64::seed_from_u64(seed);
     // The largest balls set the reach of their level, so their query spheres are where a
     // reach computed too short would show.
-    let mut by_radius: Vec<usize> = (0..centers.len()).collect();
+    let mut by_radius: Vec<usize> = (0..centres.len()).collect();
     by_radius.sort_by(|&a, &b| radii[b].total_cmp(&radii[a]));
     by_radius.truncate(12);
     let mut out = Vec::new();
     for &(scale, extra) in scales {
         let mut points = queries.to_vec();
-        for k in 0..(if centers.is_empty() { 0 } else { 36 }) {
+        for k in 0..(if centres.is_empty() { 0 } else { 36 }) {
             let j = if k % 3 == 0 {
                 by_radius[k / 3 % by_radius.len()]
             } else {
-                rng.random_range(0..centers.len())
+                rng.random_range(0..centres.len())
             };
             let dir = DVec3::new(
                 rng.random_range(-1.0..1.0),
@@ -70,9 +70,9 @@ fn check_queries(
             .normalize_or(DVec3::Z);
             let t = scale * radii[j] + extra;
             for factor in [1.0 - 1e-3, 1.0 - 1e-12, 1.0, 1.0 + 1e-12] {
-                points.push(centers[j] + dir * (t * factor));
+                points.push(centres[j] + dir * (t * factor));
             }
-            points.push(centers[j] + DVec3::X * t);
+            points.push(centres[j] + DVec3::X * t);
         }
         for &x in &points {
             let mut got = Vec::new();
@@ -81,7 +81,7 @@ fn check_queries(
             got.sort_unstable();
             got.dedup();
             prop_assert_eq!(got.len(), len, "a ball was visited twice");
-            let want = brute_within(centers, radii, x, scale, extra);
+            let want = brute_within(centres, radii, x, scale, extra);
             let (extra_balls, missing) = difference(&got, &want);
             prop_assert!(
                 extra_balls.is_empty() && missing.is_empty(),
@@ -94,7 +94,7 @@ fn check_queries(
                 missing
             );
             index.containing(x, &mut out);
-            let want = brute_within(centers, radii, x, 1.0, 0.0);
+            let want = brute_within(centres, radii, x, 1.0, 0.0);
             let (extra_balls, missing) = difference(&out, &want);
             prop_assert!(
                 extra_balls.is_empty() && missing.is_empty(),
@@ -136,7 +136,7 @@ fn ball_set(seed: u64, n: usize, layout: Layout, r_min: f64) -> (Vec<DVec3>, Vec
     let mut unit = || DVec3::new(rng.random(), rng.random(), rng.random()) * 2.0 - DVec3::ONE;
     let anchors: Vec<DVec3> = (0..4).map(|_| unit() * 10.0).collect();
     let mut rng = Pcg64::seed_from_u64(seed ^ 0x5eed);
-    let mut centers = Vec::with_capacity(n);
+    let mut centres = Vec::with_capacity(n);
     let mut radii = Vec::with_capacity(n);
     for k in 0..n {
         let jitter = DVec3::new(
@@ -151,7 +151,7 @@ fn ball_set(seed: u64, n: usize, layout: Layout, r_min: f64) -> (Vec<DVec3>, Vec
             }
             Layout::Coincident => anchors[k % 3],
         };
-        centers.push(c);
+        centres.push(c);
         let r = if rng.random_bool(0.03) {
             0.0
         } else {
@@ -170,7 +170,7 @@ fn ball_set(seed: u64, n: usize, layout: Layout, r_min: f64) -> (Vec<DVec3>, Vec
             )
             .normalize_or(DVec3::X);
             let t: f64 = rng.random_range(0.0..1.5);
-            queries.push(centers[j] + dir * radii[j] * t);
+            queries.push(centres[j] + dir * radii[j] * t);
         }
         queries.push(DVec3::new(
             rng.random_range(-20.0..20.0),
@@ -178,7 +178,7 @@ fn ball_set(seed: u64, n: usize, layout: Layout, r_min: f64) -> (Vec<DVec3>, Vec
             rng.random_range(-20.0..20.0),
         ));
     }
-    (centers, radii, queries)
+    (centres, radii, queries)
 }
 
 const SCALES: &[(f64, f64)] = &[
@@ -203,10 +203,10 @@ proptest! {
         scale in 0.1f64..3.0,
         extra in prop_oneof![Just(0.0), 0.0f64..0.1, 0.0f64..10.0],
     ) {
-        let (centers, radii, queries) = ball_set(seed, n, layout, r_min);
+        let (centres, radii, queries) = ball_set(seed, n, layout, r_min);
         let mut scales = SCALES.to_vec();
         scales.push((scale, extra));
-        check_queries(&centers, &radii, &queries, &scales, seed)?;
+        check_queries(&centres, &radii, &queries, &scales, seed)?;
     }
 }
 
@@ -228,9 +228,9 @@ fn adaptive_cover_queries_equal_brute_force() {
                 rng.random_range(-0.6..0.6),
             )
         })
-        .chain(cover.centers.iter().step_by(97).copied())
+        .chain(cover.centres.iter().step_by(97).copied())
         .collect();
-    check_queries(&cover.centers, &cover.radii, &queries, SCALES, 1).unwrap();
+    check_queries(&cover.centres, &cover.radii, &queries, SCALES, 1).unwrap();
 }
 
 #[test]
@@ -246,9 +246,9 @@ fn empty_index_visits_nothing() {
 
 #[test]
 fn identical_balls_are_all_found() {
-    let centers = vec![DVec3::new(1.0, 2.0, 3.0); 1000];
+    let centres = vec![DVec3::new(1.0, 2.0, 3.0); 1000];
     let radii = vec![0.5; 1000];
-    let index = BallIndex::new(&centers, &radii);
+    let index = BallIndex::new(&centres, &radii);
     let mut out = Vec::new();
     index.containing(DVec3::new(1.2, 2.0, 3.0), &mut out);
     assert_eq!(out, (0..1000).collect::<Vec<u32>>());
@@ -258,9 +258,9 @@ fn identical_balls_are_all_found() {
 
 #[test]
 fn zero_radius_contains_nothing_but_is_reached_with_extra() {
-    let centers = vec![DVec3::ZERO, DVec3::X];
+    let centres = vec![DVec3::ZERO, DVec3::X];
     let radii = vec![0.0, 0.0];
-    let index = BallIndex::new(&centers, &radii);
+    let index = BallIndex::new(&centres, &radii);
     let mut out = Vec::new();
     index.containing(DVec3::ZERO, &mut out);
     assert!(out.is_empty());
@@ -277,10 +277,10 @@ fn huge_coordinate_spreads() {
     // Tiny balls near the origin, one far away, and a cluster at 1e12: the grid must not
     // blow up and the answers must stay exact.
     let mut rng = Pcg64::seed_from_u64(11);
-    let mut centers = Vec::new();
+    let mut centres = Vec::new();
     let mut radii = Vec::new();
     for _ in 0..500 {
-        centers.push(DVec3::new(
+        centres.push(DVec3::new(
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
@@ -288,7 +288,7 @@ fn huge_coordinate_spreads() {
         radii.push(rng.random_range(1e-3..1e-1));
     }
     for _ in 0..200 {
-        centers.push(
+        centres.push(
             DVec3::splat(1e12)
                 + DVec3::new(
                     rng.random_range(-1.0..1.0),
@@ -298,11 +298,11 @@ fn huge_coordinate_spreads() {
         );
         radii.push(rng.random_range(1e-2..1.0));
     }
-    centers.push(DVec3::new(-1e300, 1e300, 0.0));
+    centres.push(DVec3::new(-1e300, 1e300, 0.0));
     radii.push(1.0);
-    centers.push(DVec3::new(f64::MAX, -f64::MAX, f64::MAX));
+    centres.push(DVec3::new(f64::MAX, -f64::MAX, f64::MAX));
     radii.push(1e300);
-    let queries: Vec<DVec3> = centers
+    let queries: Vec<DVec3> = centres
         .iter()
         .step_by(7)
         .copied()
@@ -312,7 +312,7 @@ fn huge_coordinate_spreads() {
             DVec3::new(-1e300, 1e300, 0.5),
         ])
         .collect();
-    check_queries(&centers, &radii, &queries, SCALES, 2).unwrap();
+    check_queries(&centres, &radii, &queries, SCALES, 2).unwrap();
 }
 
 #[test]
@@ -320,7 +320,7 @@ fn reaches_without_finite_square() {
     // Radii of 1e199 and reaches of 1e200, whose squares overflow (as do the squared
     // distances of the literal test beyond about 1e154): the index must still agree.
     let mut rng = Pcg64::seed_from_u64(9);
-    let centers: Vec<DVec3> = (0..1500)
+    let centres: Vec<DVec3> = (0..1500)
         .map(|_| {
             DVec3::new(
                 rng.random_range(-1e201..1e201),
@@ -329,14 +329,14 @@ fn reaches_without_finite_square() {
             )
         })
         .collect();
-    let radii = vec![1e199; centers.len()];
+    let radii = vec![1e199; centres.len()];
     let queries = [DVec3::ZERO, DVec3::new(3e200, 0.0, -2e200)];
-    check_queries(&centers, &radii, &queries, &[(1.0, 1e200), (3.0, 0.0)], 4).unwrap();
+    check_queries(&centres, &radii, &queries, &[(1.0, 1e200), (3.0, 0.0)], 4).unwrap();
 }
 
 #[test]
 fn non_finite_inputs_match_the_literal_test() {
-    let centers = vec![
+    let centres = vec![
         DVec3::ZERO,
         DVec3::new(f64::NAN, 0.0, 0.0),
         DVec3::new(f64::INFINITY, 0.0, 0.0),
@@ -361,7 +361,7 @@ fn non_finite_inputs_match_the_literal_test() {
         DVec3::new(f64::NAN, 0.0, 0.0),
         DVec3::new(f64::INFINITY, 0.0, 0.0),
     ];
-    let index = BallIndex::new(&centers, &radii);
+    let index = BallIndex::new(&centres, &radii);
     for x in queries {
         for (scale, extra) in [
             (1.0, 0.0),
@@ -377,7 +377,7 @@ fn non_finite_inputs_match_the_literal_test() {
             got.sort_unstable();
             assert_eq!(
                 got,
-                brute_within(&centers, &radii, x, scale, extra),
+                brute_within(&centres, &radii, x, scale, extra),
                 "x = {x}, scale = {scale}, extra = {extra}"
             );
         }
@@ -389,7 +389,7 @@ fn mismatched_lengths_are_an_error() {
     assert_eq!(
         BallIndex::try_new(&[DVec3::ZERO], &[]).unwrap_err(),
         BallIndexError::LengthMismatch {
-            centers: 1,
+            centres: 1,
             radii: 0
         }
     );
@@ -409,9 +409,9 @@ fn visiting_order_is_the_same_for_any_thread_count() {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            let index = pool.install(|| BallIndex::new(&cover.centers, &cover.radii));
+            let index = pool.install(|| BallIndex::new(&cover.centres, &cover.radii));
             cover
-                .centers
+                .centres
                 .iter()
                 .step_by(31)
                 .flat_map(|&x| visited(&index, x, 1.0, 0.01))
@@ -428,7 +428,7 @@ fn visiting_order_is_the_same_for_any_thread_count() {
 fn dense_levels_near_the_boundaries() {
     let mut rng = Pcg64::seed_from_u64(5);
     let n = 4000;
-    let centers: Vec<DVec3> = (0..n)
+    let centres: Vec<DVec3> = (0..n)
         .map(|_| {
             DVec3::new(
                 rng.random_range(0.0..1.0),
@@ -441,8 +441,8 @@ fn dense_levels_near_the_boundaries() {
     let radii: Vec<f64> = (0..n)
         .map(|k| rng.random_range(0.03..0.059) * if k % 2 == 0 { 1.0 } else { 0.1 })
         .collect();
-    let queries: Vec<DVec3> = centers.iter().step_by(41).copied().collect();
-    check_queries(&centers, &radii, &queries, SCALES, 3).unwrap();
+    let queries: Vec<DVec3> = centres.iter().step_by(41).copied().collect();
+    check_queries(&centres, &radii, &queries, SCALES, 3).unwrap();
 }
 
 proptest! {
@@ -459,10 +459,10 @@ proptest! {
         extra in prop_oneof![Just(0.0), 0.0f64..0.05],
     ) {
         let mut rng = Pcg64::seed_from_u64(seed);
-        let centers: Vec<DVec3> = (0..n)
+        let centres: Vec<DVec3> = (0..n)
             .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()))
             .collect();
         let radii: Vec<f64> = (0..n).map(|_| r * rng.random_range(1.0..2.0)).collect();
-        check_queries(&centers, &radii, &[], &[(scale, extra), (1.0, 0.0)], seed)?;
+        check_queries(&centres, &radii, &[], &[(scale, extra), (1.0, 0.0)], seed)?;
     }
 }

@@ -36,7 +36,7 @@ fn kernel() -> impl Strategy<Value = Kernel> {
 
 fn cover() -> impl Strategy<Value = Cover> {
     (0usize..40, any::<bool>(), kernel()).prop_flat_map(|(n, linear, kernel)| {
-        let centers = prop::collection::vec(vec3(), n);
+        let centres = prop::collection::vec(vec3(), n);
         let radii = prop::collection::vec(radius(), n);
         let funcs = if linear {
             prop::collection::vec((vec3(), finite()), n)
@@ -62,7 +62,7 @@ fn cover() -> impl Strategy<Value = Cover> {
                 })
                 .boxed()
         };
-        (centers, radii, funcs).prop_map(move |(c, r, f)| Cover::new(c, r, f, kernel).unwrap())
+        (centres, radii, funcs).prop_map(move |(c, r, f)| Cover::new(c, r, f, kernel).unwrap())
     })
 }
 
@@ -73,8 +73,8 @@ fn meta() -> impl Strategy<Value = CoverFileMeta> {
         prop_oneof![Just(1.0), 1.0..10.0f64],
         prop::collection::vec("[ -~]{0,30}", 0..3),
     )
-        .prop_map(|(center, scale, expansion, notes)| CoverFileMeta {
-            normalisation: Normalisation { center, scale },
+        .prop_map(|(centre, scale, expansion, notes)| CoverFileMeta {
+            normalisation: Normalisation { centre, scale },
             expansion,
             // Surrounding blanks are not kept by PLY comment lines.
             notes: notes.into_iter().map(|n| n.trim().to_string()).collect(),
@@ -92,7 +92,7 @@ fn encoding() -> impl Strategy<Value = PlyEncoding> {
 /// Bit patterns of everything a cover holds (so −0.0 and 0.0 differ).
 fn bits(c: &Cover) -> Vec<u64> {
     let mut v: Vec<u64> = c
-        .centers()
+        .centres()
         .iter()
         .flat_map(|p| p.to_array())
         .map(f64::to_bits)
@@ -125,8 +125,8 @@ proptest! {
         prop_assert_eq!(bits(&back), bits(&cover));
         prop_assert_eq!(back.kernel(), cover.kernel());
         prop_assert_eq!(back.funcs().is_linear(), cover.funcs().is_linear());
-        prop_assert_eq!(back_meta.normalisation.center.to_array().map(f64::to_bits),
-            meta.normalisation.center.to_array().map(f64::to_bits));
+        prop_assert_eq!(back_meta.normalisation.centre.to_array().map(f64::to_bits),
+            meta.normalisation.centre.to_array().map(f64::to_bits));
         prop_assert_eq!(back_meta.normalisation.scale.to_bits(), meta.normalisation.scale.to_bits());
         prop_assert_eq!(back_meta.expansion.to_bits(), meta.expansion.to_bits());
         prop_assert_eq!(back_meta.notes, meta.notes);
@@ -134,13 +134,13 @@ proptest! {
 }
 
 fn small_cover() -> Cover {
-    let centers = vec![DVec3::new(0.1, 0.2, 0.3), DVec3::new(-0.4, 0.0, 0.25)];
+    let centres = vec![DVec3::new(0.1, 0.2, 0.3), DVec3::new(-0.4, 0.0, 0.25)];
     let funcs = LocalFunctions::from_linear(
-        centers
+        centres
             .iter()
             .map(|&c| LinearFunction::from_global(DVec3::new(0.0, 0.0, -1.0), 0.1, c)),
     );
-    Cover::new(centers, vec![0.05, 0.125], funcs, Kernel::QuadraticBSpline).unwrap()
+    Cover::new(centres, vec![0.05, 0.125], funcs, Kernel::QuadraticBSpline).unwrap()
 }
 
 #[test]
@@ -171,7 +171,7 @@ fn layout_is_a_vertex_sphere_set_with_documented_header() {
     let path = dir.path().join("c.ply");
     let meta = CoverFileMeta {
         normalisation: Normalisation {
-            center: DVec3::new(1.0, 2.0, 3.0),
+            centre: DVec3::new(1.0, 2.0, 3.0),
             scale: 0.5,
         },
         expansion: 4.0,
@@ -284,7 +284,7 @@ fn invalid_metadata_is_refused_before_writing() {
         },
         CoverFileMeta {
             normalisation: Normalisation {
-                center: DVec3::ZERO,
+                centre: DVec3::ZERO,
                 scale: 0.0,
             },
             ..CoverFileMeta::default()

@@ -151,8 +151,8 @@ fn reads_every_type_byte_order_and_compression() {
                     assert_eq!(info.header_size, 256 * blocks as u64);
                     assert_eq!(info.comments, vec!["made by a test".to_string()]);
                     assert_eq!(vol.voxel_size(), DVec3::new(0.5, 2.0, 1.25));
-                    assert_eq!(vol.voxel_center([0, 0, 0]), DVec3::new(10.0, -3.0, 0.5));
-                    assert_eq!(vol.voxel_center([2, 1, 1]), DVec3::new(11.0, -1.0, 1.75));
+                    assert_eq!(vol.voxel_centre([0, 0, 0]), DVec3::new(10.0, -3.0, 0.5));
+                    assert_eq!(vol.voxel_centre([2, 1, 1]), DVec3::new(11.0, -1.0, 1.75));
                     // x fastest: value at (i, j, k) is sample i + 3 j + 6 k.
                     assert_eq!(vol.value(vol.index(2, 1, 1)), 9.0);
                     assert_eq!(vol.value(vol.index(2, 0, 1)), 100.0);
@@ -172,7 +172,7 @@ fn defaults_voxel_size_one_origin_zero_and_z_one() {
     let (vol, info) = parse(&f).unwrap();
     assert_eq!(vol.dims(), [2, 2, 1]);
     assert_eq!(info.voxel_size, DVec3::ONE);
-    assert_eq!(vol.voxel_center([1, 1, 0]), DVec3::new(1.0, 1.0, 0.0));
+    assert_eq!(vol.voxel_centre([1, 1, 0]), DVec3::new(1.0, 1.0, 0.0));
     assert!(!info.big_endian);
 }
 

@@ -400,7 +400,7 @@ fn writers_refuse_data_their_format_cannot_hold() {
     let err = write_point_cloud(&dir.path().join("c.stl"), &cloud, &options).unwrap_err();
     assert!(matches!(err, IoError::Unsupported { .. }), "{err}");
     let spheres = SphereSet {
-        centers: vec![v(0.0, 0.0, 0.0)],
+        centres: vec![v(0.0, 0.0, 0.0)],
         radii: vec![1.0],
     };
     let err = write_spheres(&dir.path().join("s.obj"), &spheres, &options).unwrap_err();

@@ -23,11 +23,7 @@ fn cloud(n: usize) -> PointCloud {
 }
 
 fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(f)
+    sphcover_core::threads::on_threads(threads, f)
 }
 
 #[test]

@@ -146,7 +146,7 @@ fn samples() -> &'static [(Format, Vec<u8>)] {
             values: Some(values.clone()),
         };
         let spheres = SphereSet {
-            centers: positions.clone(),
+            centres: positions.clone(),
             radii: values.clone(),
         };
         let mut out = Vec::new();

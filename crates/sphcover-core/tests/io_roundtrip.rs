@@ -156,12 +156,12 @@ proptest! {
 
     #[test]
     fn sphere_sets_round_trip(
-        centers in vec(vec3(coord64()), 0..12),
+        centres in vec(vec3(coord64()), 0..12),
         radii in vec(0.0f64..1e6, 12),
         e in 0..3usize,
         f32_output in any::<bool>(),
     ) {
-        let spheres = SphereSet { radii: radii[..centers.len()].to_vec(), centers };
+        let spheres = SphereSet { radii: radii[..centres.len()].to_vec(), centres };
         let dir = tempfile::tempdir().unwrap();
         for name in ["s.ply", "s.sph", "s.spheres", "s.txt"] {
             let path = dir.path().join(name);
@@ -170,11 +170,11 @@ proptest! {
         }
         if f32_output {
             let small = SphereSet {
-                centers: spheres.centers.iter().map(|c| c.clamp(DVec3::splat(-1e30), DVec3::splat(1e30))).collect(),
+                centres: spheres.centres.iter().map(|c| c.clamp(DVec3::splat(-1e30), DVec3::splat(1e30))).collect(),
                 radii: spheres.radii.clone(),
             };
             let expected = SphereSet {
-                centers: small.centers.iter().map(|c| DVec3::new(round(c.x), round(c.y), round(c.z))).collect(),
+                centres: small.centres.iter().map(|c| DVec3::new(round(c.x), round(c.y), round(c.z))).collect(),
                 radii: small.radii.iter().copied().map(round).collect(),
             };
             let path = dir.path().join("s32.ply");

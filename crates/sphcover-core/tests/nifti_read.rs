@@ -228,7 +228,7 @@ fn every_datatype_both_orders_both_versions_plain_and_gzip() {
                     for (i, &v) in values.iter().enumerate() {
                         assert_eq!(vol.value(i), v, "{name} voxel {i}");
                     }
-                    assert_eq!(vol.voxel_center([2, 3, 4]), DVec3::new(1.0, 0.75, 8.0));
+                    assert_eq!(vol.voxel_centre([2, 3, 4]), DVec3::new(1.0, 0.75, 8.0));
                     // The in-memory parser agrees.
                     let (again, _) = parse_nifti(&bytes, &path).unwrap();
                     assert_eq!(again, vol);
@@ -260,15 +260,15 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
         // Voxel (1, 0, 0) moves 2 along +y; (0, 1, 0) moves 3 along −x; (0, 0, 1) moves −4 in z.
         let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-6;
         assert!(close(
-            vol.voxel_center([1, 0, 0]),
+            vol.voxel_centre([1, 0, 0]),
             DVec3::new(10.0, 22.0, 30.0)
         ));
         assert!(close(
-            vol.voxel_center([0, 1, 0]),
+            vol.voxel_centre([0, 1, 0]),
             DVec3::new(7.0, 20.0, 30.0)
         ));
         assert!(close(
-            vol.voxel_center([0, 0, 1]),
+            vol.voxel_centre([0, 0, 1]),
             DVec3::new(10.0, 20.0, 26.0)
         ));
 
@@ -286,7 +286,7 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
         };
         assert_eq!(info.affine_source, AffineSource::Sform);
         assert!(close(
-            vol.voxel_center([1, 1, 1]),
+            vol.voxel_centre([1, 1, 1]),
             DVec3::new(0.5, 0.5, 3.5)
         ));
         assert!(close(info.voxel_size, DVec3::new(2.5, 1.5, 0.5)));

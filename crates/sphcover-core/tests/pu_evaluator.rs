@@ -12,7 +12,7 @@ use sphcover_core::{
 
 fn brute_force_containing(cover: &Cover, sigma: f64, x: DVec3) -> Vec<u32> {
     (0..cover.len() as u32)
-        .filter(|&i| x.distance(cover.centers()[i as usize]) < sigma * cover.radii()[i as usize])
+        .filter(|&i| x.distance(cover.centres()[i as usize]) < sigma * cover.radii()[i as usize])
         .collect()
 }
 
@@ -63,7 +63,7 @@ fn brute_force_summed(cover: &Cover, sigma: f64, x: DVec3) -> Vec<u32> {
     (0..cover.len() as u32)
         .filter(|&i| {
             let inv_r = 1.0 / (sigma * cover.radii()[i as usize]);
-            ((x - cover.centers()[i as usize]) * inv_r).length_squared() < 1.0
+            ((x - cover.centres()[i as usize]) * inv_r).length_squared() < 1.0
         })
         .collect()
 }
@@ -127,11 +127,7 @@ fn support_lists_serve_new_functions_for_any_thread_count() {
         let sigma = 1.5;
         let eval = PuEvaluator::new(&cover, sigma).unwrap();
         let lists_at = |threads: usize, points: &[DVec3]| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| eval.support_lists(points))
+            sphcover_core::threads::on_threads(threads, || eval.support_lists(points))
         };
         let lists = lists_at(1, &points);
         let three = lists_at(3, &points);
@@ -177,9 +173,9 @@ fn support_lists_refuse_other_balls() {
         .unwrap()
         .support_lists(&points);
     let cover_again = cover.clone();
-    let (mut centers, mut radii, funcs, kernel) = cover.into_parts();
+    let (mut centres, mut radii, funcs, kernel) = cover.into_parts();
     radii[123] *= 1.0 + f64::EPSILON;
-    let moved = Cover::new(centers.clone(), radii.clone(), funcs.clone(), kernel).unwrap();
+    let moved = Cover::new(centres.clone(), radii.clone(), funcs.clone(), kernel).unwrap();
     assert_eq!(
         lists.values(&moved, &points),
         Err(CoverError::OtherBalls { index: 123 })
@@ -195,10 +191,10 @@ fn support_lists_refuse_other_balls() {
         Err(CoverError::LengthMismatch { .. })
     ));
     assert!(lists.values(&cover_again, &points).is_ok());
-    centers.pop();
+    centres.pop();
     radii.pop();
     let fewer = Cover::new(
-        centers,
+        centres,
         radii,
         LocalFunctions::zero_linear(funcs.len() - 1),
         kernel,
@@ -262,7 +258,7 @@ fn sample_cover(kernel: Kernel, spread: f64) -> (Cover, Vec<DVec3>) {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
     let n = 400;
-    let centers: Vec<DVec3> = (0..n)
+    let centres: Vec<DVec3> = (0..n)
         .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()))
         .collect();
     let radii: Vec<f64> = (0..n).map(|_| 0.05 + 0.2 * rng.random::<f64>()).collect();
@@ -271,7 +267,7 @@ fn sample_cover(kernel: Kernel, spread: f64) -> (Cover, Vec<DVec3>) {
         b: DVec3::new(rng.random(), rng.random(), rng.random()),
         k: rng.random(),
     }));
-    let cover = Cover::new(centers, radii, funcs, kernel).unwrap();
+    let cover = Cover::new(centres, radii, funcs, kernel).unwrap();
     let side = 1.0 + 2.0 * spread;
     let points = (0..5000)
         .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()) * side - spread)
@@ -288,17 +284,13 @@ fn batch_equals_single_and_is_independent_of_thread_count() {
         let (cover, points) = sample_cover(kernel, spread);
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| {
-                    (
-                        eval.values(&points),
-                        eval.values_gradients(&points),
-                        eval.values_gradients_hessians(&points),
-                    )
-                })
+            sphcover_core::threads::on_threads(threads, || {
+                (
+                    eval.values(&points),
+                    eval.values_gradients(&points),
+                    eval.values_gradients_hessians(&points),
+                )
+            })
         };
         let one = run(1);
         let three = run(3);
@@ -388,10 +380,10 @@ fn invalid_input_is_reported_with_its_index() {
             found: 1
         })
     );
-    let bad_center = vec![DVec3::ZERO, DVec3::new(0.0, f64::NAN, 0.0)];
+    let bad_centre = vec![DVec3::ZERO, DVec3::new(0.0, f64::NAN, 0.0)];
     assert!(matches!(
-        Cover::new(bad_center, vec![1.0, 1.0], ok_funcs(), k),
-        Err(CoverError::NonFiniteCenter { index: 1, .. })
+        Cover::new(bad_centre, vec![1.0, 1.0], ok_funcs(), k),
+        Err(CoverError::NonFiniteCentre { index: 1, .. })
     ));
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-320] {
         assert!(
@@ -436,7 +428,7 @@ fn invalid_input_is_reported_with_its_index() {
 fn sample_cover_with_sphere_points(kernel: Kernel) -> (Cover, Vec<DVec3>) {
     let (cover, mut points) = sample_cover(kernel, 0.2);
     for i in 0..200 {
-        let c = cover.centers()[i];
+        let c = cover.centres()[i];
         let r = 1.5 * cover.radii()[i];
         points.push(c + DVec3::new(0.6, -0.48, 0.64) * r);
     }
@@ -450,11 +442,7 @@ fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
         let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).sin()).collect();
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| eval.blend(&points, &values).unwrap())
+            sphcover_core::threads::on_threads(threads, || eval.blend(&points, &values).unwrap())
         };
         let one = run(1);
         assert_eq!(one, run(3), "{kernel}");
@@ -491,11 +479,9 @@ fn fused_gradient_and_blend_equal_the_separate_queries() {
         let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).cos()).collect();
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| eval.values_gradients_blends(&points, &values).unwrap())
+            sphcover_core::threads::on_threads(threads, || {
+                eval.values_gradients_blends(&points, &values).unwrap()
+            })
         };
         let fused = run(1);
         assert_eq!(fused, run(3), "{kernel}");

@@ -36,18 +36,18 @@ proptest! {
         q in random_symmetric(),
         p in vec3(1.0),
         c0 in -1.0..1.0f64,
-        center in vec3(2.0),
+        centre in vec3(2.0),
         x in vec3(2.0),
     ) {
-        let quad = QuadraticFunction::from_global(q, p, c0, center);
+        let quad = QuadraticFunction::from_global(q, p, c0, centre);
         let global = x.dot(q * x) + p.dot(x) + c0;
-        prop_assert!((quad.value(x - center) - global).abs() < 1e-12 * (1.0 + global.abs()) * 16.0);
-        prop_assert!((quad.gradient(x - center) - (q * x * 2.0 + p)).length() < 1e-12 * 64.0);
-        let lin = LinearFunction::from_global(p, c0, center);
-        prop_assert!((lin.value(x - center) - (p.dot(x) + c0)).abs() < 1e-13 * 16.0);
+        prop_assert!((quad.value(x - centre) - global).abs() < 1e-12 * (1.0 + global.abs()) * 16.0);
+        prop_assert!((quad.gradient(x - centre) - (q * x * 2.0 + p)).length() < 1e-12 * 64.0);
+        let lin = LinearFunction::from_global(p, c0, centre);
+        prop_assert!((lin.value(x - centre) - (p.dot(x) + c0)).abs() < 1e-13 * 16.0);
         let lifted = QuadraticFunction::from_linear(lin);
-        prop_assert_eq!(lifted.value(x - center), lin.value(x - center));
-        prop_assert_eq!(lifted.gradient(x - center), lin.gradient());
+        prop_assert_eq!(lifted.value(x - centre), lin.value(x - centre));
+        prop_assert_eq!(lifted.gradient(x - centre), lin.gradient());
     }
 }
 

@@ -11,12 +11,12 @@ use sphcover_core::synthetic::{
 use sphcover_core::{Aabb, DVec3, SigError, SphereIntersectionGraph};
 
 /// All pairs `i < j` with `‖c_i − c_j‖ < s·(r_i + r_j)`, the test written out literally.
-fn brute_edges(centers: &[DVec3], radii: &[f64], shrink: f64) -> Vec<(u32, u32)> {
+fn brute_edges(centres: &[DVec3], radii: &[f64], shrink: f64) -> Vec<(u32, u32)> {
     let mut edges = Vec::new();
-    for i in 0..centers.len() {
-        for j in i + 1..centers.len() {
+    for i in 0..centres.len() {
+        for j in i + 1..centres.len() {
             let reach = shrink * (radii[i] + radii[j]);
-            if (centers[i] - centers[j]).length_squared() < reach * reach {
+            if (centres[i] - centres[j]).length_squared() < reach * reach {
                 edges.push((i as u32, j as u32));
             }
         }
@@ -31,11 +31,11 @@ fn check_invariants(graph: &SphereIntersectionGraph) -> Result<(), TestCaseError
     let offsets = graph.offsets();
     prop_assert_eq!(offsets.len(), n + 1);
     prop_assert_eq!(offsets[0], 0);
-    prop_assert_eq!(offsets[n] as usize, graph.neighbor_array().len());
-    prop_assert_eq!(graph.neighbor_array().len(), 2 * graph.num_edges());
+    prop_assert_eq!(offsets[n] as usize, graph.neighbour_array().len());
+    prop_assert_eq!(graph.neighbour_array().len(), 2 * graph.num_edges());
     for i in 0..n {
         prop_assert!(offsets[i] <= offsets[i + 1]);
-        let row = graph.neighbors(i);
+        let row = graph.neighbours(i);
         prop_assert_eq!(row.len(), graph.degree(i));
         prop_assert!(
             row.windows(2).all(|w| w[0] < w[1]),
@@ -47,7 +47,7 @@ fn check_invariants(graph: &SphereIntersectionGraph) -> Result<(), TestCaseError
             prop_assert!((j as usize) < n);
             prop_assert!(
                 graph
-                    .neighbors(j as usize)
+                    .neighbours(j as usize)
                     .binary_search(&(i as u32))
                     .is_ok(),
                 "{} ~ {} but not {} ~ {}",
@@ -66,16 +66,16 @@ fn check_invariants(graph: &SphereIntersectionGraph) -> Result<(), TestCaseError
 }
 
 fn check_against_oracle(
-    centers: &[DVec3],
+    centres: &[DVec3],
     radii: &[f64],
     shrink: f64,
 ) -> Result<SphereIntersectionGraph, TestCaseError> {
-    let graph = SphereIntersectionGraph::build(centers, radii, shrink)
+    let graph = SphereIntersectionGraph::build(centres, radii, shrink)
         .map_err(|e| TestCaseError::fail(e.to_string()))?;
-    prop_assert_eq!(graph.len(), centers.len());
+    prop_assert_eq!(graph.len(), centres.len());
     prop_assert_eq!(graph.shrink(), shrink);
     check_invariants(&graph)?;
-    let want = brute_edges(centers, radii, shrink);
+    let want = brute_edges(centres, radii, shrink);
     let got: Vec<(u32, u32)> = graph.edges().collect();
     if got != want {
         let extra: Vec<_> = got
@@ -104,7 +104,7 @@ fn random_balls(
 ) -> (Vec<DVec3>, Vec<f64>) {
     let mut rng = Pcg64::seed_from_u64(seed);
     let anchors = [DVec3::ZERO, DVec3::splat(0.3), DVec3::new(0.1, -0.2, 0.05)];
-    let centers = (0..n)
+    let centres = (0..n)
         .map(|k| {
             if stacked && k % 2 == 0 {
                 anchors[k % 3]
@@ -122,7 +122,7 @@ fn random_balls(
             }
         })
         .collect();
-    (centers, radii)
+    (centres, radii)
 }
 
 fn shrink_factor() -> impl Strategy<Value = f64> {
@@ -141,8 +141,8 @@ proptest! {
         r_min in prop_oneof![Just(1e-3), 1e-4f64..0.1],
         shrink in shrink_factor(),
     ) {
-        let (centers, radii) = random_balls(seed, n, spread, stacked, r_min);
-        check_against_oracle(&centers, &radii, shrink)?;
+        let (centres, radii) = random_balls(seed, n, spread, stacked, r_min);
+        check_against_oracle(&centres, &radii, shrink)?;
     }
 
     #[test]
@@ -155,7 +155,7 @@ proptest! {
     ) {
         let domain = Aabb { min: DVec3::ZERO, max: DVec3::ONE };
         let cover = jittered_grid(domain, spacing, radius_factor, jitter, seed).unwrap();
-        check_against_oracle(&cover.centers, &cover.radii, shrink)?;
+        check_against_oracle(&cover.centres, &cover.radii, shrink)?;
     }
 }
 
@@ -164,14 +164,14 @@ fn adaptive_covers_equal_brute_force() {
     for (surface, shrink) in [
         (
             Surface::Sphere {
-                center: DVec3::new(0.05, -0.02, 0.01),
+                centre: DVec3::new(0.05, -0.02, 0.01),
                 radius: 0.3,
             },
             0.7,
         ),
         (
             Surface::Torus {
-                center: DVec3::ZERO,
+                centre: DVec3::ZERO,
                 major_radius: 0.25,
                 minor_radius: 0.1,
             },
@@ -186,7 +186,7 @@ fn adaptive_covers_equal_brute_force() {
         };
         let cover = adaptive_surface_cover(&params).unwrap();
         assert!(cover.len() > 1500, "{} supports", cover.len());
-        let graph = check_against_oracle(&cover.centers, &cover.radii, shrink).unwrap();
+        let graph = check_against_oracle(&cover.centres, &cover.radii, shrink).unwrap();
         assert!(graph.mean_degree() > 10.0);
     }
 }
@@ -203,12 +203,10 @@ fn graph_is_identical_for_any_thread_count() {
     let graphs: Vec<SphereIntersectionGraph> = [1, 2, 8]
         .into_iter()
         .map(|threads| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| SphereIntersectionGraph::build(&cover.centers, &cover.radii, 0.7))
-                .unwrap()
+            sphcover_core::threads::on_threads(threads, || {
+                SphereIntersectionGraph::build(&cover.centres, &cover.radii, 0.7)
+            })
+            .unwrap()
         })
         .collect();
     check_invariants(&graphs[0]).unwrap();
@@ -222,18 +220,18 @@ fn symmetric_despite_rounding() {
     // Pairs at distance s·(r_i + r_j) up to rounding, in both index orders: the two
     // directions must agree exactly.
     let mut rng = Pcg64::seed_from_u64(17);
-    let mut centers = Vec::new();
+    let mut centres = Vec::new();
     let mut radii = Vec::new();
     for _ in 0..500 {
         let c = DVec3::new(rng.random(), rng.random(), rng.random()) * 1e3;
         let (r1, r2): (f64, f64) = (rng.random_range(0.1..1.0), rng.random_range(0.1..1.0));
         let dir = DVec3::new(rng.random(), rng.random(), rng.random()).normalize_or(DVec3::X);
-        centers.push(c);
+        centres.push(c);
         radii.push(r1);
-        centers.push(c + dir * (0.7 * (r1 + r2)));
+        centres.push(c + dir * (0.7 * (r1 + r2)));
         radii.push(r2);
     }
-    let graph = check_against_oracle(&centers, &radii, 0.7).unwrap();
+    let graph = check_against_oracle(&centres, &radii, 0.7).unwrap();
     assert!(graph.num_edges() > 0);
 }
 
@@ -247,13 +245,13 @@ fn degenerate_inputs() {
     assert_eq!(empty.mean_degree(), 0.0);
 
     // Identical balls: the complete graph.
-    let centers = vec![DVec3::ONE; 50];
-    let graph = SphereIntersectionGraph::build(&centers, &[0.1; 50], 0.7).unwrap();
+    let centres = vec![DVec3::ONE; 50];
+    let graph = SphereIntersectionGraph::build(&centres, &[0.1; 50], 0.7).unwrap();
     assert_eq!(graph.num_edges(), 50 * 49 / 2);
     check_invariants(&graph).unwrap();
 
     // Points (radius 0) never meet, even when they coincide.
-    let graph = SphereIntersectionGraph::build(&centers, &[0.0; 50], 1.0).unwrap();
+    let graph = SphereIntersectionGraph::build(&centres, &[0.0; 50], 1.0).unwrap();
     assert_eq!(graph.num_edges(), 0);
 }
 
@@ -264,7 +262,7 @@ fn invalid_inputs_are_typed_errors() {
     assert_eq!(
         SphereIntersectionGraph::build(&c, &r[..1], 0.7),
         Err(SigError::LengthMismatch {
-            centers: 2,
+            centres: 2,
             radii: 1
         })
     );
@@ -276,7 +274,7 @@ fn invalid_inputs_are_typed_errors() {
     }
     assert!(matches!(
         SphereIntersectionGraph::build(&[DVec3::ZERO, DVec3::NAN], &r, 0.7),
-        Err(SigError::InvalidCenter { index: 1, .. })
+        Err(SigError::InvalidCentre { index: 1, .. })
     ));
     for bad in [-1.0, f64::NAN, f64::INFINITY] {
         assert!(matches!(
@@ -322,11 +320,11 @@ proptest! {
 fn dense_equal_radii_equal_brute_force() {
     // One radius, so every ball sets its level's reach and candidates crowd cell bounds.
     let mut rng = Pcg64::seed_from_u64(23);
-    let centers: Vec<DVec3> = (0..4000)
+    let centres: Vec<DVec3> = (0..4000)
         .map(|_| DVec3::new(rng.random(), rng.random(), rng.random()))
         .collect();
-    let radii = vec![0.04; centers.len()];
+    let radii = vec![0.04; centres.len()];
     for shrink in [0.6, 0.7, 1.0] {
-        check_against_oracle(&centers, &radii, shrink).unwrap();
+        check_against_oracle(&centres, &radii, shrink).unwrap();
     }
 }

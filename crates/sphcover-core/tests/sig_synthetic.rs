@@ -24,11 +24,11 @@ fn regular_grid_is_a_lattice() {
     let cover = regular_grid(domain, 0.25, 0.9).unwrap();
     assert_eq!(cover.len(), 5 * 3 * 5);
     assert!(cover.radii.iter().all(|&r| r == 0.9 * 0.25));
-    assert_eq!(cover.centers[0], domain.min);
-    assert_eq!(cover.centers[1], domain.min + DVec3::new(0.25, 0.0, 0.0));
-    assert_eq!(cover.centers[5], domain.min + DVec3::new(0.0, 0.25, 0.0));
-    assert_eq!(*cover.centers.last().unwrap(), domain.max);
-    assert!(cover.centers.iter().all(|&c| domain.contains(c)));
+    assert_eq!(cover.centres[0], domain.min);
+    assert_eq!(cover.centres[1], domain.min + DVec3::new(0.25, 0.0, 0.0));
+    assert_eq!(cover.centres[5], domain.min + DVec3::new(0.0, 0.25, 0.0));
+    assert_eq!(*cover.centres.last().unwrap(), domain.max);
+    assert!(cover.centres.iter().all(|&c| domain.contains(c)));
 }
 
 proptest! {
@@ -43,8 +43,8 @@ proptest! {
         let cover = jittered_grid(unit_box(), spacing, radius_factor, jitter, seed).unwrap();
         prop_assert_eq!(cover.len(), lattice.len());
         let radius = radius_factor * spacing;
-        for (k, (c, r)) in cover.centers.iter().zip(&cover.radii).enumerate() {
-            let offset = (*c - lattice.centers[k]).abs();
+        for (k, (c, r)) in cover.centres.iter().zip(&cover.radii).enumerate() {
+            let offset = (*c - lattice.centres[k]).abs();
             prop_assert!(offset.max_element() <= jitter * spacing * (1.0 + 1e-12));
             prop_assert!(*r > 0.0);
             prop_assert!((*r - radius).abs() <= jitter * radius * (1.0 + 1e-12));
@@ -91,9 +91,9 @@ fn grid_parameters_are_checked() {
 /// depth, recovered from the centre and the radius `0.75 × diagonal`.
 fn leaf_cells(cover: &SyntheticCover, params: &AdaptiveCoverParams) -> Vec<(u32, [i64; 3])> {
     let size = params.domain.longest_edge();
-    let origin = params.domain.center() - DVec3::splat(0.5 * size);
+    let origin = params.domain.centre() - DVec3::splat(0.5 * size);
     cover
-        .centers
+        .centres
         .iter()
         .zip(&cover.radii)
         .map(|(c, r)| {
@@ -148,7 +148,7 @@ fn check_octree(params: &AdaptiveCoverParams) {
     // (With `band ≥ 1` a cell near the surface always has a parent near the surface, so
     // top-down refinement cannot miss it; a narrower band may.)
     let size = params.domain.longest_edge();
-    for (&(depth, _), &c) in leaves.iter().zip(&cover.centers) {
+    for (&(depth, _), &c) in leaves.iter().zip(&cover.centres) {
         if depth < params.max_depth && params.band >= 1.0 {
             let half_diagonal = 0.5 * 3f64.sqrt() * size / (1u64 << depth) as f64;
             assert!(params.surface.signed_distance(c).abs() >= params.band * half_diagonal);
@@ -170,7 +170,7 @@ fn adaptive_octree_tiles_balances_and_refines() {
             max: DVec3::new(3.0, 2.5, 3.5),
         },
         surface: Surface::Torus {
-            center: DVec3::new(2.0, 2.2, 3.1),
+            centre: DVec3::new(2.0, 2.2, 3.1),
             major_radius: 0.5,
             minor_radius: 0.2,
         },
@@ -207,11 +207,9 @@ fn adaptive_cover_spans_radius_levels_and_is_deterministic() {
     // refines the rest down to depth 4.
     assert_eq!(r_max / r_min, 4.0);
     for threads in [1, 3] {
-        let again = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| adaptive_surface_cover(&params).unwrap());
+        let again = sphcover_core::threads::on_threads(threads, || {
+            adaptive_surface_cover(&params).unwrap()
+        });
         assert_eq!(again, cover);
     }
 }
@@ -242,14 +240,14 @@ fn adaptive_parameters_are_checked() {
     });
     bad(AdaptiveCoverParams {
         surface: Surface::Sphere {
-            center: DVec3::ZERO,
+            centre: DVec3::ZERO,
             radius: 0.0,
         },
         ..base
     });
     bad(AdaptiveCoverParams {
         surface: Surface::Torus {
-            center: DVec3::INFINITY,
+            centre: DVec3::INFINITY,
             major_radius: 0.3,
             minor_radius: 0.1,
         },
@@ -277,6 +275,6 @@ fn adaptive_parameters_are_checked() {
         ..base
     })
     .unwrap();
-    assert_eq!(root.centers, vec![DVec3::ZERO]);
+    assert_eq!(root.centres, vec![DVec3::ZERO]);
     assert_eq!(root.radii, vec![0.75 * 3f64.sqrt()]);
 }

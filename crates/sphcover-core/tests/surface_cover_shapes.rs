@@ -173,19 +173,15 @@ fn same_seed_gives_the_same_cover_on_one_and_two_threads() {
         ..SurfaceCoverParams::default()
     };
     let build = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap()
-            })
+        sphcover_core::threads::on_threads(threads, || {
+            build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap()
+        })
     };
     let (one, stats_one) = build(1);
     let (two, stats_two) = build(2);
     let bits = |c: &Cover| -> Vec<u64> {
-        let (centers, radii, funcs, _) = c.clone().into_parts();
-        let mut v: Vec<u64> = centers
+        let (centres, radii, funcs, _) = c.clone().into_parts();
+        let mut v: Vec<u64> = centres
             .iter()
             .flat_map(|p| p.to_array())
             .map(f64::to_bits)
@@ -220,9 +216,9 @@ fn same_seed_gives_the_same_cover_on_one_and_two_threads() {
 fn cloud_convenience_normalises_and_returns_the_map() {
     // A sphere of radius 3 around (10, −2, 5): the unit frame maps it to radius 0.5.
     let (points, normals) = sphere(5_000);
-    let center = DVec3::new(10.0, -2.0, 5.0);
+    let centre = DVec3::new(10.0, -2.0, 5.0);
     let cloud = PointCloud {
-        positions: points.iter().map(|&p| center + 6.0 * p).collect(),
+        positions: points.iter().map(|&p| centre + 6.0 * p).collect(),
         normals: Some(normals),
         ..PointCloud::default()
     };
@@ -233,12 +229,12 @@ fn cloud_convenience_normalises_and_returns_the_map() {
     let (cover, norm, _) = build_surface_cover_from_cloud(&cloud, &params).unwrap();
     // The lattice misses the exact extremes by a little.
     assert!((norm.scale - 6.0).abs() < 1e-2, "{norm:?}");
-    assert!((norm.center - center).length() < 1e-2, "{norm:?}");
+    assert!((norm.centre - centre).length() < 1e-2, "{norm:?}");
     let f = PuEvaluator::new(&cover, 1.0).unwrap();
     for &p in cloud.positions.iter().step_by(50) {
         assert!(f.value(norm.to_unit(p)).unwrap().abs() <= 2.0 * params.eps);
     }
-    assert!(f.value(norm.to_unit(center)).unwrap() > 0.0);
+    assert!(f.value(norm.to_unit(centre)).unwrap() > 0.0);
 }
 
 #[test]
@@ -300,7 +296,7 @@ fn sampling_stop_keeps_a_sparse_scan_below_its_point_count_and_reports_the_error
     // The error of the unrefined octants is reported: recount it from the cover.
     let over = (0..cover.len())
         .filter(|&i| {
-            let (c, r) = (cover.centers()[i], cover.radii()[i]);
+            let (c, r) = (cover.centres()[i], cover.radii()[i]);
             let g = cover.func(i).unwrap();
             points
                 .iter()
@@ -313,7 +309,7 @@ fn sampling_stop_keeps_a_sparse_scan_below_its_point_count_and_reports_the_error
     for p in &points {
         assert!(
             cover
-                .centers()
+                .centres()
                 .iter()
                 .zip(cover.radii())
                 .any(|(c, &r)| p.distance(*c) < r)

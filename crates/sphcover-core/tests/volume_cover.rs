@@ -21,7 +21,7 @@ fn normalised(volume: &Volume, stats: &VolumeCoverStats, idx: usize) -> f64 {
 fn assert_all_inside(cover: &Cover, points: impl Iterator<Item = DVec3>) {
     for x in points {
         let inside = cover
-            .centers()
+            .centres()
             .iter()
             .zip(cover.radii())
             .any(|(c, &r)| in_open_ball(x, *c, r));
@@ -34,11 +34,11 @@ fn assert_all_inside(cover: &Cover, points: impl Iterator<Item = DVec3>) {
 fn max_support_rms(volume: &Volume, cover: &Cover, stats: &VolumeCoverStats) -> f64 {
     let mut worst: f64 = 0.0;
     for i in 0..cover.len() {
-        let (c, r) = (cover.centers()[i], cover.radii()[i]);
+        let (c, r) = (cover.centres()[i], cover.radii()[i]);
         let g = cover.func(i).unwrap();
         let (mut sum, mut n) = (0.0, 0);
         for idx in 0..volume.len() {
-            let x = volume.voxel_center(volume.ijk(idx));
+            let x = volume.voxel_centre(volume.ijk(idx));
             if in_open_ball(x, c, r) {
                 let v = normalised(volume, stats, idx);
                 if v.is_finite() {
@@ -73,7 +73,7 @@ fn thin_plate_phantom_is_covered_compactly_within_tolerance() {
     assert_eq!(stats.supports, cover.len());
     assert_all_inside(
         &cover,
-        object.iter().map(|&i| volume.voxel_center(volume.ijk(i))),
+        object.iter().map(|&i| volume.voxel_centre(volume.ijk(i))),
     );
     let rms = max_support_rms(&volume, &cover, &stats);
     assert!(rms <= params.tolerance, "max RMS {rms}");
@@ -104,7 +104,7 @@ fn plate(thickness: f64) -> Volume {
 
 /// The points of `points` that lie in support `i` of `cover` and in no other (brute force).
 fn private_points(cover: &Cover, points: &[DVec3], i: usize) -> usize {
-    let inside = |x: DVec3, j: usize| in_open_ball(x, cover.centers()[j], cover.radii()[j]);
+    let inside = |x: DVec3, j: usize| in_open_ball(x, cover.centres()[j], cover.radii()[j]);
     points
         .iter()
         .filter(|&&x| inside(x, i) && (0..cover.len()).all(|j| j == i || !inside(x, j)))
@@ -116,7 +116,7 @@ fn cell_corners(volume: &Volume, object: &[usize]) -> Vec<DVec3> {
     let half = volume.affine().matrix3 * DVec3::splat(0.5);
     let mut out = Vec::with_capacity(8 * object.len());
     for &v in object {
-        let c = volume.voxel_center(volume.ijk(v));
+        let c = volume.voxel_centre(volume.ijk(v));
         for k in 0..8 {
             let s = DVec3::new(
                 if k & 1 == 0 { -1.0 } else { 1.0 },
@@ -135,7 +135,7 @@ fn outside_every_ball(cover: &Cover, points: &[DVec3]) -> usize {
         .iter()
         .filter(|&&x| {
             !cover
-                .centers()
+                .centres()
                 .iter()
                 .zip(cover.radii())
                 .any(|(c, &r)| in_open_ball(x, *c, r))
@@ -195,7 +195,7 @@ fn every_centre_order_covers_thin_plates_twenty_times_more_compactly() {
             let (cover, stats) = build_volume_cover(&volume, &params).unwrap();
             assert_all_inside(
                 &cover,
-                object.iter().map(|&i| volume.voxel_center(volume.ijk(i))),
+                object.iter().map(|&i| volume.voxel_centre(volume.ijk(i))),
             );
             let rms = max_support_rms(&volume, &cover, &stats);
             assert!(
@@ -224,9 +224,9 @@ fn without_elimination_the_thesis_cover_is_kept_and_is_larger() {
         pruned.len(),
         full.len()
     );
-    for (c, r) in pruned.centers().iter().zip(pruned.radii()) {
+    for (c, r) in pruned.centres().iter().zip(pruned.radii()) {
         assert!(
-            full.centers()
+            full.centres()
                 .iter()
                 .zip(full.radii())
                 .any(|(fc, fr)| fc == c && fr == r),
@@ -243,11 +243,9 @@ fn greedy_order_is_deterministic_across_thread_counts() {
         ..hu_params()
     };
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| build_volume_cover(&volume, &params).unwrap().0)
+        sphcover_core::threads::on_threads(threads, || {
+            build_volume_cover(&volume, &params).unwrap().0
+        })
     };
     assert_eq!(run(1), run(2));
 }
@@ -314,7 +312,7 @@ proptest! {
             .collect();
         assert_all_inside(
             &cover,
-            object.iter().map(|&i| volume.voxel_center(volume.ijk(i))),
+            object.iter().map(|&i| volume.voxel_centre(volume.ijk(i))),
         );
         let rms = max_support_rms(&volume, &cover, &stats);
         prop_assert!((rms - stats.max_rms).abs() < 1e-9, "{rms} vs {}", stats.max_rms);
@@ -324,7 +322,7 @@ proptest! {
         // A kept support holds an object voxel, or (corner elimination) a cell corner, that
         // no other ball holds.
         let mut points: Vec<DVec3> =
-            object.iter().map(|&i| volume.voxel_center(volume.ijk(i))).collect();
+            object.iter().map(|&i| volume.voxel_centre(volume.ijk(i))).collect();
         if eliminate == Elimination::CellCorners {
             points.extend(cell_corners(&volume, &object));
         }
@@ -359,7 +357,7 @@ fn thicker_plate_with_looser_tolerance_is_far_more_compact() {
         &cover,
         (0..volume.len())
             .filter(|&i| volume.value(i) > 500.0)
-            .map(|i| volume.voxel_center(volume.ijk(i))),
+            .map(|i| volume.voxel_centre(volume.ijk(i))),
     );
     assert!(max_support_rms(&volume, &cover, &stats) <= 0.1);
     let ratio = stats.object_points as f64 / cover.len() as f64;
@@ -371,21 +369,17 @@ fn same_seed_gives_the_same_cover_whatever_the_thread_count() {
     let volume = test_phantom();
     let params = hu_params();
     let run = |threads: usize, seed: u64| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
+        sphcover_core::threads::on_threads(threads, || {
+            build_volume_cover(
+                &volume,
+                &VolumeCoverParams {
+                    seed,
+                    ..params.clone()
+                },
+            )
             .unwrap()
-            .install(|| {
-                build_volume_cover(
-                    &volume,
-                    &VolumeCoverParams {
-                        seed,
-                        ..params.clone()
-                    },
-                )
-                .unwrap()
-                .0
-            })
+            .0
+        })
     };
     let one = run(1, 7);
     assert_eq!(one, run(2, 7));
@@ -417,7 +411,7 @@ fn quadratic_intensity_is_reproduced_with_the_largest_radius() {
     assert!(cover.radii().iter().all(|&r| r == 1.5));
     let (lo, hi) = stats.value_range;
     for i in 0..cover.len() {
-        let c = cover.centers()[i];
+        let c = cover.centres()[i];
         let g = cover.func(i).unwrap();
         for x in [c, c + DVec3::new(0.3, -0.2, 0.5)] {
             let want = (x.distance_squared(a) - lo) / (hi - lo);
@@ -441,7 +435,7 @@ fn rotated_anisotropic_grid_is_covered() {
         &cover,
         (0..volume.len())
             .filter(|&i| volume.value(i) > 500.0)
-            .map(|i| volume.voxel_center(volume.ijk(i))),
+            .map(|i| volume.voxel_centre(volume.ijk(i))),
     );
     let rms = max_support_rms(&volume, &cover, &stats);
     assert!((rms - stats.max_rms).abs() < 1e-9);
@@ -471,7 +465,7 @@ fn linear_bounding_box_variant_covers_every_voxel() {
     assert_eq!(stats.candidates, volume.len());
     assert_all_inside(
         &cover,
-        (0..volume.len()).map(|i| volume.voxel_center(volume.ijk(i))),
+        (0..volume.len()).map(|i| volume.voxel_centre(volume.ijk(i))),
     );
     let rms = max_support_rms(&volume, &cover, &stats);
     assert!((rms - stats.max_rms).abs() < 1e-9);
@@ -592,7 +586,7 @@ fn deepest_first_centres_cover_the_plate_with_fewer_supports() {
         &cover,
         (0..volume.len())
             .filter(|&i| volume.value(i) > 500.0)
-            .map(|i| volume.voxel_center(volume.ijk(i))),
+            .map(|i| volume.voxel_centre(volume.ijk(i))),
     );
     assert!(max_support_rms(&volume, &cover, &stats) <= deepest.tolerance);
     // Measured: 20.7 object voxels per support in random order, 29.7 deepest first.
@@ -602,10 +596,7 @@ fn deepest_first_centres_cover_the_plate_with_fewer_supports() {
         cover.len(),
         random_cover.len()
     );
-    let two = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap()
-        .install(|| build_volume_cover(&volume, &deepest).unwrap().0);
+    let two =
+        sphcover_core::threads::on_threads(2, || build_volume_cover(&volume, &deepest).unwrap().0);
     assert_eq!(cover, two);
 }

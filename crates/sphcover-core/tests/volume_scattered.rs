@@ -14,7 +14,7 @@ use volume_common::{AIR, MATERIAL, in_open_ball, test_phantom};
 fn assert_all_inside(cover: &Cover, points: &[DVec3], object: &[bool]) {
     for (x, _) in points.iter().zip(object).filter(|&(_, &o)| o) {
         let inside = cover
-            .centers()
+            .centres()
             .iter()
             .zip(cover.radii())
             .any(|(c, &r)| in_open_ball(*x, *c, r));
@@ -33,7 +33,7 @@ fn max_support_rms(
     let (lo, hi) = stats.value_range;
     let mut worst: f64 = 0.0;
     for i in 0..cover.len() {
-        let (c, r) = (cover.centers()[i], cover.radii()[i]);
+        let (c, r) = (cover.centres()[i], cover.radii()[i]);
         let g = cover.func(i).unwrap();
         let (mut sum, mut n) = (0.0, 0);
         for (x, v) in points.iter().zip(values) {
@@ -59,7 +59,7 @@ fn hu_params() -> VolumeCoverParams {
 fn voxel_centres_as_scattered_samples_cover_like_the_grid() {
     let volume = test_phantom();
     let points: Vec<DVec3> = (0..volume.len())
-        .map(|i| volume.voxel_center(volume.ijk(i)))
+        .map(|i| volume.voxel_centre(volume.ijk(i)))
         .collect();
     let values: Vec<f64> = (0..volume.len()).map(|i| volume.value(i)).collect();
     let params = hu_params();
@@ -164,17 +164,13 @@ fn the_linear_variant_covers_every_sample() {
 fn same_seed_gives_the_same_cover_whatever_the_thread_count() {
     let (points, values) = jittered_ball(14, 9);
     let run = |threads: usize, seed: u64| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let params = VolumeCoverParams {
-                    seed,
-                    ..VolumeCoverParams::default()
-                };
-                build_scattered_cover(&points, &values, &params).unwrap().0
-            })
+        sphcover_core::threads::on_threads(threads, || {
+            let params = VolumeCoverParams {
+                seed,
+                ..VolumeCoverParams::default()
+            };
+            build_scattered_cover(&points, &values, &params).unwrap().0
+        })
     };
     let one = run(1, 4);
     assert_eq!(one, run(2, 4));

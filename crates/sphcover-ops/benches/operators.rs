@@ -30,8 +30,8 @@ fn jittered(cells: usize, radius_factor: f64) -> PairGeometry {
     };
     let cover =
         synthetic::jittered_grid(domain, 1.0 / cells as f64, radius_factor, 0.25, 1).unwrap();
-    let graph = SphereIntersectionGraph::build(&cover.centers, &cover.radii, 0.7).unwrap();
-    PairGeometry::build(&cover.centers, &cover.radii, &graph).unwrap()
+    let graph = SphereIntersectionGraph::build(&cover.centres, &cover.radii, 0.7).unwrap();
+    PairGeometry::build(&cover.centres, &cover.radii, &graph).unwrap()
 }
 
 fn pool(threads: usize) -> rayon::ThreadPool {
@@ -49,7 +49,7 @@ fn laplacian_apply(c: &mut Criterion) {
         g.stored_entries(),
         g.stored_entries() as f64 / g.len() as f64
     );
-    let x: Vec<f64> = g.centers().iter().map(|p| p.x.sin() + p.y * p.z).collect();
+    let x: Vec<f64> = g.centres().iter().map(|p| p.x.sin() + p.y * p.z).collect();
     let mut y = vec![0.0; g.len()];
     let mut group = c.benchmark_group("laplacian_apply_1m");
     group.sample_size(20);
@@ -77,7 +77,7 @@ fn laplacian_apply(c: &mut Criterion) {
 fn cg(c: &mut Criterion) {
     let g = jittered(58, 1.3);
     let f: Vec<f64> = g
-        .centers()
+        .centres()
         .iter()
         .map(|p| (3.0 * p.x).sin() * (2.0 * p.y).cos() + p.z)
         .collect();

@@ -38,7 +38,7 @@ const QUANTITIES: [&str; 8] = [
 struct Level {
     label: String,
     h: f64,
-    centers: Vec<DVec3>,
+    centres: Vec<DVec3>,
     radii: Vec<f64>,
 }
 
@@ -62,16 +62,16 @@ fn rms(values: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
-fn errors(ops: &dyn DiscreteOperators, centers: &[DVec3], interior: &[usize]) -> [f64; 8] {
-    let scalar = |f: &dyn Fn(DVec3) -> f64| centers.iter().map(|&c| f(c)).collect::<Vec<f64>>();
+fn errors(ops: &dyn DiscreteOperators, centres: &[DVec3], interior: &[usize]) -> [f64; 8] {
+    let scalar = |f: &dyn Fn(DVec3) -> f64| centres.iter().map(|&c| f(c)).collect::<Vec<f64>>();
     let sin3 = |c: DVec3| (PI * c.x).sin() * (PI * c.y).sin() * (PI * c.z).sin();
     let lap_err = |f: &dyn Fn(DVec3) -> f64, exact: &dyn Fn(DVec3) -> f64| {
         let lap = ops.lap(&scalar(f));
-        rms(interior.iter().map(|&i| lap[i] - exact(centers[i])))
+        rms(interior.iter().map(|&i| lap[i] - exact(centres[i])))
     };
     let a = DVec3::new(0.3, -0.5, 0.8);
-    let div_x = ops.div(centers);
-    let div_a = ops.div(&vec![a; centers.len()]);
+    let div_x = ops.div(centres);
+    let div_a = ops.div(&vec![a; centres.len()]);
     let grad_linear = ops.grad(&scalar(&|c| a.dot(c) + 0.2));
     let curl = ops.curl(&grad_linear);
     [
@@ -82,7 +82,7 @@ fn errors(ops: &dyn DiscreteOperators, centers: &[DVec3], interior: &[usize]) ->
         {
             // Relative: the RMS of the exact values over the same supports normalises it.
             let exact = |c: DVec3| -3.0 * PI * PI * sin3(c);
-            let scale = rms(interior.iter().map(|&i| exact(centers[i])));
+            let scale = rms(interior.iter().map(|&i| exact(centres[i])));
             lap_err(&sin3, &exact) / scale
         },
         rms(interior.iter().map(|&i| div_x[i] - 3.0)),
@@ -123,27 +123,27 @@ fn run(name: &str, levels: &[Level]) {
     let mut table: Vec<Vec<(f64, [f64; 8])>> = vec![Vec::new(); families.len()];
     for level in levels {
         let start = Instant::now();
-        let graph = SphereIntersectionGraph::build(&level.centers, &level.radii, SHRINK)
+        let graph = SphereIntersectionGraph::build(&level.centres, &level.radii, SHRINK)
             .expect("valid cover");
         let geometry =
-            PairGeometry::build(&level.centers, &level.radii, &graph).expect("valid cover");
-        let interior: Vec<usize> = (0..level.centers.len())
+            PairGeometry::build(&level.centres, &level.radii, &graph).expect("valid cover");
+        let interior: Vec<usize> = (0..level.centres.len())
             .filter(|&i| {
-                let c = level.centers[i];
+                let c = level.centres[i];
                 let gap = (DVec3::splat(0.5) - c.abs()).min_element();
                 gap > 2.0 * level.radii[i]
             })
             .collect();
-        let thesis = ThesisOperators::new(&geometry, MassKind::Thesis, FluxKind::Neighbor);
+        let thesis = ThesisOperators::new(&geometry, MassKind::Thesis, FluxKind::Neighbour);
         let central = ThesisOperators::new(&geometry, MassKind::Thesis, FluxKind::Central);
         let moment = ThesisOperators::new(&geometry, MassKind::MomentMatched, FluxKind::Central);
         let quad = QuadraticFitOperators::new(&geometry);
         let stats = quad.stats();
         // The power cells need every intersecting pair: their own graph, shrink 1.
         let full_graph =
-            SphereIntersectionGraph::build(&level.centers, &level.radii, 1.0).expect("valid cover");
+            SphereIntersectionGraph::build(&level.centres, &level.radii, 1.0).expect("valid cover");
         let full_geometry =
-            PairGeometry::build(&level.centers, &level.radii, &full_graph).expect("valid cover");
+            PairGeometry::build(&level.centres, &level.radii, &full_graph).expect("valid cover");
         let laguerre_box = LaguerreOperators::new(&full_geometry, CellBound::CoverBox);
         let laguerre_ball = LaguerreOperators::new(&full_geometry, CellBound::BallCube);
         let ops: [&dyn DiscreteOperators; 6] = [
@@ -155,13 +155,13 @@ fn run(name: &str, levels: &[Level]) {
             &laguerre_ball,
         ];
         for (f, op) in ops.iter().enumerate() {
-            table[f].push((level.h, errors(*op, &level.centers, &interior)));
+            table[f].push((level.h, errors(*op, &level.centres, &interior)));
         }
         println!(
             "- {}: {} supports, {} interior, mean degree {:.1}, quadratic-fit rows {} \
              (fallback {}, isolated {}), {:.2} s",
             level.label,
-            level.centers.len(),
+            level.centres.len(),
             interior.len(),
             graph.mean_degree(),
             stats.quadratic_rows,
@@ -174,9 +174,9 @@ fn run(name: &str, levels: &[Level]) {
         let outside = interior
             .iter()
             .filter(|&&i| {
-                full_geometry.neighbors(i).iter().any(|&j| {
+                full_geometry.neighbours(i).iter().any(|&j| {
                     let j = j as usize;
-                    let d2 = level.centers[j].distance_squared(level.centers[i]);
+                    let d2 = level.centres[j].distance_squared(level.centres[i]);
                     level.radii[j].powi(2) - level.radii[i].powi(2) > d2
                 })
             })
@@ -246,7 +246,7 @@ fn grid_levels(jitter: f64) -> Vec<Level> {
             Level {
                 label: format!("h=1/{cells}"),
                 h,
-                centers: cover.centers,
+                centres: cover.centres,
                 radii: cover.radii,
             }
         })
@@ -261,7 +261,7 @@ fn adaptive_levels() -> Vec<Level> {
                 min_depth: depth - 2,
                 max_depth: depth,
                 surface: Surface::Sphere {
-                    center: DVec3::ZERO,
+                    centre: DVec3::ZERO,
                     radius: 0.3,
                 },
                 ..AdaptiveCoverParams::default()
@@ -270,7 +270,7 @@ fn adaptive_levels() -> Vec<Level> {
             Level {
                 label: format!("depth {}–{depth}", depth - 2),
                 h: 1.0 / (1u64 << depth) as f64,
-                centers: cover.centers,
+                centres: cover.centres,
                 radii: cover.radii,
             }
         })
@@ -303,7 +303,7 @@ fn surface_cover_levels() -> Vec<Level> {
             Level {
                 label: format!("max depth {depth}"),
                 h: 1.0 / (1u64 << depth) as f64,
-                centers: cover.centers().to_vec(),
+                centres: cover.centres().to_vec(),
                 radii: cover.radii().to_vec(),
             }
         })

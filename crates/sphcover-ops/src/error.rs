@@ -25,20 +25,20 @@ pub enum OpsError {
         supports: usize,
     },
     /// A graph row names a node out of range.
-    #[error("graph row {row} names node {neighbor}, out of range")]
+    #[error("graph row {row} names node {neighbour}, out of range")]
     InvalidGraph {
         /// Row of the bad entry.
         row: usize,
         /// The neighbour index found.
-        neighbor: u32,
+        neighbour: u32,
     },
     /// A centre has a NaN or infinite coordinate.
-    #[error("support {index}: centre {center} is not finite")]
-    NonFiniteCenter {
+    #[error("support {index}: centre {centre} is not finite")]
+    NonFiniteCentre {
         /// Index of the support.
         index: usize,
         /// The centre given.
-        center: DVec3,
+        centre: DVec3,
     },
     /// A radius is NaN, infinite or negative.
     #[error("support {index}: radius {radius} is not finite and non-negative")]

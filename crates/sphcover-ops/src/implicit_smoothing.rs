@@ -82,7 +82,7 @@ impl SymmetricOperator for ShiftedStiffness<'_> {
         let values = g.phi().iter().map(|&phi| -self.time * phi).collect();
         Some(SparseRows {
             offsets: g.offsets().to_vec(),
-            columns: g.neighbor_array().to_vec(),
+            columns: g.neighbour_array().to_vec(),
             values,
             diagonal,
         })

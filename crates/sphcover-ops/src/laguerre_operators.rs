@@ -250,9 +250,9 @@ fn polygon_area(vertices: &[DVec3]) -> f64 {
 /// The power-cell operators of a cover (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct LaguerreOperators {
-    centers: Vec<DVec3>,
+    centres: Vec<DVec3>,
     offsets: Vec<u32>,
-    neighbors: Vec<u32>,
+    neighbours: Vec<u32>,
     face_area: Vec<f64>,
     symmetric_area: Vec<f64>,
     volume: Vec<f64>,
@@ -264,7 +264,7 @@ impl LaguerreOperators {
     /// Computes every support's cell over the graph of `geometry`, in parallel (the result does
     /// not depend on the thread count).
     pub fn new(geometry: &PairGeometry, bound: CellBound) -> LaguerreOperators {
-        let c = geometry.centers();
+        let c = geometry.centres();
         let r = geometry.radii();
         let n = geometry.len();
         let (lo, hi) = c.iter().zip(r).fold(
@@ -272,7 +272,7 @@ impl LaguerreOperators {
             |(lo, hi), (&ci, &ri)| (lo.min(ci - ri), hi.max(ci + ri)),
         );
         let offsets = geometry.offsets();
-        let neighbors = geometry.neighbor_array();
+        let neighbours = geometry.neighbour_array();
         let cells: Vec<CellMeasure> = (0..n)
             .into_par_iter()
             .map(|i| {
@@ -286,7 +286,7 @@ impl LaguerreOperators {
                 let mut planes: Vec<(f64, usize, DVec3)> = (offsets[i] as usize
                     ..offsets[i + 1] as usize)
                     .filter_map(|k| {
-                        let j = neighbors[k] as usize;
+                        let j = neighbours[k] as usize;
                         let delta = c[j] - ci;
                         let d = delta.length();
                         (d > 0.0).then(|| {
@@ -321,7 +321,7 @@ impl LaguerreOperators {
                 (areas, volume, bound_area)
             })
             .collect();
-        let mut face_area = vec![0.0; neighbors.len()];
+        let mut face_area = vec![0.0; neighbours.len()];
         let mut volume = vec![0.0; n];
         let mut bound_area = vec![0.0; n];
         for (i, (areas, v, b)) in cells.into_iter().enumerate() {
@@ -336,11 +336,11 @@ impl LaguerreOperators {
             bounded_cells: bound_area.iter().filter(|&&b| b > 0.0).count(),
             ..LaguerreStats::default()
         };
-        let mut symmetric_area = vec![0.0; neighbors.len()];
+        let mut symmetric_area = vec![0.0; neighbours.len()];
         for i in 0..n {
             for k in offsets[i] as usize..offsets[i + 1] as usize {
-                let j = neighbors[k] as usize;
-                let row = &neighbors[offsets[j] as usize..offsets[j + 1] as usize];
+                let j = neighbours[k] as usize;
+                let row = &neighbours[offsets[j] as usize..offsets[j + 1] as usize];
                 let back = row
                     .binary_search(&(i as u32))
                     .ok()
@@ -358,9 +358,9 @@ impl LaguerreOperators {
         }
         stats.mismatched_pairs /= 2;
         LaguerreOperators {
-            centers: c.to_vec(),
+            centres: c.to_vec(),
             offsets: offsets.to_vec(),
-            neighbors: neighbors.to_vec(),
+            neighbours: neighbours.to_vec(),
             face_area,
             symmetric_area,
             volume,
@@ -401,8 +401,8 @@ impl LaguerreOperators {
         y.par_iter_mut().enumerate().for_each(|(i, yi)| {
             let mut acc = 0.0;
             for k in self.offsets[i] as usize..self.offsets[i + 1] as usize {
-                let j = self.neighbors[k] as usize;
-                let d = (self.centers[j] - self.centers[i]).length();
+                let j = self.neighbours[k] as usize;
+                let d = (self.centres[j] - self.centres[i]).length();
                 if d > 0.0 {
                     acc += self.symmetric_area[k] / d * (x[j] - x[i]);
                 }
@@ -426,8 +426,8 @@ impl LaguerreOperators {
                 }
                 let mut acc = T::default();
                 for k in self.offsets[i] as usize..self.offsets[i + 1] as usize {
-                    let j = self.neighbors[k] as usize;
-                    let delta = self.centers[j] - self.centers[i];
+                    let j = self.neighbours[k] as usize;
+                    let delta = self.centres[j] - self.centres[i];
                     let d = delta.length();
                     if d > 0.0 && self.face_area[k] > 0.0 {
                         acc += combine(i, j, delta * (self.face_area[k] / d));
@@ -441,7 +441,7 @@ impl LaguerreOperators {
 
 impl DiscreteOperators for LaguerreOperators {
     fn len(&self) -> usize {
-        self.centers.len()
+        self.centres.len()
     }
 
     fn grad(&self, u: &[f64]) -> Vec<DVec3> {

@@ -34,7 +34,7 @@ use crate::weighted_fit::WeightedFit;
 const RANK_TOLERANCE: f64 = 1e-12;
 
 /// The least-squares gradient operator of a [`PairGeometry`]: one weight vector per stored
-/// neighbour (zero for unusable pairs), aligned with [`PairGeometry::neighbor_array`].
+/// neighbour (zero for unusable pairs), aligned with [`PairGeometry::neighbour_array`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct LeastSquaresGradient {
     weights: Vec<DVec3>,
@@ -45,9 +45,9 @@ pub struct LeastSquaresGradient {
 /// The gradient weights of row `i` of `geometry` into `out` (aligned with the row); returns
 /// whether the offsets span ℝ³ and the condition number of the scaled offsets.
 pub(crate) fn gradient_row(geometry: &PairGeometry, i: usize, out: &mut [DVec3]) -> (bool, f64) {
-    let c = geometry.centers();
+    let c = geometry.centres();
     let phi = geometry.phi_row(i);
-    let nb = geometry.neighbors(i);
+    let nb = geometry.neighbours(i);
     let usable: Vec<usize> = (0..nb.len()).filter(|&k| phi[k] > 0.0).collect();
     out.fill(DVec3::ZERO);
     if usable.is_empty() {
@@ -147,7 +147,7 @@ impl LeastSquaresGradient {
     pub fn apply(&self, geometry: &PairGeometry, u: &[f64]) -> Vec<DVec3> {
         assert_eq!(u.len(), geometry.len(), "u has the wrong length");
         let offsets = geometry.offsets();
-        let nb = geometry.neighbor_array();
+        let nb = geometry.neighbour_array();
         (0..geometry.len())
             .into_par_iter()
             .map(|i| {

@@ -22,8 +22,8 @@
 //! // A 9×9×9 lattice of spacing 0.125 with radius 1.3·h, and its intersection graph.
 //! let domain = Aabb { min: DVec3::splat(-0.5), max: DVec3::splat(0.5) };
 //! let cover = synthetic::regular_grid(domain, 0.125, 1.3)?;
-//! let graph = SphereIntersectionGraph::build(&cover.centers, &cover.radii, 1.0)?;
-//! let geometry = PairGeometry::build(&cover.centers, &cover.radii, &graph)?;
+//! let graph = SphereIntersectionGraph::build(&cover.centres, &cover.radii, 1.0)?;
+//! let geometry = PairGeometry::build(&cover.centres, &cover.radii, &graph)?;
 //!
 //! // The Laplacian of a constant vanishes exactly, that of |x|² is 6 at interior centres once
 //! // the moment-matched mass replaces the thesis mass.
@@ -31,9 +31,9 @@
 //! let mut lap = vec![0.0; geometry.len()];
 //! geometry.apply_laplacian(MassKind::Thesis, &ones, &mut lap);
 //! assert!(lap.iter().all(|&v| v == 0.0));
-//! let sq: Vec<f64> = cover.centers.iter().map(|c| c.length_squared()).collect();
+//! let sq: Vec<f64> = cover.centres.iter().map(|c| c.length_squared()).collect();
 //! geometry.apply_laplacian(MassKind::MomentMatched, &sq, &mut lap);
-//! let centre = cover.centers.iter().position(|c| c.length() < 1e-12).unwrap();
+//! let centre = cover.centres.iter().position(|c| c.length() < 1e-12).unwrap();
 //! assert!((lap[centre] - 6.0).abs() < 1e-9);
 //!
 //! // One implicit smoothing step (M − tW_L) u = M u₀ by preconditioned CG.

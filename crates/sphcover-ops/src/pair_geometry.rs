@@ -99,8 +99,8 @@ pub enum MassKind {
 }
 
 /// Pair geometry of a cover over its sphere intersection graph, stored in compressed sparse
-/// rows aligned with [`SphereIntersectionGraph::neighbor_array`]: entry `k` of
-/// [`PairGeometry::phi`] belongs to the pair `(i, neighbor_array()[k])` for the row `i` with
+/// rows aligned with [`SphereIntersectionGraph::neighbour_array`]: entry `k` of
+/// [`PairGeometry::phi`] belongs to the pair `(i, neighbour_array()[k])` for the row `i` with
 /// `offsets()[i] ≤ k < offsets()[i + 1]`.
 ///
 /// It is also the symmetric weight matrix `W = [φ_ij]`, and applies the stiffness
@@ -108,10 +108,10 @@ pub enum MassKind {
 /// `Lap = M⁻¹ L_W` for either [`MassKind`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct PairGeometry {
-    centers: Vec<DVec3>,
+    centres: Vec<DVec3>,
     radii: Vec<f64>,
     offsets: Vec<u32>,
-    neighbors: Vec<u32>,
+    neighbours: Vec<u32>,
     phi: Vec<f64>,
     cap_sum: Vec<f64>,
     weight_sum: Vec<f64>,
@@ -121,17 +121,17 @@ pub struct PairGeometry {
 }
 
 impl PairGeometry {
-    /// Computes the pair geometry of the balls `(centers[i], radii[i])` over `graph`, in
+    /// Computes the pair geometry of the balls `(centres[i], radii[i])` over `graph`, in
     /// parallel; the result is identical for any thread count.
     ///
     /// Centres must be finite, radii finite and non-negative, the graph built on as many
     /// supports as there are centres.
     pub fn build(
-        centers: &[DVec3],
+        centres: &[DVec3],
         radii: &[f64],
         graph: &SphereIntersectionGraph,
     ) -> Result<PairGeometry, OpsError> {
-        let n = centers.len();
+        let n = centres.len();
         if radii.len() != n {
             return Err(OpsError::LengthMismatch {
                 array: "radii",
@@ -145,10 +145,10 @@ impl PairGeometry {
                 supports: n,
             });
         }
-        if let Some(index) = centers.iter().position(|c| !c.is_finite()) {
-            return Err(OpsError::NonFiniteCenter {
+        if let Some(index) = centres.iter().position(|c| !c.is_finite()) {
+            return Err(OpsError::NonFiniteCentre {
                 index,
-                center: centers[index],
+                centre: centres[index],
             });
         }
         if let Some(index) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
@@ -158,16 +158,16 @@ impl PairGeometry {
             });
         }
         let offsets = graph.offsets().to_vec();
-        let neighbors = graph.neighbor_array().to_vec();
-        if let Some(k) = neighbors.iter().position(|&j| j as usize >= n) {
+        let neighbours = graph.neighbour_array().to_vec();
+        if let Some(k) = neighbours.iter().position(|&j| j as usize >= n) {
             let row = offsets.partition_point(|&o| o as usize <= k) - 1;
             return Err(OpsError::InvalidGraph {
                 row,
-                neighbor: neighbors[k],
+                neighbour: neighbours[k],
             });
         }
 
-        let mut phi = vec![0.0; neighbors.len()];
+        let mut phi = vec![0.0; neighbours.len()];
         let mut per_support = vec![[0.0f64; 4]; n];
         // Split the entry array along row boundaries so that each task owns its rows' entries.
         let mut tasks: Vec<RowTask<'_>> = Vec::new();
@@ -193,11 +193,11 @@ impl PairGeometry {
                 let mut usable = 0;
                 for (local, sums) in rows_out.iter_mut().enumerate() {
                     let i = first_row + local;
-                    let (ci, ri) = (centers[i], radii[i]);
+                    let (ci, ri) = (centres[i], radii[i]);
                     let (mut s, mut w, mut moment) = (0.0, 0.0, 0.0);
                     for k in offsets[i] as usize..offsets[i + 1] as usize {
-                        let j = neighbors[k] as usize;
-                        let t = PairTerms::new(ci, ri, centers[j], radii[j]);
+                        let j = neighbours[k] as usize;
+                        let t = PairTerms::new(ci, ri, centres[j], radii[j]);
                         phi_out[k - base] = t.phi;
                         usable += usize::from(t.phi > 0.0);
                         s += t.cap_area;
@@ -211,10 +211,10 @@ impl PairGeometry {
             .sum();
 
         Ok(PairGeometry {
-            centers: centers.to_vec(),
+            centres: centres.to_vec(),
             radii: radii.to_vec(),
             offsets,
-            neighbors,
+            neighbours,
             phi,
             cap_sum: per_support.iter().map(|s| s[0]).collect(),
             weight_sum: per_support.iter().map(|s| s[1]).collect(),
@@ -226,17 +226,17 @@ impl PairGeometry {
 
     /// Number of supports.
     pub fn len(&self) -> usize {
-        self.centers.len()
+        self.centres.len()
     }
 
     /// True when there is no support.
     pub fn is_empty(&self) -> bool {
-        self.centers.is_empty()
+        self.centres.is_empty()
     }
 
     /// Support centres.
-    pub fn centers(&self) -> &[DVec3] {
-        &self.centers
+    pub fn centres(&self) -> &[DVec3] {
+        &self.centres
     }
 
     /// Support radii.
@@ -250,21 +250,21 @@ impl PairGeometry {
     }
 
     /// All neighbour rows concatenated, as in the graph.
-    pub fn neighbor_array(&self) -> &[u32] {
-        &self.neighbors
+    pub fn neighbour_array(&self) -> &[u32] {
+        &self.neighbours
     }
 
     /// Neighbours of support `i` (panics when out of range, like slice indexing).
-    pub fn neighbors(&self, i: usize) -> &[u32] {
-        &self.neighbors[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    pub fn neighbours(&self, i: usize) -> &[u32] {
+        &self.neighbours[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
 
-    /// `φ` of every directed entry, aligned with [`PairGeometry::neighbor_array`].
+    /// `φ` of every directed entry, aligned with [`PairGeometry::neighbour_array`].
     pub fn phi(&self) -> &[f64] {
         &self.phi
     }
 
-    /// `φ_ij` for the neighbours of `i`, aligned with [`PairGeometry::neighbors`].
+    /// `φ_ij` for the neighbours of `i`, aligned with [`PairGeometry::neighbours`].
     pub fn phi_row(&self, i: usize) -> &[f64] {
         &self.phi[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
@@ -272,11 +272,11 @@ impl PairGeometry {
     /// The full terms (`l`, `ρ²`, `D`, `A`, `φ`) of directed entry `k`, recomputed from the
     /// centres and radii; `row` must be the row holding `k`.
     pub fn terms(&self, row: usize, k: usize) -> PairTerms {
-        let j = self.neighbors[k] as usize;
+        let j = self.neighbours[k] as usize;
         PairTerms::new(
-            self.centers[row],
+            self.centres[row],
             self.radii[row],
-            self.centers[j],
+            self.centres[j],
             self.radii[j],
         )
     }
@@ -306,7 +306,7 @@ impl PairGeometry {
 
     /// Number of directed entries stored (the graph's, usable or not).
     pub fn stored_entries(&self) -> usize {
-        self.neighbors.len()
+        self.neighbours.len()
     }
 
     /// `y = L_W x = (W − diag(W·1)) x`, i.e. `y_i = Σ_j φ_ij (x_j − x_i)`, in parallel over
@@ -333,7 +333,7 @@ impl PairGeometry {
         let start = self.offsets[i] as usize;
         let end = self.offsets[i + 1] as usize;
         let phi = &self.phi[start..end];
-        let nb = &self.neighbors[start..end];
+        let nb = &self.neighbours[start..end];
         let xi = x[i];
         let mut acc = [0.0f64; 4];
         let mut chunks_phi = phi.chunks_exact(4);

@@ -63,7 +63,7 @@ impl SymmetricOperator for FreeStiffness<'_> {
                         continue;
                     }
                     let mut acc = 0.0;
-                    for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+                    for (&j, &phi) in g.neighbours(i).iter().zip(g.phi_row(i)) {
                         let xj = if self.fixed[j as usize] {
                             0.0
                         } else {
@@ -87,7 +87,7 @@ impl SymmetricOperator for FreeStiffness<'_> {
         let g = self.geometry;
         let mut diagonal = vec![0.0; g.len()];
         self.diagonal(&mut diagonal);
-        let nb = g.neighbor_array();
+        let nb = g.neighbour_array();
         let values = (0..g.len())
             .flat_map(|i| {
                 (g.offsets()[i] as usize..g.offsets()[i + 1] as usize).map(move |k| {
@@ -165,7 +165,7 @@ pub fn solve_poisson(
                 return 0.0;
             }
             let mut known = 0.0;
-            for (&j, &phi) in geometry.neighbors(i).iter().zip(geometry.phi_row(i)) {
+            for (&j, &phi) in geometry.neighbours(i).iter().zip(geometry.phi_row(i)) {
                 if fixed[j as usize] {
                     known += phi * values[j as usize];
                 }
@@ -201,7 +201,7 @@ fn check_every_component_fixed(geometry: &PairGeometry, fixed: &[bool]) -> Resul
         let mut has_fixed = false;
         while let Some(i) = stack.pop() {
             has_fixed |= fixed[i];
-            for (&j, &phi) in geometry.neighbors(i).iter().zip(geometry.phi_row(i)) {
+            for (&j, &phi) in geometry.neighbours(i).iter().zip(geometry.phi_row(i)) {
                 if phi > 0.0 && !seen[j as usize] {
                     seen[j as usize] = true;
                     stack.push(j as usize);

@@ -76,7 +76,7 @@ pub struct QuadraticFitStats {
 #[derive(Clone, Debug)]
 pub struct QuadraticFitOperators {
     offsets: Vec<u32>,
-    neighbors: Vec<u32>,
+    neighbours: Vec<u32>,
     lap_coeff: Vec<f64>,
     grad_coeff: Vec<DVec3>,
     row_kinds: Vec<RowKind>,
@@ -168,7 +168,7 @@ impl QuadraticFitOperators {
         }
         QuadraticFitOperators {
             offsets: offsets.to_vec(),
-            neighbors: geometry.neighbor_array().to_vec(),
+            neighbours: geometry.neighbour_array().to_vec(),
             lap_coeff,
             grad_coeff,
             row_kinds,
@@ -212,9 +212,9 @@ fn fit_row(
     lap_out: &mut [f64],
     grad_out: &mut [DVec3],
 ) -> (RowKind, bool) {
-    let c = geometry.centers();
+    let c = geometry.centres();
     let phi = geometry.phi_row(i);
-    let nb = geometry.neighbors(i);
+    let nb = geometry.neighbours(i);
     let mass = geometry.mass(MassKind::MomentMatched)[i];
     if mass <= 0.0 {
         return (RowKind::Isolated, false);
@@ -287,7 +287,7 @@ impl DiscreteOperators for QuadraticFitOperators {
         self.rows(|i, range| {
             let mut acc = DVec3::ZERO;
             for k in range {
-                acc += self.grad_coeff[k] * (u[self.neighbors[k] as usize] - u[i]);
+                acc += self.grad_coeff[k] * (u[self.neighbours[k] as usize] - u[i]);
             }
             acc
         })
@@ -298,7 +298,7 @@ impl DiscreteOperators for QuadraticFitOperators {
         self.rows(|i, range| {
             let mut acc = 0.0;
             for k in range {
-                acc += self.grad_coeff[k].dot(v[self.neighbors[k] as usize] - v[i]);
+                acc += self.grad_coeff[k].dot(v[self.neighbours[k] as usize] - v[i]);
             }
             acc
         })
@@ -309,7 +309,7 @@ impl DiscreteOperators for QuadraticFitOperators {
         self.rows(|i, range| {
             let mut acc = 0.0;
             for k in range {
-                acc += self.lap_coeff[k] * (u[self.neighbors[k] as usize] - u[i]);
+                acc += self.lap_coeff[k] * (u[self.neighbours[k] as usize] - u[i]);
             }
             acc
         })
@@ -320,7 +320,7 @@ impl DiscreteOperators for QuadraticFitOperators {
         self.rows(|i, range| {
             let mut acc = DVec3::ZERO;
             for k in range {
-                acc += self.grad_coeff[k].cross(v[self.neighbors[k] as usize] - v[i]);
+                acc += self.grad_coeff[k].cross(v[self.neighbours[k] as usize] - v[i]);
             }
             acc
         })

@@ -30,7 +30,7 @@ use crate::pair_geometry::{MassKind, PairGeometry};
 pub enum FluxKind {
     /// `v_j`, the thesis form (eq. 4.18).
     #[default]
-    Neighbor,
+    Neighbour,
     /// `(v_i + v_j) / 2`.
     Central,
 }
@@ -78,7 +78,7 @@ impl<'g> ThesisOperators<'g> {
     {
         let g = self.geometry;
         assert_eq!(v.len(), g.len(), "v has the wrong length");
-        let c = g.centers();
+        let c = g.centres();
         let m = g.mass(self.mass);
         (0..g.len())
             .into_par_iter()
@@ -87,10 +87,10 @@ impl<'g> ThesisOperators<'g> {
                     return T::default();
                 }
                 let mut acc = T::default();
-                for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+                for (&j, &phi) in g.neighbours(i).iter().zip(g.phi_row(i)) {
                     let j = j as usize;
                     let value = match self.flux {
-                        FluxKind::Neighbor => v[j],
+                        FluxKind::Neighbour => v[j],
                         FluxKind::Central => 0.5 * (v[i] + v[j]),
                     };
                     acc += combine(phi * (c[j] - c[i]), value);

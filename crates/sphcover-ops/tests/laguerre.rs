@@ -6,9 +6,9 @@ use proptest::prelude::*;
 use sphcover_core::{Aabb, SphereIntersectionGraph, synthetic};
 use sphcover_ops::{CellBound, DiscreteOperators, LaguerreOperators, PairGeometry};
 
-fn geometry(centers: &[DVec3], radii: &[f64]) -> PairGeometry {
-    let graph = SphereIntersectionGraph::build(centers, radii, 1.0).unwrap();
-    PairGeometry::build(centers, radii, &graph).unwrap()
+fn geometry(centres: &[DVec3], radii: &[f64]) -> PairGeometry {
+    let graph = SphereIntersectionGraph::build(centres, radii, 1.0).unwrap();
+    PairGeometry::build(centres, radii, &graph).unwrap()
 }
 
 fn power(c: DVec3, r: f64, x: DVec3) -> f64 {
@@ -23,12 +23,12 @@ fn regular_grid_cells_are_cubes() {
         max: DVec3::splat(0.5),
     };
     let cover = synthetic::regular_grid(domain, h, 1.3).unwrap();
-    let g = geometry(&cover.centers, &cover.radii);
+    let g = geometry(&cover.centres, &cover.radii);
     let ops = LaguerreOperators::new(&g, CellBound::CoverBox);
     assert_eq!(ops.stats().empty_cells, 0);
-    let sq: Vec<f64> = cover.centers.iter().map(|c| c.length_squared()).collect();
+    let sq: Vec<f64> = cover.centres.iter().map(|c| c.length_squared()).collect();
     let lap = ops.lap(&sq);
-    let div = ops.div(&cover.centers);
+    let div = ops.div(&cover.centres);
     let mut interior = 0;
     for i in 0..g.len() {
         if ops.bound_areas()[i] > 0.0 {
@@ -60,21 +60,21 @@ proptest! {
         a in (-2.0..2.0f64, -2.0..2.0f64, -2.0..2.0f64),
     ) {
         let a = DVec3::new(a.0, a.1, a.2);
-        let mut centers: Vec<DVec3> =
+        let mut centres: Vec<DVec3> =
             balls.iter().map(|&((x, y, z), _)| DVec3::new(x, y, z)).collect();
         let mut radii: Vec<f64> = balls.iter().map(|&(_, r)| r).collect();
         // A ball with no neighbour: zero operators, not NaN.
-        centers.push(DVec3::new(2.0, 0.5, 0.5));
+        centres.push(DVec3::new(2.0, 0.5, 0.5));
         radii.push(0.2);
-        let n = centers.len();
-        let g = geometry(&centers, &radii);
+        let n = centres.len();
+        let g = geometry(&centres, &radii);
         for bound in [CellBound::CoverBox, CellBound::BallCube] {
             let ops = LaguerreOperators::new(&g, bound);
             // Symmetric weights, exact zero on constants.
             let sym = ops.symmetric_face_areas();
             for i in 0..n {
-                for (p, &j) in g.neighbors(i).iter().enumerate() {
-                    let back = g.neighbors(j as usize).binary_search(&(i as u32)).unwrap();
+                for (p, &j) in g.neighbours(i).iter().enumerate() {
+                    let back = g.neighbours(j as usize).binary_search(&(i as u32)).unwrap();
                     prop_assert_eq!(sym[g.offsets()[i] as usize + p],
                         sym[g.offsets()[j as usize] as usize + back]);
                 }
@@ -82,7 +82,7 @@ proptest! {
             prop_assert!(ops.lap(&vec![1.7; n]).iter().all(|&v| v == 0.0));
             prop_assert!(ops.div(&vec![a; n]).iter().all(|&v| v == 0.0));
             prop_assert!(ops.curl(&vec![a; n]).iter().all(|&v| v == DVec3::ZERO));
-            let linear: Vec<f64> = centers.iter().map(|c| a.dot(*c)).collect();
+            let linear: Vec<f64> = centres.iter().map(|c| a.dot(*c)).collect();
             let lap = ops.lap(&linear);
             prop_assert!(lap.iter().all(|v| v.is_finite()));
             prop_assert_eq!(lap[n - 1], 0.0);
@@ -95,8 +95,8 @@ proptest! {
                 let range = g.offsets()[i] as usize..g.offsets()[i + 1] as usize;
                 let (mut closure, mut total) = (DVec3::ZERO, 0.0);
                 for k in range.clone() {
-                    let j = g.neighbor_array()[k] as usize;
-                    let d = centers[j] - centers[i];
+                    let j = g.neighbour_array()[k] as usize;
+                    let d = centres[j] - centres[i];
                     if d.length() > 0.0 {
                         closure += ops.face_areas()[k] * d.normalize();
                         total += ops.face_areas()[k];
@@ -111,8 +111,8 @@ proptest! {
                 });
                 if agree {
                     let scale: f64 = range.clone().map(|k| {
-                        let j = g.neighbor_array()[k] as usize;
-                        let d = centers[j].distance(centers[i]);
+                        let j = g.neighbour_array()[k] as usize;
+                        let d = centres[j].distance(centres[i]);
                         ops.face_areas()[k] * (linear[j] - linear[i]).abs() / d.max(1e-300)
                     }).sum::<f64>() / v;
                     prop_assert!(lap[i].abs() <= 1e-9 * scale + 1e-12, "support {i}: {}", lap[i]);
@@ -120,14 +120,14 @@ proptest! {
             }
             // Volume of the cell against counting sample points of the bound that are no
             // farther (in power) from c_i than from any graph neighbour.
-            let (lo, hi) = centers.iter().zip(&radii).fold(
+            let (lo, hi) = centres.iter().zip(&radii).fold(
                 (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
                 |(lo, hi), (&c, &r)| (lo.min(c - r), hi.max(c + r)));
             let samples = 48;
             for i in 0..n - 1 {
                 let (blo, bhi) = match bound {
                     CellBound::CoverBox => (lo, hi),
-                    CellBound::BallCube => (centers[i] - radii[i], centers[i] + radii[i]),
+                    CellBound::BallCube => (centres[i] - radii[i], centres[i] + radii[i]),
                 };
                 let step = (bhi - blo) / samples as f64;
                 let mut count = 0usize;
@@ -135,10 +135,10 @@ proptest! {
                     for y in 0..samples {
                         for z in 0..samples {
                             let p = blo + step * DVec3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5);
-                            let own = power(centers[i], radii[i], p);
-                            if g.neighbors(i).iter().all(|&j| {
+                            let own = power(centres[i], radii[i], p);
+                            if g.neighbours(i).iter().all(|&j| {
                                 let j = j as usize;
-                                centers[j] == centers[i] || own <= power(centers[j], radii[j], p)
+                                centres[j] == centres[i] || own <= power(centres[j], radii[j], p)
                             }) {
                                 count += 1;
                             }

@@ -24,43 +24,43 @@ fn cover_strategy() -> impl Strategy<Value = (Vec<DVec3>, Vec<f64>)> {
     )
         .prop_map(|(balls, coincident, log_gap, duplicate)| {
             let nest_gap = 10f64.powf(log_gap);
-            let mut centers: Vec<DVec3> = balls
+            let mut centres: Vec<DVec3> = balls
                 .iter()
                 .map(|&((x, y, z), _)| DVec3::new(x, y, z))
                 .collect();
             let mut radii: Vec<f64> = balls.iter().map(|&(_, r)| r).collect();
             if coincident {
                 // Same radius as ball 0, next to it.
-                centers.push(centers[0] + DVec3::new(0.1, 0.05, 0.0));
+                centres.push(centres[0] + DVec3::new(0.1, 0.05, 0.0));
                 radii.push(radii[0]);
             }
             // Nearly nested in ball 1: d just above |r_i − r_j|.
             let r = 0.5 * radii[1];
-            centers.push(centers[1] + DVec3::new(radii[1] - r + nest_gap, 0.0, 0.0));
+            centres.push(centres[1] + DVec3::new(radii[1] - r + nest_gap, 0.0, 0.0));
             radii.push(r);
             if duplicate {
                 // Same centre and radius as ball 0 (d = 0: no intersection circle), and a ball
                 // strictly inside ball 1.
-                centers.push(centers[0]);
+                centres.push(centres[0]);
                 radii.push(radii[0]);
-                centers.push(centers[1] + DVec3::new(0.1 * radii[1], 0.0, 0.0));
+                centres.push(centres[1] + DVec3::new(0.1 * radii[1], 0.0, 0.0));
                 radii.push(0.5 * radii[1]);
             }
             // A pair far away: each ball has exactly one neighbour.
-            centers.push(DVec3::new(10.0, 0.0, 0.0));
+            centres.push(DVec3::new(10.0, 0.0, 0.0));
             radii.push(0.3);
-            centers.push(DVec3::new(10.4, 0.1, 0.0));
+            centres.push(DVec3::new(10.4, 0.1, 0.0));
             radii.push(0.3);
             // An isolated ball.
-            centers.push(DVec3::new(-10.0, 0.0, 0.0));
+            centres.push(DVec3::new(-10.0, 0.0, 0.0));
             radii.push(0.3);
-            (centers, radii)
+            (centres, radii)
         })
 }
 
-fn geometry(centers: &[DVec3], radii: &[f64], shrink: f64) -> PairGeometry {
-    let graph = SphereIntersectionGraph::build(centers, radii, shrink).unwrap();
-    PairGeometry::build(centers, radii, &graph).unwrap()
+fn geometry(centres: &[DVec3], radii: &[f64], shrink: f64) -> PairGeometry {
+    let graph = SphereIntersectionGraph::build(centres, radii, shrink).unwrap();
+    PairGeometry::build(centres, radii, &graph).unwrap()
 }
 
 fn row_of(g: &PairGeometry, k: usize) -> usize {
@@ -94,13 +94,13 @@ proptest! {
     }
 
     #[test]
-    fn weights_are_symmetric_and_stiffness_negative((centers, radii) in cover_strategy(),
+    fn weights_are_symmetric_and_stiffness_negative((centres, radii) in cover_strategy(),
                                                     x in prop::collection::vec(-1.0..1.0f64, 50)) {
-        let g = geometry(&centers, &radii, 1.0);
+        let g = geometry(&centres, &radii, 1.0);
         for k in 0..g.stored_entries() {
             let i = row_of(&g, k);
-            let j = g.neighbor_array()[k] as usize;
-            let back = g.neighbors(j).binary_search(&(i as u32)).unwrap();
+            let j = g.neighbour_array()[k] as usize;
+            let back = g.neighbours(j).binary_search(&(i as u32)).unwrap();
             prop_assert_eq!(g.phi()[k], g.phi_row(j)[back]);
             prop_assert!(g.phi()[k].is_finite() && g.phi()[k] >= 0.0);
         }
@@ -113,34 +113,34 @@ proptest! {
     }
 
     #[test]
-    fn thesis_identities((centers, radii) in cover_strategy(),
+    fn thesis_identities((centres, radii) in cover_strategy(),
                          a in (-2.0..2.0f64, -2.0..2.0f64, -2.0..2.0f64), b in -1.0..1.0f64) {
         let a = DVec3::new(a.0, a.1, a.2);
-        let g = geometry(&centers, &radii, 0.8);
+        let g = geometry(&centres, &radii, 0.8);
         let n = g.len();
         let isolated = n - 1;
         for mass in [MassKind::Thesis, MassKind::MomentMatched] {
-            for flux in [FluxKind::Neighbor, FluxKind::Central] {
+            for flux in [FluxKind::Neighbour, FluxKind::Central] {
                 let ops = ThesisOperators::new(&g, mass, flux);
                 // Lap(const) = 0 exactly.
                 prop_assert!(ops.lap(&vec![2.5; n]).iter().all(|&v| v == 0.0));
-                let u: Vec<f64> = centers.iter().map(|c| a.dot(*c) + b).collect();
+                let u: Vec<f64> = centres.iter().map(|c| a.dot(*c) + b).collect();
                 let grad = ops.grad(&u);
                 let lap = ops.lap(&u);
                 let div_grad = ops.div(&grad);
                 let m = g.mass(mass);
                 for i in 0..n {
                     // Scale of the sum whose cancellation the identity relies on.
-                    let scale: f64 = g.neighbors(i).iter().zip(g.phi_row(i))
-                        .map(|(&j, &phi)| phi * a.dot(centers[j as usize] - centers[i]).abs())
+                    let scale: f64 = g.neighbours(i).iter().zip(g.phi_row(i))
+                        .map(|(&j, &phi)| phi * a.dot(centres[j as usize] - centres[i]).abs())
                         .sum::<f64>() / m[i].max(f64::MIN_POSITIVE);
                     prop_assert!((lap[i] - div_grad[i]).abs() <= 1e-10 * (scale + lap[i].abs()),
                         "support {i}: Lap {} vs Div Grad {} (scale {scale})", lap[i], div_grad[i]);
                     // Every neighbour difference is reproduced, whatever the rank and the
                     // conditioning; with full rank the gradient is `a` up to the conditioning.
-                    for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+                    for (&j, &phi) in g.neighbours(i).iter().zip(g.phi_row(i)) {
                         if phi > 0.0 {
-                            let d = centers[j as usize] - centers[i];
+                            let d = centres[j as usize] - centres[i];
                             prop_assert!((grad[i].dot(d) - a.dot(d)).abs()
                                 <= 1e-10 * a.length() * d.length(),
                                 "support {i}: grad {} vs {a} along {d}", grad[i]);
@@ -152,10 +152,10 @@ proptest! {
                         // |u| / d, amplified by the fit's conditioning.
                         let cond = ops.gradient().condition(i);
                         let (mut u_max, mut d_min) = (u[i].abs(), f64::INFINITY);
-                        for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+                        for (&j, &phi) in g.neighbours(i).iter().zip(g.phi_row(i)) {
                             if phi > 0.0 {
                                 u_max = u_max.max(u[j as usize].abs());
-                                d_min = d_min.min((centers[j as usize] - centers[i]).length());
+                                d_min = d_min.min((centres[j as usize] - centres[i]).length());
                             }
                         }
                         let scale = a.length() + u_max / d_min;
@@ -174,11 +174,11 @@ proptest! {
     }
 
     #[test]
-    fn quadratic_fit_exactness((centers, radii) in cover_strategy(),
+    fn quadratic_fit_exactness((centres, radii) in cover_strategy(),
                                h in prop::array::uniform6(-2.0..2.0f64),
                                a in (-2.0..2.0f64, -2.0..2.0f64, -2.0..2.0f64)) {
         let a = DVec3::new(a.0, a.1, a.2);
-        let g = geometry(&centers, &radii, 1.0);
+        let g = geometry(&centres, &radii, 1.0);
         let n = g.len();
         let ops = QuadraticFitOperators::new(&g);
         let isolated = n - 1;
@@ -190,12 +190,12 @@ proptest! {
         let quad = |c: DVec3| 0.5 * (h[0] * c.x * c.x + h[1] * c.y * c.y + h[2] * c.z * c.z)
             + h[3] * c.x * c.y + h[4] * c.x * c.z + h[5] * c.y * c.z + a.dot(c);
         let trace = h[0] + h[1] + h[2];
-        let u: Vec<f64> = centers.iter().map(|&c| quad(c)).collect();
-        let linear: Vec<f64> = centers.iter().map(|c| a.dot(*c)).collect();
+        let u: Vec<f64> = centres.iter().map(|&c| quad(c)).collect();
+        let linear: Vec<f64> = centres.iter().map(|c| a.dot(*c)).collect();
         let lap_u = ops.lap(&u);
         let lap_linear = ops.lap(&linear);
         let grad_linear = ops.grad(&linear);
-        let div_x = ops.div(&centers);
+        let div_x = ops.div(&centres);
         let coeff = ops.lap_coefficients();
         let linear_gradient = sphcover_ops::LeastSquaresGradient::new(&g);
         for i in 0..n {
@@ -204,7 +204,7 @@ proptest! {
             let m = g.mass(MassKind::MomentMatched)[i].max(f64::MIN_POSITIVE);
             let scale = |f: &[f64]| range.clone()
                 .map(|k| (coeff[k].abs() + g.phi()[k] / m)
-                    * (f[g.neighbor_array()[k] as usize] - f[i]).abs())
+                    * (f[g.neighbour_array()[k] as usize] - f[i]).abs())
                 .sum::<f64>();
             prop_assert!(lap_linear[i].abs() <= 1e-12 * scale(&linear) + 1e-300,
                 "support {i}: Lap(linear) = {}", lap_linear[i]);
@@ -235,18 +235,18 @@ fn quadratic_fit_is_exact_on_quadratics_of_a_jittered_grid() {
         max: DVec3::splat(1.0),
     };
     let cover = sphcover_core::synthetic::jittered_grid(domain, 0.125, 1.3, 0.3, 3).unwrap();
-    let g = geometry(&cover.centers, &cover.radii, 0.7);
+    let g = geometry(&cover.centres, &cover.radii, 0.7);
     let ops = QuadraticFitOperators::new(&g);
     let stats = ops.stats();
     assert_eq!(stats.isolated_rows, 0);
     assert!(stats.quadratic_rows > 9 * g.len() / 10, "{stats:?}");
     let u: Vec<f64> = cover
-        .centers
+        .centres
         .iter()
         .map(|c| 3.0 * c.x * c.x - c.y * c.z + 0.5 * c.z * c.z + c.x)
         .collect();
     let lap = ops.lap(&u);
-    let thesis = ThesisOperators::new(&g, MassKind::Thesis, FluxKind::Neighbor).lap(&u);
+    let thesis = ThesisOperators::new(&g, MassKind::Thesis, FluxKind::Neighbour).lap(&u);
     let mut exact_rows = 0;
     let mut thesis_max_error = 0.0f64;
     for i in 0..g.len() {
@@ -264,18 +264,18 @@ fn quadratic_fit_is_exact_on_quadratics_of_a_jittered_grid() {
 
 #[test]
 fn isolated_supports_get_zero_not_nan() {
-    let centers = vec![
+    let centres = vec![
         DVec3::ZERO,
         DVec3::new(5.0, 0.0, 0.0),
         DVec3::new(5.0, 0.0, 0.0),
     ];
     // Support 2 duplicates support 1 (d = 0): weight 0, so every support is isolated.
     let radii = vec![1.0, 1.0, 1.0];
-    let g = geometry(&centers, &radii, 1.0);
+    let g = geometry(&centres, &radii, 1.0);
     assert_eq!(g.usable_entries(), 0);
     let u = vec![1.0, 2.0, 3.0];
     let v = vec![DVec3::X, DVec3::Y, DVec3::Z];
-    let thesis = ThesisOperators::new(&g, MassKind::Thesis, FluxKind::Neighbor);
+    let thesis = ThesisOperators::new(&g, MassKind::Thesis, FluxKind::Neighbour);
     let quad = QuadraticFitOperators::new(&g);
     let ops: [&dyn DiscreteOperators; 2] = [&thesis, &quad];
     for op in ops {
@@ -306,8 +306,8 @@ fn grid(n: usize, h: f64, rho: f64) -> (Vec<DVec3>, Vec<f64>) {
 /// Brute-force oracle: the dense system `(M − tL_W) u = M u₀` solved by LU.
 #[test]
 fn implicit_smoothing_matches_a_dense_solve() {
-    let (mut centers, mut radii) = grid(5, 0.2, 1.1);
-    for (k, c) in centers.iter_mut().enumerate() {
+    let (mut centres, mut radii) = grid(5, 0.2, 1.1);
+    for (k, c) in centres.iter_mut().enumerate() {
         *c += 0.03
             * DVec3::new(
                 (k as f64 * 1.7).sin(),
@@ -319,9 +319,9 @@ fn implicit_smoothing_matches_a_dense_solve() {
         .iter_mut()
         .enumerate()
         .for_each(|(k, r)| *r *= 1.0 + 0.1 * (k as f64).cos());
-    let g = geometry(&centers, &radii, 0.8);
+    let g = geometry(&centres, &radii, 0.8);
     let n = g.len();
-    let u0: Vec<f64> = centers
+    let u0: Vec<f64> = centres
         .iter()
         .map(|c| (3.0 * c.x).sin() + c.y * c.z)
         .collect();
@@ -344,7 +344,7 @@ fn implicit_smoothing_matches_a_dense_solve() {
         let mut a = DMatrix::<f64>::zeros(n, n);
         for i in 0..n {
             a[(i, i)] = m[i] + t * g.weight_sum()[i];
-            for (&j, &phi) in g.neighbors(i).iter().zip(g.phi_row(i)) {
+            for (&j, &phi) in g.neighbours(i).iter().zip(g.phi_row(i)) {
                 a[(i, j as usize)] -= t * phi;
             }
         }
@@ -359,11 +359,11 @@ fn implicit_smoothing_matches_a_dense_solve() {
 #[test]
 fn poisson_with_dirichlet_boundary_reproduces_a_linear_field_on_a_grid() {
     let n = 7;
-    let (centers, radii) = grid(n, 0.1, 1.3);
-    let g = geometry(&centers, &radii, 0.7);
+    let (centres, radii) = grid(n, 0.1, 1.3);
+    let g = geometry(&centres, &radii, 0.7);
     let linear = |c: DVec3| 2.0 * c.x - c.y + 0.5 * c.z + 1.0;
     // Boundary: every support within two layers of a face (the stencil reaches two layers).
-    let boundary: Vec<(u32, f64)> = centers
+    let boundary: Vec<(u32, f64)> = centres
         .iter()
         .enumerate()
         .filter(|(_, c)| {
@@ -382,11 +382,11 @@ fn poisson_with_dirichlet_boundary_reproduces_a_linear_field_on_a_grid() {
     )
     .unwrap();
     assert!(info.relative_residual <= 1e-8);
-    for (i, c) in centers.iter().enumerate() {
+    for (i, c) in centres.iter().enumerate() {
         assert!((u[i] - linear(*c)).abs() < 1e-6, "support {i}");
     }
     // An anchor fixes one component only.
-    let mut two = centers.clone();
+    let mut two = centres.clone();
     two.push(DVec3::splat(50.0));
     two.push(DVec3::splat(50.05));
     let mut r2 = radii.clone();
@@ -412,10 +412,10 @@ fn poisson_with_dirichlet_boundary_reproduces_a_linear_field_on_a_grid() {
 
 #[test]
 fn poisson_with_an_anchor_solves_the_thesis_laplacian() {
-    let (centers, radii) = grid(6, 0.2, 1.3);
-    let g = geometry(&centers, &radii, 0.7);
+    let (centres, radii) = grid(6, 0.2, 1.3);
+    let g = geometry(&centres, &radii, 0.7);
     // A right-hand side in the range of Lap: Lap of a known field.
-    let target: Vec<f64> = centers.iter().map(|c| (2.0 * c.x).sin() * c.y).collect();
+    let target: Vec<f64> = centres.iter().map(|c| (2.0 * c.x).sin() * c.y).collect();
     let ops = ThesisOperators::new(&g, MassKind::MomentMatched, FluxKind::Central);
     let f = ops.lap(&target);
     let params = CgParams {
@@ -458,9 +458,9 @@ fn results_do_not_depend_on_the_thread_count() {
             .build()
             .unwrap();
         pool.install(|| {
-            let g = geometry(&cover.centers, &cover.radii, 0.7);
+            let g = geometry(&cover.centres, &cover.radii, 0.7);
             let u: Vec<f64> = cover
-                .centers
+                .centres
                 .iter()
                 .map(|c| (5.0 * c.x).sin() + c.y)
                 .collect();

@@ -152,7 +152,7 @@ fn support_confidence_in(
         .map_init(Vec::new, |buf, i| {
             buf.clear();
             incidence.for_each_slot_within(cover, index, i, |s, _| buf.push(points[s]));
-            tau_of(cover.centers()[i], cover.radii()[i], buf)
+            tau_of(cover.centres()[i], cover.radii()[i], buf)
         })
         .collect();
     let degenerate = tau.iter().filter(|t| t.1).count();
@@ -320,10 +320,10 @@ mod tests {
             .collect()
     }
 
-    fn cover_of(centers: Vec<DVec3>, radii: Vec<f64>) -> Cover {
-        let n = centers.len();
+    fn cover_of(centres: Vec<DVec3>, radii: Vec<f64>) -> Cover {
+        let n = centres.len();
         Cover::new(
-            centers,
+            centres,
             radii,
             LocalFunctions::zero_linear(n),
             Kernel::QuadraticBSpline,
@@ -409,13 +409,9 @@ mod tests {
 
         // The same bits on one thread and on two.
         let on = |threads| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| {
-                    sample_confidence(&cover, &samples, None, &ConfidenceParams::default()).unwrap()
-                })
+            sphcover_core::threads::on_threads(threads, || {
+                sample_confidence(&cover, &samples, None, &ConfidenceParams::default()).unwrap()
+            })
         };
         let (a, b) = (on(1), on(2));
         assert_eq!(a.confidence, b.confidence);

@@ -242,7 +242,7 @@ impl FittingTerms {
             .map(|&k| (normals[k as usize], confidence[k as usize]))
             .unzip();
         let sums: Vec<(f64, DVec3, DVec3, f64)> = cover
-            .centers()
+            .centres()
             .par_iter()
             .zip(cover.radii().par_iter())
             .enumerate()
@@ -331,14 +331,14 @@ pub struct DiffusionStats {
 
 /// Diffuses the linear local functions of `cover` (thesis §5.2.3; module docs). `pairs` is
 /// the pair geometry of the cover over its sphere intersection graph, `terms` the samples'
-/// sums and `at_centers` the support lists gathered at its centres
+/// sums and `at_centres` the support lists gathered at its centres
 /// ([`sphcover_core::PuEvaluator::support_lists`]: the balls do not change, so every round
 /// evaluates its gradients over them); the cover's functions are replaced.
 pub fn diffuse(
     cover: &mut Cover,
     pairs: &PairGeometry,
     terms: &FittingTerms,
-    at_centers: &SupportLists,
+    at_centres: &SupportLists,
     params: &DiffusionParams,
 ) -> Result<DiffusionStats, DiffusionError> {
     let start = Instant::now();
@@ -400,8 +400,8 @@ pub fn diffuse(
     let mut weights = vec![0.0; pairs.stored_entries()];
     for round in 0..params.rounds {
         // 1. Gradients of the current function at the centres.
-        let gradients: Vec<DVec3> = at_centers
-            .values_gradients(cover, cover.centers())?
+        let gradients: Vec<DVec3> = at_centres
+            .values_gradients(cover, cover.centres())?
             .into_iter()
             .zip(&alpha)
             .map(|(vg, &a)| vg.map_or(a, |vg| vg.gradient))
@@ -442,7 +442,7 @@ pub fn diffuse(
         alpha.clone_from(&smoothed);
 
         // 3. Constants.
-        let centers = cover.centers();
+        let centres = cover.centres();
         let data_target = |i: usize| {
             let w = terms.weight[i];
             if w > 0.0 {
@@ -457,7 +457,7 @@ pub fn diffuse(
                     .into_par_iter()
                     .map(|i| {
                         let (sum, total) = row_sum(pairs, &weights, i, |j| {
-                            beta[j] + smoothed[j].dot(centers[i] - centers[j])
+                            beta[j] + smoothed[j].dot(centres[i] - centres[j])
                         });
                         let t = fit(i, params.position_fit, total);
                         blend(total, sum, t, data_target(i), beta[i])
@@ -479,7 +479,7 @@ pub fn diffuse(
                     .into_par_iter()
                     .map(|i| {
                         let (flux, total) = row_sum(pairs, &weights, i, |j| {
-                            0.5 * (smoothed[i] + smoothed[j]).dot(centers[i] - centers[j])
+                            0.5 * (smoothed[i] + smoothed[j]).dot(centres[i] - centres[j])
                         });
                         let t = fit(i, params.position_fit, total);
                         let screen = system.screening[i];
@@ -519,7 +519,7 @@ fn edge_weights(pairs: &PairGeometry, gradients: &[DVec3], anisotropic: bool, ou
         if anisotropic {
             let theta = angle_between(
                 gradients[row],
-                gradients[pairs.neighbor_array()[k] as usize],
+                gradients[pairs.neighbour_array()[k] as usize],
             );
             phi / (1.0 + theta * theta)
         } else {
@@ -544,7 +544,7 @@ where
     for k in range {
         let w = weights[k];
         if w > 0.0 {
-            sum = sum + value(pairs.neighbor_array()[k] as usize) * w;
+            sum = sum + value(pairs.neighbour_array()[k] as usize) * w;
             total += w;
         }
     }

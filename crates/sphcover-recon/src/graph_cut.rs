@@ -339,7 +339,7 @@ fn check_nodes(
 }
 
 /// [`graph_cut`] over a symmetric adjacency in compressed sparse rows (row `v` is
-/// `neighbors[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`; `j` in row `i`
+/// `neighbours[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`; `j` in row `i`
 /// exactly when `i` in row `j`), such as a sphere intersection graph. The flow network is
 /// built on the rows directly, without an edge list.
 #[cfg(test)]
@@ -347,10 +347,10 @@ fn graph_cut_csr(
     positions: &[DVec3],
     values: &[f64],
     offsets: &[u32],
-    neighbors: &[u32],
+    neighbours: &[u32],
     params: &GraphCutParams,
 ) -> Result<GraphCut, GraphCutError> {
-    graph_cut_csr_alongside(positions, values, offsets, neighbors, params, || ())
+    graph_cut_csr_alongside(positions, values, offsets, neighbours, params, || ())
         .map(|(cut, ())| cut)
 }
 
@@ -360,7 +360,7 @@ fn graph_cut_csr_alongside<R: Send>(
     positions: &[DVec3],
     values: &[f64],
     offsets: &[u32],
-    neighbors: &[u32],
+    neighbours: &[u32],
     params: &GraphCutParams,
     alongside: impl FnOnce() -> R + Send,
 ) -> Result<(GraphCut, R), GraphCutError> {
@@ -374,14 +374,14 @@ fn graph_cut_csr_alongside<R: Send>(
         });
     }
     if offsets[0] != 0
-        || offsets[n] as usize != neighbors.len()
+        || offsets[n] as usize != neighbours.len()
         || offsets.windows(2).any(|w| w[0] > w[1])
     {
         return Err(GraphCutError::MaxFlow(MaxFlowError::MalformedCsr(
             "offsets",
         )));
     }
-    if let Some(edge) = neighbors.iter().position(|&j| j as usize >= n) {
+    if let Some(edge) = neighbours.iter().position(|&j| j as usize >= n) {
         return Err(GraphCutError::NodeOutOfRange { edge, nodes: n });
     }
     let start = Instant::now();
@@ -396,7 +396,7 @@ fn graph_cut_csr_alongside<R: Send>(
         .into_par_iter()
         .with_min_len(1024)
         .map(|v| {
-            neighbors[offsets[v] as usize..offsets[v + 1] as usize]
+            neighbours[offsets[v] as usize..offsets[v + 1] as usize]
                 .iter()
                 .map(|&j| length(v, j as usize))
                 .filter(|&l| l > 0.0)
@@ -417,13 +417,13 @@ fn graph_cut_csr_alongside<R: Send>(
     let floor = ZERO_LENGTH * mean_length;
     let (source, sink) =
         terminal_capacities(values, &length_sum, &length_count, mean_length, params);
-    let mut capacities = vec![0.0; neighbors.len()];
+    let mut capacities = vec![0.0; neighbours.len()];
     crate::csr::fill_entries(offsets, &mut capacities, |v, k| {
-        let j = neighbors[k] as usize;
+        let j = neighbours[k] as usize;
         finite_capacity((values[v] + values[j]).abs() / length(v, j).max(floor))
     });
-    let build = || FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbors, capacities);
-    solve(build, values, neighbors.len() / 2, start, alongside)
+    let build = || FlowGraph::from_symmetric_csr(&source, &sink, offsets, neighbours, capacities);
+    solve(build, values, neighbours.len() / 2, start, alongside)
 }
 
 /// Keeps a capacity finite when a tiny length meets a large value.
@@ -454,20 +454,20 @@ pub fn graph_cut_sig(
     sig: &SphereIntersectionGraph,
     params: &GraphCutParams,
 ) -> Result<GraphCut, GraphCutError> {
-    let at_centers = PuEvaluator::new(cover, 1.0)?.support_lists(cover.centers());
-    graph_cut_sig_alongside(cover, sig, &at_centers, params, || ()).map(|(cut, ())| cut)
+    let at_centres = PuEvaluator::new(cover, 1.0)?.support_lists(cover.centres());
+    graph_cut_sig_alongside(cover, sig, &at_centres, params, || ()).map(|(cut, ())| cut)
 }
 
 /// [`graph_cut_sig`], with `alongside` run on the other threads while the max-flow solve,
 /// which is sequential, occupies one: work the caller needs next and that does not depend
 /// on the cut. Its result comes back with the cut's; it is not run when the inputs are
 /// refused, but may be when the graph proves not symmetric while the network is built. `f`
-/// at the centres comes from `at_centers`, the support lists gathered at `cover`'s centres
+/// at the centres comes from `at_centres`, the support lists gathered at `cover`'s centres
 /// (which later evaluations there can share).
 pub(crate) fn graph_cut_sig_alongside<R: Send>(
     cover: &Cover,
     sig: &SphereIntersectionGraph,
-    at_centers: &SupportLists,
+    at_centres: &SupportLists,
     params: &GraphCutParams,
     alongside: impl FnOnce() -> R + Send,
 ) -> Result<(GraphCut, R), GraphCutError> {
@@ -478,12 +478,12 @@ pub(crate) fn graph_cut_sig_alongside<R: Send>(
             found: sig.len(),
         });
     }
-    let (values, undefined) = undefined_as_zero(at_centers.values(cover, cover.centers())?);
+    let (values, undefined) = undefined_as_zero(at_centres.values(cover, cover.centres())?);
     let (mut cut, beside) = graph_cut_csr_alongside(
-        cover.centers(),
+        cover.centres(),
         &values,
         sig.offsets(),
-        sig.neighbor_array(),
+        sig.neighbour_array(),
         params,
         alongside,
     )?;
@@ -585,9 +585,9 @@ mod tests {
             for i in 0..n {
                 offsets[i + 1] += offsets[i];
             }
-            let neighbors: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
+            let neighbours: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
             let unique: Vec<[u32; 2]> = pairs.iter().filter(|(a, b)| a < b).map(|&(a, b)| [a, b]).collect();
-            let csr = graph_cut_csr(&p, &v, &offsets, &neighbors, &GraphCutParams::with_k(k)).unwrap();
+            let csr = graph_cut_csr(&p, &v, &offsets, &neighbours, &GraphCutParams::with_k(k)).unwrap();
             let by_list = graph_cut(&p, &v, &unique, &GraphCutParams::with_k(k)).unwrap();
             let (ea, eb) = (energy(&p, &v, &unique, k, &csr.labels), energy(&p, &v, &unique, k, &by_list.labels));
             prop_assert!((ea - eb).abs() <= 1e-9 * (1.0 + ea), "csr {} list {}", ea, eb);
@@ -690,20 +690,16 @@ mod tests {
             .collect();
         let sig = SphereIntersectionGraph::build(&positions, &vec![0.04; n], 1.0).unwrap();
         let run = |threads| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
+            sphcover_core::threads::on_threads(threads, || {
+                graph_cut_csr(
+                    &positions,
+                    &values,
+                    sig.offsets(),
+                    sig.neighbour_array(),
+                    &GraphCutParams::sig(),
+                )
                 .unwrap()
-                .install(|| {
-                    graph_cut_csr(
-                        &positions,
-                        &values,
-                        sig.offsets(),
-                        sig.neighbor_array(),
-                        &GraphCutParams::sig(),
-                    )
-                    .unwrap()
-                })
+            })
         };
         let (a, b) = (run(1), run(2));
         assert_eq!(a.labels, b.labels);

@@ -150,7 +150,7 @@ pub fn reconstruct_graphcut(
     };
     let start = Instant::now();
     let dc = dual_complex(
-        cover.centers(),
+        cover.centres(),
         cover.radii(),
         &DualComplexParams {
             shrink: params.tet_shrink,
@@ -167,7 +167,7 @@ pub fn reconstruct_graphcut(
     let positions: Vec<DVec3> = mesh
         .vertices
         .iter()
-        .map(|&s| cover.centers()[s as usize])
+        .map(|&s| cover.centres()[s as usize])
         .collect();
     let (values, undefined) = values_at(cover, &positions)?;
     let mut cut = graph_cut(
@@ -178,7 +178,7 @@ pub fn reconstruct_graphcut(
     )?;
     // Nothing lies beyond the complex: its boundary vertices are outside, so the inside
     // region never reaches the boundary and the surface closes.
-    for (t, nb) in mesh.tet_neighbors.iter().enumerate() {
+    for (t, nb) in mesh.tet_neighbours.iter().enumerate() {
         for i in 0..4 {
             if params.close_at_boundary && nb[i] == NO_TET {
                 for j in (0..4).filter(|&j| j != i) {
@@ -220,7 +220,7 @@ pub fn reconstruct_graphcut(
         .map(|&v| {
             let s = mesh.vertices[v as usize] as usize;
             let mut count = 0usize;
-            index.for_each_slot_within(cover.centers()[s], cover.radii()[s], |_, _| count += 1);
+            index.for_each_slot_within(cover.centres()[s], cover.radii()[s], |_, _| count += 1);
             count < limit
         })
         .collect();
@@ -354,15 +354,15 @@ mod tests {
         // (|‖c‖ − 0.5| > 0.05) the labels must be closer to the truth than sign(f) is; measured
         // here: sign(f) wrong at 128 of 2,027 such supports, the degree-normalised cut at 84,
         // eq. 5.1 as written (mean degree 244 instead of the thesis's 40) at 600.
-        let sig = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 0.7).unwrap();
-        let (values, _) = values_at(&cover, cover.centers()).unwrap();
+        let sig = SphereIntersectionGraph::build(cover.centres(), cover.radii(), 0.7).unwrap();
+        let (values, _) = values_at(&cover, cover.centres()).unwrap();
         let cut = graph_cut_sig(&cover, &sig, &GraphCutParams::sig()).unwrap();
         // Work run alongside the max-flow solve changes nothing and comes back.
-        let at_centers = PuEvaluator::new(&cover, 1.0)
+        let at_centres = PuEvaluator::new(&cover, 1.0)
             .unwrap()
-            .support_lists(cover.centers());
+            .support_lists(cover.centres());
         let (beside, degree) =
-            graph_cut_sig_alongside(&cover, &sig, &at_centers, &GraphCutParams::sig(), || {
+            graph_cut_sig_alongside(&cover, &sig, &at_centres, &GraphCutParams::sig(), || {
                 sig.mean_degree()
             })
             .unwrap();
@@ -370,7 +370,7 @@ mod tests {
         assert_eq!(beside.flow, cut.flow);
         assert_eq!(degree, sig.mean_degree());
         let (mut sign_wrong, mut label_wrong) = (0, 0);
-        for (i, c) in cover.centers().iter().enumerate() {
+        for (i, c) in cover.centres().iter().enumerate() {
             if (c.length() - 0.5).abs() > 0.05 {
                 let truth = c.length() < 0.5;
                 sign_wrong += ((values[i] > 0.0) != truth) as usize;
@@ -454,7 +454,7 @@ mod speed {
             topo.is_watertight()
         );
         let t = Instant::now();
-        let sig = SphereIntersectionGraph::build(cover.centers(), cover.radii(), 0.7).unwrap();
+        let sig = SphereIntersectionGraph::build(cover.centres(), cover.radii(), 0.7).unwrap();
         let sig_time = t.elapsed();
         let t = Instant::now();
         let cut = graph_cut_sig(&cover, &sig, &GraphCutParams::sig()).unwrap();

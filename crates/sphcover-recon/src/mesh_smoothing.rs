@@ -67,14 +67,14 @@ pub enum SmoothingError {
 }
 
 /// The 1-rings of a mesh's vertices in compressed form: the neighbours of vertex `v` are
-/// `neighbors[offsets[v]..offsets[v + 1]]`, ascending and without repetition. Two vertices
+/// `neighbours[offsets[v]..offsets[v + 1]]`, ascending and without repetition. Two vertices
 /// are neighbours when some triangle holds both.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct VertexRings {
-    /// `vertices + 1` offsets into `neighbors`.
+    /// `vertices + 1` offsets into `neighbours`.
     pub offsets: Vec<u32>,
     /// Neighbour indices, grouped per vertex.
-    pub neighbors: Vec<u32>,
+    pub neighbours: Vec<u32>,
 }
 
 impl VertexRings {
@@ -118,7 +118,7 @@ impl VertexRings {
             }
         }
         let mut offsets = Vec::with_capacity(vertex_count + 1);
-        let mut neighbors = Vec::with_capacity(raw.len() / 2);
+        let mut neighbours = Vec::with_capacity(raw.len() / 2);
         offsets.push(0u32);
         for v in 0..vertex_count {
             let ring = &mut raw[counts[v] as usize..counts[v + 1] as usize];
@@ -126,18 +126,21 @@ impl VertexRings {
             let mut last = None;
             for &b in ring.iter() {
                 if last != Some(b) {
-                    neighbors.push(b);
+                    neighbours.push(b);
                     last = Some(b);
                 }
             }
-            offsets.push(neighbors.len() as u32);
+            offsets.push(neighbours.len() as u32);
         }
-        Ok(VertexRings { offsets, neighbors })
+        Ok(VertexRings {
+            offsets,
+            neighbours,
+        })
     }
 
     /// The neighbours of vertex `v`, ascending.
     pub fn ring(&self, v: usize) -> &[u32] {
-        &self.neighbors[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+        &self.neighbours[self.offsets[v] as usize..self.offsets[v + 1] as usize]
     }
 
     /// Number of vertices.

@@ -356,11 +356,9 @@ mod tests {
     fn thread_count_does_not_change_the_result() {
         let cloud = sphcover_evaluation::torus(0.35, 0.15, 3000);
         let on = |threads| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| estimate_normals(&cloud.positions, &NormalParams::default()).unwrap())
+            sphcover_core::threads::on_threads(threads, || {
+                estimate_normals(&cloud.positions, &NormalParams::default()).unwrap()
+            })
         };
         assert_eq!(on(1).normals, on(2).normals);
     }

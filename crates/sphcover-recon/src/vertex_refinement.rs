@@ -604,18 +604,18 @@ mod tests {
             offset in -0.3f64..0.3,
             cx in -1.0f64..1.0,
         ) {
-            let center = DVec3::new(cx, 0.5 * cx, -cx);
-            let cloud = sphere(center, r, 4000);
+            let centre = DVec3::new(cx, 0.5 * cx, -cx);
+            let cloud = sphere(centre, r, 4000);
             let h = spacing(r, 4000);
             let step = 2.0 * h;
-            let mut mesh = icosphere(center, r + offset * step, 3);
+            let mut mesh = icosphere(centre, r + offset * step, 3);
             let weights = vec![1.0; cloud.len()];
             let normals = cloud.normals.clone().unwrap();
             let scale = RefinementScale { spacing: h, step, noise_ratio: 1.0 };
             let stats = refine(&mut mesh, &cloud.positions, &normals, &weights, scale);
             prop_assert_eq!(stats.moved, mesh.vertices.len());
             for v in &mesh.vertices {
-                let error = ((*v - center).length() - r).abs();
+                let error = ((*v - centre).length() - r).abs();
                 prop_assert!(error < 1e-3 * h, "error {error} against spacing {h}");
             }
         }

@@ -781,11 +781,7 @@ mod tests {
             ..options()
         };
         let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| render(&scene, &opts).unwrap().image)
+            sphcover_core::threads::on_threads(threads, || render(&scene, &opts).unwrap().image)
         };
         let one = run(1);
         assert_eq!(one, run(3));
@@ -794,11 +790,7 @@ mod tests {
             ..scene
         };
         let run_points = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| render(&points, &opts).unwrap().image)
+            sphcover_core::threads::on_threads(threads, || render(&points, &opts).unwrap().image)
         };
         assert_eq!(run_points(1), run_points(4));
     }

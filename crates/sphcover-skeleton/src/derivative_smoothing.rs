@@ -109,11 +109,11 @@ fn smooth_fields(
     if defined.is_empty() {
         return Ok(out);
     }
-    let centers: Vec<DVec3> = defined.iter().map(|&i| positions[i]).collect();
+    let centres: Vec<DVec3> = defined.iter().map(|&i| positions[i]).collect();
     let balls: Vec<f64> = defined.iter().map(|&i| radii[i]).collect();
-    let graph = SphereIntersectionGraph::build(&centers, &balls, 1.0)
+    let graph = SphereIntersectionGraph::build(&centres, &balls, 1.0)
         .map_err(|e| SkeletonError::Smoothing(e.to_string()))?;
-    let geometry = PairGeometry::build(&centers, &balls, &graph)
+    let geometry = PairGeometry::build(&centres, &balls, &graph)
         .map_err(|e| SkeletonError::Smoothing(e.to_string()))?;
     let params = CgParams {
         relative_tolerance: 1e-10,

@@ -121,7 +121,7 @@ pub fn nms_skeleton(
             if offset.abs().max_element() > 0.5 {
                 return None;
             }
-            Some((idx, volume.voxel_center([i, j, k]) + t * eig.vector, -l1))
+            Some((idx, volume.voxel_centre([i, j, k]) + t * eig.vector, -l1))
         })
         .collect();
     let candidate_count = smooth.iter().filter(|&&v| v > intensity.threshold).count();

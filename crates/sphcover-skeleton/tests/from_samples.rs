@@ -20,7 +20,7 @@ fn irregular_samples(phantom: &Phantom, keep: f64, seed: u64) -> (Vec<DVec3>, Ve
     let (mut positions, mut values) = (Vec::new(), Vec::new());
     for index in 0..volume.len() {
         if uniform() < keep {
-            positions.push(volume.voxel_center(volume.ijk(index)));
+            positions.push(volume.voxel_centre(volume.ijk(index)));
             values.push(volume.value(index));
         }
     }
@@ -80,20 +80,11 @@ fn the_sheet_of_samples_does_not_depend_on_the_thread_count() {
     let phantom = phantom(ThinShape::PlateWithHole, 0.1);
     let (positions, values) = irregular_samples(&phantom, 0.7, 5);
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                extract_skeleton_from_samples(
-                    &positions,
-                    &values,
-                    &SkeletonParams::default(),
-                    &|_| {},
-                )
+        sphcover_core::threads::on_threads(threads, || {
+            extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default(), &|_| {})
                 .unwrap()
                 .0
-            })
+        })
     };
     assert!(run(1) == run(2));
 }

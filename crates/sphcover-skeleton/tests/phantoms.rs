@@ -101,15 +101,11 @@ fn output_does_not_depend_on_the_thread_count() {
         },
     );
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                extract_skeleton(&phantom.volume, &SkeletonParams::default(), &|_| {})
-                    .unwrap()
-                    .0
-            })
+        sphcover_core::threads::on_threads(threads, || {
+            extract_skeleton(&phantom.volume, &SkeletonParams::default(), &|_| {})
+                .unwrap()
+                .0
+        })
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(a, b);

@@ -17,15 +17,15 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("octree_torus");
     group.sample_size(10);
     for n in sizes {
-        let (_, _, centers, radii) = octree_torus_cover_of_size(n);
+        let (_, _, centres, radii) = octree_torus_cover_of_size(n);
         let params = DualComplexParams::default();
         group.bench_with_input(
-            BenchmarkId::new("dual_complex", centers.len()),
-            &(&centers, &radii),
+            BenchmarkId::new("dual_complex", centres.len()),
+            &(&centres, &radii),
             |b, (c, r)| b.iter(|| dual_complex(c, r, &params).expect("cover")),
         );
-        let dc = dual_complex(&centers, &radii, &params).expect("cover");
-        group.bench_with_input(BenchmarkId::new("tet_mesh", centers.len()), &dc, |b, dc| {
+        let dc = dual_complex(&centres, &radii, &params).expect("cover");
+        group.bench_with_input(BenchmarkId::new("tet_mesh", centres.len()), &dc, |b, dc| {
             b.iter(|| TetMesh::from_dual_complex(dc))
         });
     }

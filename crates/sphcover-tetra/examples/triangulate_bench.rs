@@ -60,13 +60,13 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
     let shrink: f64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(0.75);
-    let (depth, band, centers, radii) = octree_torus_cover_of_size(n);
+    let (depth, band, centres, radii) = octree_torus_cover_of_size(n);
     let base_memory = peak_memory_bytes().unwrap_or(0);
     println!(
         "octree torus cover: depth {depth}, band {band:.3}, {} supports, shrink {shrink}",
-        centers.len()
+        centres.len()
     );
-    let points: Vec<[f64; 3]> = centers.iter().map(|c| c.to_array()).collect();
+    let points: Vec<[f64; 3]> = centres.iter().map(|c| c.to_array()).collect();
     let weights: Vec<f64> = radii.iter().map(|r| (r * shrink) * (r * shrink)).collect();
     let c0 = cpu_seconds().unwrap_or(0.0);
     let t0 = Instant::now();
@@ -103,7 +103,7 @@ fn main() {
         println!(
             "peak memory after the filter {:.1} MB ({:.0} bytes per sphere above the cover itself)",
             peak as f64 / 1e6,
-            (peak - base_memory) as f64 / centers.len() as f64
+            (peak - base_memory) as f64 / centres.len() as f64
         );
     }
     println!(
@@ -126,7 +126,7 @@ fn main() {
         println!(
             "peak memory with the tet mesh {:.1} MB ({:.0} bytes per sphere above the cover itself)",
             peak as f64 / 1e6,
-            (peak - base_memory) as f64 / centers.len() as f64
+            (peak - base_memory) as f64 / centres.len() as f64
         );
     }
 }

@@ -51,7 +51,7 @@ pub struct DualComplex {
     pub tets: Vec<[u32; 4]>,
     /// For each tetrahedron, the index in `tets` of the neighbour across the face opposite
     /// vertex `i`, or [`NO_TET`] when that face is on the boundary of the complex.
-    pub neighbors: Vec<[u32; 4]>,
+    pub neighbours: Vec<[u32; 4]>,
     /// Per support: what became of it in the triangulation (hidden supports have no power
     /// cell and appear in no tetrahedron).
     pub status: Vec<VertexStatus>,
@@ -70,26 +70,26 @@ impl DualComplex {
     }
 }
 
-/// Builds the dual complex of the cover `(centers, radii)` with the radius shrink and seed of
+/// Builds the dual complex of the cover `(centres, radii)` with the radius shrink and seed of
 /// `params`.
 pub fn dual_complex(
-    centers: &[DVec3],
+    centres: &[DVec3],
     radii: &[f64],
     params: &DualComplexParams,
 ) -> Result<DualComplex, TetraError> {
     if !(params.shrink.is_finite() && params.shrink > 0.0) {
         return Err(TetraError::InvalidShrink(params.shrink));
     }
-    if centers.len() != radii.len() {
+    if centres.len() != radii.len() {
         return Err(TetraError::LengthMismatch {
-            points: centers.len(),
+            points: centres.len(),
             weights: radii.len(),
         });
     }
     if let Some(i) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
         return Err(TetraError::InvalidWeight { index: i });
     }
-    let points: Vec<Point> = centers.iter().map(|c| c.to_array()).collect();
+    let points: Vec<Point> = centres.iter().map(|c| c.to_array()).collect();
     let weights: Vec<f64> = radii
         .iter()
         .map(|r| {
@@ -132,10 +132,10 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
             tets.push(tri.tet(t as u32));
         }
     }
-    let neighbors: Vec<[u32; 4]> = (0..slots as u32)
+    let neighbours: Vec<[u32; 4]> = (0..slots as u32)
         .filter(|&t| keep[t as usize])
         .map(|t| {
-            tri.neighbors(t).map(|n| {
+            tri.neighbours(t).map(|n| {
                 if keep[n as usize] {
                     index[n as usize]
                 } else {
@@ -146,7 +146,7 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
         .collect();
     DualComplex {
         tets,
-        neighbors,
+        neighbours,
         status: tri.vertex_status().to_vec(),
         triangulation: tri.stats().clone(),
     }

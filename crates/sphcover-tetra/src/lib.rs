@@ -7,19 +7,19 @@
 //! use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex, marching_tetrahedra_scalar};
 //!
 //! // Eight overlapping balls at the corners of a cube, one ball in the middle.
-//! let mut centers = Vec::new();
+//! let mut centres = Vec::new();
 //! for i in 0..8 {
-//!     centers.push(DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64));
+//!     centres.push(DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64));
 //! }
-//! centers.push(DVec3::splat(0.5));
-//! let radii = vec![0.9; centers.len()];
-//! let dc = dual_complex(&centers, &radii, &DualComplexParams { shrink: 1.0, ..Default::default() })?;
+//! centres.push(DVec3::splat(0.5));
+//! let radii = vec![0.9; centres.len()];
+//! let dc = dual_complex(&centres, &radii, &DualComplexParams { shrink: 1.0, ..Default::default() })?;
 //! assert!(!dc.tets.is_empty());
 //! let mesh = TetMesh::from_dual_complex(&dc);
 //! // The union is a ball: the dual complex is contractible.
 //! assert_eq!(mesh.euler_characteristic(), 1);
 //! // Cut the mesh by a plane through the middle.
-//! let pos: Vec<DVec3> = mesh.vertices.iter().map(|&v| centers[v as usize]).collect();
+//! let pos: Vec<DVec3> = mesh.vertices.iter().map(|&v| centres[v as usize]).collect();
 //! let val: Vec<f64> = pos.iter().map(|p| p.z - 0.3).collect();
 //! let surface = marching_tetrahedra_scalar(&mesh, &pos, &val, None)?;
 //! assert!(surface.triangles.len() >= 2);

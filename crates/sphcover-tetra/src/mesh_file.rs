@@ -40,12 +40,12 @@ impl TetMeshFormat {
     }
 }
 
-/// Writes `mesh` (whose vertices index `centers` and `radii`) to `path` in the layout its
+/// Writes `mesh` (whose vertices index `centres` and `radii`) to `path` in the layout its
 /// extension names, refusing to overwrite any of `inputs`.
 pub fn write_tet_mesh(
     path: &Path,
     mesh: &TetMesh,
-    centers: &[DVec3],
+    centres: &[DVec3],
     radii: &[f64],
     inputs: &[PathBuf],
 ) -> Result<(), IoError> {
@@ -59,18 +59,18 @@ pub fn write_tet_mesh(
     if let Some(&v) = mesh
         .vertices
         .iter()
-        .find(|&&v| v as usize >= centers.len() || v as usize >= radii.len())
+        .find(|&&v| v as usize >= centres.len() || v as usize >= radii.len())
     {
         return Err(IoError::InvalidData {
             path: path.to_path_buf(),
             message: format!(
                 "mesh vertex refers to support {v} but there are {} supports",
-                centers.len().min(radii.len())
+                centres.len().min(radii.len())
             ),
         });
     }
     write_atomic(path, inputs, |w| match format {
-        TetMeshFormat::Vtk => write_vtk(w, mesh, centers, radii),
+        TetMeshFormat::Vtk => write_vtk(w, mesh, centres, radii),
         TetMeshFormat::IndexText => write_index_text(w, mesh),
     })
 }
@@ -78,7 +78,7 @@ pub fn write_tet_mesh(
 fn write_vtk(
     w: &mut dyn Write,
     mesh: &TetMesh,
-    centers: &[DVec3],
+    centres: &[DVec3],
     radii: &[f64],
 ) -> std::io::Result<()> {
     let n = mesh.vertices.len();
@@ -89,7 +89,7 @@ fn write_vtk(
         "# vtk DataFile Version 3.0\nsphcover dual complex\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n"
     )?;
     for &v in &mesh.vertices {
-        for c in centers[v as usize].to_array() {
+        for c in centres[v as usize].to_array() {
             buf.extend_from_slice(&c.to_be_bytes());
         }
     }
@@ -145,7 +145,7 @@ mod tests {
     use crate::{DualComplexParams, dual_complex};
 
     fn unit_tet() -> (Vec<DVec3>, Vec<f64>, TetMesh) {
-        let centers = vec![
+        let centres = vec![
             DVec3::ZERO,
             DVec3::X,
             DVec3::Y,
@@ -154,7 +154,7 @@ mod tests {
         ];
         let radii = vec![1.0, 1.0, 1.0, 1.0, 0.1];
         let dc = dual_complex(
-            &centers,
+            &centres,
             &radii,
             &DualComplexParams {
                 shrink: 1.0,
@@ -163,24 +163,24 @@ mod tests {
         )
         .unwrap();
         let mesh = TetMesh::from_dual_complex(&dc);
-        (centers, radii, mesh)
+        (centres, radii, mesh)
     }
 
     #[test]
     fn index_text_lists_support_indices() {
-        let (centers, radii, mesh) = unit_tet();
+        let (centres, radii, mesh) = unit_tet();
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("m.tets");
-        write_tet_mesh(&out, &mesh, &centers, &radii, &[]).unwrap();
+        write_tet_mesh(&out, &mesh, &centres, &radii, &[]).unwrap();
         assert_eq!(std::fs::read_to_string(&out).unwrap(), "0 1 2 3\n");
     }
 
     #[test]
     fn vtk_has_the_declared_sections_and_sizes() {
-        let (centers, radii, mesh) = unit_tet();
+        let (centres, radii, mesh) = unit_tet();
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("m.vtk");
-        write_tet_mesh(&out, &mesh, &centers, &radii, &[]).unwrap();
+        write_tet_mesh(&out, &mesh, &centres, &radii, &[]).unwrap();
         let bytes = std::fs::read(&out).unwrap();
         let header = b"# vtk DataFile Version 3.0\nsphcover dual complex\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n";
         assert!(bytes.starts_with(header));
@@ -202,16 +202,16 @@ mod tests {
 
     #[test]
     fn unknown_extension_and_input_overwrite_are_refused() {
-        let (centers, radii, mesh) = unit_tet();
+        let (centres, radii, mesh) = unit_tet();
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("m.ply");
-        assert!(write_tet_mesh(&bad, &mesh, &centers, &radii, &[]).is_err());
+        assert!(write_tet_mesh(&bad, &mesh, &centres, &radii, &[]).is_err());
         let input = dir.path().join("in.txt");
         std::fs::write(&input, "keep").unwrap();
         let err = write_tet_mesh(
             &input,
             &mesh,
-            &centers,
+            &centres,
             &radii,
             std::slice::from_ref(&input),
         );

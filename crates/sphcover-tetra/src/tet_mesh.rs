@@ -22,7 +22,7 @@ pub struct TetMesh {
     pub tets: Vec<[u32; 4]>,
     /// Neighbour of each tetrahedron across the face opposite vertex `i`, or [`NO_TET`] on
     /// the boundary of the complex.
-    pub tet_neighbors: Vec<[u32; 4]>,
+    pub tet_neighbours: Vec<[u32; 4]>,
     /// Unique edges `[a, b]` with `a < b`, sorted.
     pub edges: Vec<[u32; 2]>,
     /// The six edges of each tetrahedron, for vertex pairs `01, 02, 03, 12, 13, 23`.
@@ -45,13 +45,13 @@ pub const TET_EDGE_VERTICES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], 
 impl TetMesh {
     /// The mesh of a dual complex: its tetrahedra, over the supports they use.
     pub fn from_dual_complex(dc: &DualComplex) -> TetMesh {
-        Self::from_tets(dc.status.len(), &dc.tets, &dc.neighbors)
+        Self::from_tets(dc.status.len(), &dc.tets, &dc.neighbours)
     }
 
     /// Builds the mesh from tetrahedra over `num_points` input points (positively oriented)
-    /// and their face adjacency (`neighbors[t][i]` across the face opposite vertex `i`, or
+    /// and their face adjacency (`neighbours[t][i]` across the face opposite vertex `i`, or
     /// [`NO_TET`]).
-    pub fn from_tets(num_points: usize, tets: &[[u32; 4]], neighbors: &[[u32; 4]]) -> TetMesh {
+    pub fn from_tets(num_points: usize, tets: &[[u32; 4]], neighbours: &[[u32; 4]]) -> TetMesh {
         let mut map = vec![NO_TET; num_points];
         for t in tets {
             for &v in t {
@@ -143,7 +143,7 @@ impl TetMesh {
             let step = |t: u32, forward: bool| -> u32 {
                 let cell = &tets[t as usize];
                 let (pc, pd) = ring_positions(cell, a, b);
-                neighbors[t as usize][if forward { pc } else { pd }]
+                neighbours[t as usize][if forward { pc } else { pd }]
             };
             // Walk backwards to the ring's start (an open ring) or all the way round (a
             // closed ring, which starts at its smallest tetrahedron).
@@ -199,7 +199,7 @@ impl TetMesh {
         TetMesh {
             vertices,
             tets,
-            tet_neighbors: neighbors.to_vec(),
+            tet_neighbours: neighbours.to_vec(),
             edges,
             tet_edges,
             edge_ring_offsets,
@@ -240,7 +240,7 @@ impl TetMesh {
     /// Number of triangles of the complex (faces of the tetrahedra, each counted once).
     pub fn num_triangles(&self) -> usize {
         let boundary: usize = self
-            .tet_neighbors
+            .tet_neighbours
             .iter()
             .map(|n| n.iter().filter(|&&x| x == NO_TET).count())
             .sum();

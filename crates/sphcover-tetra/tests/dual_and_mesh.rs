@@ -104,10 +104,10 @@ proptest! {
     }
 }
 
-/// Balls of radius `r` at `centers`.
-fn euler(centers: &[DVec3], r: f64) -> i64 {
-    let radii = vec![r; centers.len()];
-    let dc = dual_complex(centers, &radii, &no_shrink()).unwrap();
+/// Balls of radius `r` at `centres`.
+fn euler(centres: &[DVec3], r: f64) -> i64 {
+    let radii = vec![r; centres.len()];
+    let dc = dual_complex(centres, &radii, &no_shrink()).unwrap();
     TetMesh::from_dual_complex(&dc).euler_characteristic()
 }
 
@@ -186,10 +186,10 @@ fn edge_rings_are_ordered_rotations() {
             let pc = cell.iter().position(|&x| x == cc).unwrap();
             match next {
                 Some(n) => {
-                    assert_eq!(mesh.tet_neighbors[t as usize][pc], n);
+                    assert_eq!(mesh.tet_neighbours[t as usize][pc], n);
                     assert!(mesh.tets[n as usize].contains(&d));
                 }
-                None => assert_eq!(mesh.tet_neighbors[t as usize][pc], NO_TET),
+                None => assert_eq!(mesh.tet_neighbours[t as usize][pc], NO_TET),
             }
         }
         if !mesh.edge_ring_closed[e] {
@@ -203,7 +203,7 @@ fn edge_rings_are_ordered_rotations() {
                 others[0]
             };
             let pd = cell.iter().position(|&x| x == d).unwrap();
-            assert_eq!(mesh.tet_neighbors[t as usize][pd], NO_TET);
+            assert_eq!(mesh.tet_neighbours[t as usize][pd], NO_TET);
         }
     }
     assert_eq!(ring_entries, 6 * mesh.tets.len());

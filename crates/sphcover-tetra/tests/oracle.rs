@@ -101,20 +101,16 @@ fn output_does_not_depend_on_the_thread_count() {
         .map(|_| [0.0, 0.0625, 0.3][rng.below(3) as usize])
         .collect();
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let t = RegularTriangulation::new(&p, &w, &TriangulationParams::default()).unwrap();
-                let dc = dual_complex_of(&t);
-                (
-                    t.tet_slots().collect::<Vec<_>>(),
-                    t.vertex_status().to_vec(),
-                    dc.tets,
-                    dc.neighbors,
-                )
-            })
+        sphcover_core::threads::on_threads(threads, || {
+            let t = RegularTriangulation::new(&p, &w, &TriangulationParams::default()).unwrap();
+            let dc = dual_complex_of(&t);
+            (
+                t.tet_slots().collect::<Vec<_>>(),
+                t.vertex_status().to_vec(),
+                dc.tets,
+                dc.neighbours,
+            )
+        })
     };
     let one = run(1);
     assert!(one.1.contains(&VertexStatus::Hidden));

@@ -203,7 +203,7 @@ fn summarise_volume(path: &Path) -> anyhow::Result<VolumeSummary> {
     let mut bbox = Aabb::EMPTY;
     for corner in 0..8 {
         let ijk = [0, 1, 2].map(|a| if corner >> a & 1 == 1 { dims[a] - 1 } else { 0 });
-        bbox.add(volume.voxel_center(ijk));
+        bbox.add(volume.voxel_centre(ijk));
     }
     let non_finite = (0..volume.len())
         .filter(|&i| !volume.value(i).is_finite())

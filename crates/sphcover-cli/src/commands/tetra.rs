@@ -28,7 +28,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let stage = reporter.stage("read spheres");
     let spheres = read_spheres(args, reporter)?;
     stage.finish();
-    reporter.detail(&format!("  {} spheres", spheres.centers.len()));
+    reporter.detail(&format!("  {} spheres", spheres.centres.len()));
 
     let stage = reporter.stage("regular triangulation");
     let bar = reporter.progress(None, "triangulating");
@@ -36,7 +36,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
         shrink: args.shrink,
         seed: args.seed,
     };
-    let complex = dual_complex(&spheres.centers, &spheres.radii, &params)
+    let complex = dual_complex(&spheres.centres, &spheres.radii, &params)
         .map_err(|e| BadInput(format!("{}: {e}", args.spheres.display())))?;
     bar.finish_and_clear();
     stage.finish();
@@ -49,7 +49,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
     write_tet_mesh(
         &args.output,
         &mesh,
-        &spheres.centers,
+        &spheres.centres,
         &spheres.radii,
         std::slice::from_ref(&args.spheres),
     )?;
@@ -88,7 +88,7 @@ fn read_spheres(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<SphereS
         .into());
     };
     Ok(SphereSet {
-        centers: geometry.points.positions,
+        centres: geometry.points.positions,
         radii,
     })
 }

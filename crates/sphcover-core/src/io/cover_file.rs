@@ -93,7 +93,7 @@ pub fn write_cover(
         message,
     };
     let norm = meta.normalisation;
-    if !(norm.center.is_finite() && norm.scale.is_finite() && norm.scale > 0.0) {
+    if !(norm.centre.is_finite() && norm.scale.is_finite() && norm.scale > 0.0) {
         return Err(invalid(format!(
             "normalisation {norm:?} must have a finite centre and a finite positive scale"
         )));
@@ -119,9 +119,9 @@ pub fn write_cover(
         "ply\nformat {format} 1.0\ncomment {MARKER}\ncomment kernel {}\ncomment expansion {}\ncomment normalisation {} {} {} {}\n",
         cover.kernel().name(),
         number(meta.expansion),
-        number(norm.center.x),
-        number(norm.center.y),
-        number(norm.center.z),
+        number(norm.centre.x),
+        number(norm.centre.y),
+        number(norm.centre.z),
         number(norm.scale),
     );
     for note in &meta.notes {
@@ -179,7 +179,7 @@ fn number(v: f64) -> String {
 
 /// The fields of support `i` in file order; returns their number.
 fn record(cover: &Cover, i: usize, out: &mut [f64; 14]) -> usize {
-    let c = cover.centers()[i];
+    let c = cover.centres()[i];
     out[..4].copy_from_slice(&[c.x, c.y, c.z, cover.radii()[i]]);
     match cover.funcs() {
         LocalFunctions::Linear { alpha, beta } => {
@@ -283,7 +283,7 @@ fn parse(bytes: &[u8]) -> Result<(Cover, CoverFileMeta), Failure> {
     let (columns, origins) = read_element_columns(bytes, &header, target, &wanted)?;
     let n = columns[0].len();
     let col = |k: usize| &columns[k];
-    let centers: Vec<DVec3> = (0..n)
+    let centres: Vec<DVec3> = (0..n)
         .map(|i| DVec3::new(col(0)[i], col(1)[i], col(2)[i]))
         .collect();
     let radii = col(3).clone();
@@ -312,7 +312,7 @@ fn parse(bytes: &[u8]) -> Result<(Cover, CoverFileMeta), Failure> {
             k: col(13).clone(),
         }
     };
-    let cover = Cover::new(centers, radii, funcs, kernel)
+    let cover = Cover::new(centres, radii, funcs, kernel)
         .map_err(|e| cover_failure(e, &origins, element))?;
     Ok((cover, meta))
 }
@@ -320,7 +320,7 @@ fn parse(bytes: &[u8]) -> Result<(Cover, CoverFileMeta), Failure> {
 /// Places a rejected support at its record.
 fn cover_failure(error: CoverError, origins: &VertexOrigins, element: &Element) -> Failure {
     let index = match error {
-        CoverError::NonFiniteCenter { index, .. }
+        CoverError::NonFiniteCentre { index, .. }
         | CoverError::InvalidRadius { index, .. }
         | CoverError::NonFiniteFunction { index }
         | CoverError::ExpandedRadiusOverflow { index, .. } => Some(index),
@@ -381,15 +381,15 @@ fn parse_comments(
             }
             "normalisation" => {
                 let v = numbers(4)?;
-                let center = DVec3::new(v[0], v[1], v[2]);
-                if !(center.is_finite() && v[3].is_finite() && v[3] > 0.0) {
+                let centre = DVec3::new(v[0], v[1], v[2]);
+                if !(centre.is_finite() && v[3].is_finite() && v[3] > 0.0) {
                     return Err(Failure::header(
                         at(),
                         "normalisation needs a finite centre and a finite positive scale",
                     ));
                 }
                 meta.normalisation = Normalisation {
-                    center,
+                    centre,
                     scale: v[3],
                 };
             }

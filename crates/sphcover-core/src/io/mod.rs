@@ -201,7 +201,7 @@ pub struct WriteOptions {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SphereSet {
     /// Ball centres.
-    pub centers: Vec<DVec3>,
+    pub centres: Vec<DVec3>,
     /// Ball radii, one per centre.
     pub radii: Vec<f64>,
 }
@@ -411,7 +411,7 @@ pub fn read_spheres(path: &Path, options: &ReadOptions) -> Result<SphereSet, IoE
     let g = read_geometry(path, options)?;
     match g.radii {
         Some(radii) => Ok(SphereSet {
-            centers: g.points.positions,
+            centres: g.points.positions,
             radii,
         }),
         None => Err(IoError::NoRadius {
@@ -606,7 +606,7 @@ pub fn write_spheres(
     options: &WriteOptions,
 ) -> Result<(), IoError> {
     let export = Export {
-        positions: &spheres.centers,
+        positions: &spheres.centres,
         normals: None,
         confidence: None,
         values: None,

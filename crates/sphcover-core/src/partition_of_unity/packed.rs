@@ -12,7 +12,7 @@ use glam::{DMat3, DVec3};
 /// What the evaluation loop reads about one support: centre, `1/(σ r)`, and the local
 /// function at an offset `d = x − c`.
 pub(super) trait PackedSupport: Copy + Send + Sync {
-    fn center(&self) -> DVec3;
+    fn centre(&self) -> DVec3;
     fn inv_radius(&self) -> f64;
     fn value(&self, d: DVec3) -> f64;
     fn value_gradient(&self, d: DVec3) -> (f64, DVec3);
@@ -24,7 +24,7 @@ pub(super) trait PackedSupport: Copy + Send + Sync {
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct LinearSupport {
-    center: DVec3,
+    centre: DVec3,
     inv_radius: f64,
     alpha: DVec3,
     beta: f64,
@@ -36,7 +36,7 @@ pub(super) struct LinearSupport {
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct QuadraticSupport {
-    center: DVec3,
+    centre: DVec3,
     inv_radius: f64,
     hessian: [f64; 6],
     b: DVec3,
@@ -62,8 +62,8 @@ impl QuadraticSupport {
 
 impl PackedSupport for LinearSupport {
     #[inline]
-    fn center(&self) -> DVec3 {
-        self.center
+    fn centre(&self) -> DVec3 {
+        self.centre
     }
 
     #[inline]
@@ -89,8 +89,8 @@ impl PackedSupport for LinearSupport {
 
 impl PackedSupport for QuadraticSupport {
     #[inline]
-    fn center(&self) -> DVec3 {
-        self.center
+    fn centre(&self) -> DVec3 {
+        self.centre
     }
 
     #[inline]
@@ -132,13 +132,13 @@ pub(super) enum PackedSupports {
 impl PackedSupports {
     /// Packs `cover` with the expanded radii's reciprocals `1/(σ r_i)`.
     pub(super) fn new(cover: &Cover, sigma: f64) -> PackedSupports {
-        let centers = cover.centers();
+        let centres = cover.centres();
         let inv_radius = |i: usize| 1.0 / (sigma * cover.radii()[i]);
         match cover.funcs() {
             LocalFunctions::Linear { alpha, beta } => PackedSupports::Linear(
                 (0..cover.len())
                     .map(|i| LinearSupport {
-                        center: centers[i],
+                        centre: centres[i],
                         inv_radius: inv_radius(i),
                         alpha: alpha[i],
                         beta: beta[i],
@@ -150,7 +150,7 @@ impl PackedSupports {
                     .map(|i| {
                         let h = a[i] + a[i].transpose();
                         QuadraticSupport {
-                            center: centers[i],
+                            centre: centres[i],
                             inv_radius: inv_radius(i),
                             hessian: [
                                 h.x_axis.x, h.y_axis.y, h.z_axis.z, h.y_axis.x, h.z_axis.x,
@@ -166,10 +166,10 @@ impl PackedSupports {
     }
 
     /// Centre and `1/(σ r)` of support `i`.
-    pub(super) fn center_inv_radius(&self, i: usize) -> (DVec3, f64) {
+    pub(super) fn centre_inv_radius(&self, i: usize) -> (DVec3, f64) {
         match self {
-            PackedSupports::Linear(v) => (v[i].center, v[i].inv_radius),
-            PackedSupports::Quadratic(v) => (v[i].center, v[i].inv_radius),
+            PackedSupports::Linear(v) => (v[i].centre, v[i].inv_radius),
+            PackedSupports::Quadratic(v) => (v[i].centre, v[i].inv_radius),
         }
     }
 }

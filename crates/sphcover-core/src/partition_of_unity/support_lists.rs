@@ -35,9 +35,9 @@ const POSITIONS_PER_TASK: usize = 1024;
 /// ```
 /// use sphcover_core::{Cover, DVec3, Kernel, LocalFunctions, PuEvaluator};
 ///
-/// let centers = vec![DVec3::ZERO, DVec3::new(0.5, 0.0, 0.0)];
+/// let centres = vec![DVec3::ZERO, DVec3::new(0.5, 0.0, 0.0)];
 /// let funcs = |beta: f64| LocalFunctions::Linear { alpha: vec![DVec3::X; 2], beta: vec![beta; 2] };
-/// let mut cover = Cover::new(centers.clone(), vec![1.0; 2], funcs(0.0), Kernel::QuadraticBSpline)?;
+/// let mut cover = Cover::new(centres.clone(), vec![1.0; 2], funcs(0.0), Kernel::QuadraticBSpline)?;
 /// let points = [DVec3::new(0.2, 0.1, 0.0), DVec3::new(3.0, 0.0, 0.0)];
 /// let lists = PuEvaluator::new(&cover, 1.0)?.support_lists(&points);
 /// assert_eq!((lists.supports(0), lists.supports(1)), (&[0, 1][..], &[][..]));
@@ -53,7 +53,7 @@ const POSITIONS_PER_TASK: usize = 1024;
 pub struct SupportLists {
     sigma: f64,
     /// The balls the lists were gathered from, to refuse a cover with other balls.
-    centers: Vec<DVec3>,
+    centres: Vec<DVec3>,
     radii: Vec<f64>,
     /// The points, in input order.
     points: Vec<DVec3>,
@@ -104,7 +104,7 @@ impl PuEvaluator<'_> {
                         let out = &mut ids[before..];
                         let mut hits = 0;
                         for &j in candidates {
-                            let (c, inv_r) = self.supports.center_inv_radius(j as usize);
+                            let (c, inv_r) = self.supports.centre_inv_radius(j as usize);
                             out[hits] = j;
                             hits += usize::from(((x - c) * inv_r).length_squared() < 1.0);
                         }
@@ -135,7 +135,7 @@ impl PuEvaluator<'_> {
         };
         SupportLists {
             sigma: self.sigma,
-            centers: self.cover.centers().to_vec(),
+            centres: self.cover.centres().to_vec(),
             radii: self.cover.radii().to_vec(),
             points: points.to_vec(),
             order,
@@ -229,7 +229,7 @@ impl SupportLists {
             (
                 "supports of the support lists",
                 cover.len(),
-                self.centers.len(),
+                self.centres.len(),
             ),
             (
                 "points of the support lists",
@@ -247,7 +247,7 @@ impl SupportLists {
         }
         let bits = |v: DVec3| v.to_array().map(f64::to_bits);
         let other_ball = |i: usize| {
-            bits(cover.centers()[i]) != bits(self.centers[i])
+            bits(cover.centres()[i]) != bits(self.centres[i])
                 || cover.radii()[i].to_bits() != self.radii[i].to_bits()
         };
         if let Some(index) = (0..cover.len())

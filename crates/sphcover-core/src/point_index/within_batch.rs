@@ -110,9 +110,9 @@ impl WithinState {
             self.candidates.clear();
             // A point within `r` of a point of the box lies within `r + t` of its centre; the
             // relative margin covers the rounding of both distances.
-            if let Some((center, t)) = bounding_sphere(&plan.blocks[b].1) {
+            if let Some((centre, t)) = bounding_sphere(&plan.blocks[b].1) {
                 let reach = (r + t) * (1.0 + 1e-9);
-                index.extend_within(center, reach, &mut self.candidates, None);
+                index.extend_within(centre, reach, &mut self.candidates, None);
                 self.candidates.sort_unstable();
             }
             self.near.resize(self.candidates.len(), (0, 0.0));

@@ -83,25 +83,25 @@ pub(crate) struct Expanded {
 }
 
 /// Expands the octree's supports `leaves` (see the module docs), whose centres, radii and
-/// fits are `centers`, `initial` and `fit`.
+/// fits are `centres`, `initial` and `fit`.
 pub(crate) fn expand(
     leaves: &[Leaf],
-    centers: &[DVec3],
+    centres: &[DVec3],
     initial: &[f64],
     fit: Vec<Fit>,
     samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
 ) -> Result<Expanded, PointIndexError> {
-    expand_with(centers, initial, fit, params.seed, BATCH, |cand, i| {
+    expand_with(centres, initial, fit, params.seed, BATCH, |cand, i| {
         grow(cand, &leaves[i], samples, params, max_radius)
     })
 }
 
-/// The pass in batches of `batch` visits over the supports with centres `centers` and radii
+/// The pass in batches of `batch` visits over the supports with centres `centres` and radii
 /// `initial`, whose octree fits are `fit`; `grow(candidates, i)` grows support `i`.
 fn expand_with(
-    centers: &[DVec3],
+    centres: &[DVec3],
     initial: &[f64],
     mut fit: Vec<Fit>,
     seed: u64,
@@ -109,8 +109,8 @@ fn expand_with(
     grow: impl Fn(&mut Candidates, usize) -> Grown + Sync,
 ) -> Result<Expanded, PointIndexError> {
     let start = Instant::now();
-    let n = centers.len();
-    let index = PointIndex::new(centers)?;
+    let n = centres.len();
+    let index = PointIndex::new(centres)?;
     let mut radius = initial.to_vec();
     let mut alive = vec![true; n];
     let mut fits = 0u64;
@@ -139,7 +139,7 @@ fn expand_with(
                 let i = i as usize;
                 let g = grow(cand, i);
                 let mut near = Vec::new();
-                let ci = centers[i];
+                let ci = centres[i];
                 let reach = (g.radius - r_min).max(0.0) + 1e-9 * g.radius;
                 index.for_each_within(ci, reach, |k, ck| {
                     let d = ck.distance(ci);
@@ -216,7 +216,7 @@ fn grow(
     // candidates held do not reach `r`.
     let passes = |cand: &mut Candidates, held: &mut f64, r: f64, reach: f64| {
         if r > *held {
-            cand.gather(samples, leaf.center, reach);
+            cand.gather(samples, leaf.centre, reach);
             *held = reach;
         }
         cand.fit(samples, r, params.kernel, eps)
@@ -295,15 +295,15 @@ mod tests {
     /// Fig. 3.7 one support at a time, every pair tested: the oracle of [`expand_with`].
     /// Returns which supports survive, the radius of each and how many were visited alive.
     fn expand_one_at_a_time(
-        centers: &[DVec3],
+        centres: &[DVec3],
         initial: &[f64],
         grown: &[Grown],
         seed: u64,
     ) -> (Vec<bool>, Vec<f64>, usize) {
         let mut radius = initial.to_vec();
-        let mut alive = vec![true; centers.len()];
+        let mut alive = vec![true; centres.len()];
         let mut visited = 0;
-        for i in shuffled(centers.len(), seed) {
+        for i in shuffled(centres.len(), seed) {
             let i = i as usize;
             if !alive[i] {
                 continue;
@@ -311,9 +311,9 @@ mod tests {
             visited += 1;
             let ri = grown[i].radius;
             radius[i] = ri;
-            for k in 0..centers.len() {
-                let inside = (centers[k] - centers[i]).length_squared() < ri * ri;
-                if k != i && alive[k] && inside && centers[k].distance(centers[i]) + radius[k] <= ri
+            for k in 0..centres.len() {
+                let inside = (centres[k] - centres[i]).length_squared() < ri * ri;
+                if k != i && alive[k] && inside && centres[k].distance(centres[i]) + radius[k] <= ri
                 {
                     alive[k] = false;
                 }
@@ -333,7 +333,7 @@ mod tests {
         let (mut best, cap) = growth_start(leaf, params, max_radius);
         let Some(cap) = cap else { return best };
         let mut cand = Candidates::default();
-        cand.gather(samples, leaf.center, cap);
+        cand.gather(samples, leaf.centre, cap);
         let passes = |r: f64, best: &mut Grown| {
             best.fits += 1;
             let fit = cand.fit(samples, r, params.kernel, f64::INFINITY);
@@ -383,16 +383,16 @@ mod tests {
         ) {
             let samples = bumpy_sphere(3000, bump);
             let u = DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
-            let center = (0.3 + height) * u;
+            let centre = (0.3 + height) * u;
             let mut cand = Candidates::default();
-            cand.gather(&samples, center, radius);
+            cand.gather(&samples, centre, radius);
             let Some(fit) = cand.fit(&samples, radius, Kernel::QuadraticBSpline, f64::INFINITY) else {
                 return Ok(());
             };
             let leaf = Leaf {
                 level: 0,
                 key: 0,
-                center,
+                centre,
                 radius,
                 fit,
                 grown: false,
@@ -414,7 +414,7 @@ mod tests {
             prop_assert_eq!(fast.fits, plain.fits);
             // The radius found fits within ε, refitted over its own ball alone.
             if fast.fits > 0 && fast.radius > radius {
-                cand.gather(&samples, center, fast.radius);
+                cand.gather(&samples, centre, fast.radius);
                 let own = cand.fit(&samples, fast.radius, params.kernel, f64::INFINITY);
                 prop_assert_eq!(own, Some(fast.fit));
                 prop_assert!(fast.fit.error <= eps);
@@ -430,7 +430,7 @@ mod tests {
             seed in any::<u64>(),
             batch in 1usize..40,
         ) {
-            let centers: Vec<DVec3> = balls.iter().map(|&((x, y, z), _, _)| DVec3::new(x, y, z)).collect();
+            let centres: Vec<DVec3> = balls.iter().map(|&((x, y, z), _, _)| DVec3::new(x, y, z)).collect();
             let initial: Vec<f64> = balls.iter().map(|&(_, r, _)| r).collect();
             let octree_fit = Fit { normal: DVec3::Z, centroid: DVec3::ZERO, error: 0.0 };
             // Each grown fit is told apart by its error.
@@ -444,22 +444,22 @@ mod tests {
                 })
                 .collect();
             let calls = AtomicUsize::new(0);
-            let octree_fits = vec![octree_fit; centers.len()];
-            let fast = expand_with(&centers, &initial, octree_fits, seed, batch, |_, i| {
+            let octree_fits = vec![octree_fit; centres.len()];
+            let fast = expand_with(&centres, &initial, octree_fits, seed, batch, |_, i| {
                 calls.fetch_add(1, Ordering::Relaxed);
                 grown[i]
             })
             .unwrap();
-            let (alive, radius, visited) = expand_one_at_a_time(&centers, &initial, &grown, seed);
+            let (alive, radius, visited) = expand_one_at_a_time(&centres, &initial, &grown, seed);
             prop_assert_eq!(&fast.alive, &alive);
-            for i in (0..centers.len()).filter(|&i| alive[i]) {
+            for i in (0..centres.len()).filter(|&i| alive[i]) {
                 prop_assert_eq!(fast.radius[i], radius[i]);
                 prop_assert_eq!(fast.fit[i], grown[i].fit);
             }
             // Every support visited alive was grown, no support twice, and with one visit
             // per batch no other.
             let calls = calls.into_inner();
-            prop_assert!(calls >= visited && calls <= centers.len());
+            prop_assert!(calls >= visited && calls <= centres.len());
             if batch == 1 {
                 prop_assert_eq!(calls, visited);
             }

@@ -62,7 +62,7 @@ impl Fit {
 /// only a few times more.
 #[derive(Debug, Default)]
 pub(crate) struct Candidates {
-    center: DVec3,
+    centre: DVec3,
     slots: Vec<u32>,
     dist2: Vec<f64>,
 }
@@ -75,7 +75,7 @@ impl Candidates {
 
     /// Gathers the points with `‖p − c‖² < r²`, in tree order.
     pub fn gather(&mut self, samples: &Samples<'_>, c: DVec3, r: f64) {
-        self.center = c;
+        self.centre = c;
         self.slots.clear();
         self.dist2.clear();
         samples
@@ -113,7 +113,7 @@ impl Candidates {
         let len = self.len();
         let r2 = r * r;
         let inv_r2 = 1.0 / r2;
-        let c = self.center;
+        let c = self.centre;
         let points = samples.index.slot_points();
         let normals = &samples.normals[..];
         let slots = &self.slots[..len];
@@ -317,7 +317,7 @@ pub(crate) mod tests {
         #[test]
         fn the_error_bound_is_below_every_fit(
             bump in 0.0..0.05f64,
-            center in vec3(),
+            centre in vec3(),
             radius in 0.02..0.6f64,
             stride in 1usize..40,
             kernel in prop::sample::select(vec![
@@ -325,9 +325,9 @@ pub(crate) mod tests {
             ]),
         ) {
             let samples = bumpy_sphere(2000, bump);
-            let center = center * 0.4;
+            let centre = centre * 0.4;
             let mut cand = Candidates::default();
-            cand.gather(&samples, center, radius);
+            cand.gather(&samples, centre, radius);
             let points = samples.index.slot_points();
             let sample: Vec<DVec3> =
                 cand.slots.iter().step_by(stride).map(|&s| points[s as usize]).collect();

@@ -453,13 +453,13 @@ fn build(
     let t_octree = Instant::now();
     stats.timings.octree = t_octree - t_index;
 
-    let mut centers: Vec<DVec3> = leaves.iter().map(|l| l.center).collect();
+    let mut centres: Vec<DVec3> = leaves.iter().map(|l| l.centre).collect();
     let mut radii: Vec<f64> = leaves.iter().map(|l| l.radius).collect();
     let mut fits: Vec<fit::Fit> = leaves.iter().map(|l| l.fit).collect();
     if params.expansion {
         let max_radius = 2.0 * half_side * 3f64.sqrt();
         let expanded = expansion::expand(
-            &leaves, &centers, &radii, fits, &samples, params, max_radius,
+            &leaves, &centres, &radii, fits, &samples, params, max_radius,
         )?;
         fits = expanded.fit;
         stats.fits += expanded.fits;
@@ -471,21 +471,21 @@ fn build(
                 if expanded.radius[i] > radii[i] {
                     stats.grown_supports += 1;
                 }
-                centers[kept] = centers[i];
+                centres[kept] = centres[i];
                 radii[kept] = expanded.radius[i];
                 fits[kept] = fits[i];
                 kept += 1;
             }
         }
-        centers.truncate(kept);
+        centres.truncate(kept);
         radii.truncate(kept);
         fits.truncate(kept);
     }
-    stats.supports_after_expansion = centers.len();
+    stats.supports_after_expansion = centres.len();
     stats.supports_over_eps = fits.iter().filter(|f| f.error > params.eps).count();
     stats.max_error = fits.iter().map(|f| f.error).fold(0.0, f64::max);
     let funcs = LocalFunctions::from_linear(fits.iter().map(fit::Fit::linear));
-    let cover = Cover::new(centers, radii, funcs, params.kernel)?;
+    let cover = Cover::new(centres, radii, funcs, params.kernel)?;
     stats.timings.total = start.elapsed();
     Ok((cover, stats))
 }

@@ -96,7 +96,7 @@ const BOUND_GRAIN: f64 = 0.25;
 pub(crate) struct Leaf {
     pub level: u8,
     pub key: u64,
-    pub center: DVec3,
+    pub centre: DVec3,
     pub radius: f64,
     pub fit: Fit,
     /// The octant's own ball (radius `0.75 ×` diagonal) held fewer than `n_min` points, and
@@ -130,12 +130,12 @@ impl Geometry {
     fn cell(&self, level: u8, key: u64) -> (DVec3, f64) {
         let h = self.side / f64::from(1u32 << level);
         let (x, y, z) = unpack(key);
-        let center = DVec3::new(
+        let centre = DVec3::new(
             self.min + (f64::from(x) + 0.5) * h,
             self.min + (f64::from(y) + 0.5) * h,
             self.min + (f64::from(z) + 0.5) * h,
         );
-        (center, 0.75 * 3f64.sqrt() * h)
+        (centre, 0.75 * 3f64.sqrt() * h)
     }
 }
 
@@ -395,7 +395,7 @@ impl Octree<'_> {
         if u32::from(level) >= self.params.max_depth {
             return None;
         }
-        let (center, natural) = self.geometry.cell(level, key);
+        let (centre, natural) = self.geometry.cell(level, key);
         let samples = self.samples;
         let points = samples.index.slot_points();
         let conf = samples.confidence.as_deref();
@@ -403,7 +403,7 @@ impl Octree<'_> {
         let own_points =
             samples
                 .index
-                .count_within_sampled(center, natural, BOUND_GRAIN * natural, |s| {
+                .count_within_sampled(centre, natural, BOUND_GRAIN * natural, |s| {
                     if conf.is_none_or(|conf| conf[s] > 0.0) {
                         sample.push(points[s]);
                     }
@@ -419,7 +419,7 @@ impl Octree<'_> {
         Some(Leaf {
             level,
             key,
-            center,
+            centre,
             radius: natural,
             fit: Fit {
                 normal: DVec3::NAN,
@@ -437,9 +437,9 @@ impl Octree<'_> {
     /// `exact`: compute the exact error even where the cell would be refined (a cell whose
     /// subdivision was undone).
     fn fit_cell(&self, cand: &mut Candidates, level: u8, key: u64, exact: bool) -> Option<Leaf> {
-        let (center, natural) = self.geometry.cell(level, key);
+        let (centre, natural) = self.geometry.cell(level, key);
         let samples = self.samples;
-        cand.gather(samples, center, natural);
+        cand.gather(samples, centre, natural);
         let mut radius = natural;
         let own_points = cand.len();
         let empty = own_points == 0;
@@ -448,11 +448,11 @@ impl Octree<'_> {
             let mut nearest = Vec::with_capacity(self.params.n_min);
             samples
                 .index
-                .nearest_k_with_distances(center, self.params.n_min, &mut nearest);
+                .nearest_k_with_distances(centre, self.params.n_min, &mut nearest);
             let farthest = nearest.last()?.0.sqrt();
             radius = natural.max(farthest * REACH);
             grown = radius > natural;
-            cand.gather(samples, center, radius);
+            cand.gather(samples, centre, radius);
         }
         let limit = if u32::from(level) < self.params.max_depth && !empty && !exact {
             self.params.eps
@@ -472,7 +472,7 @@ impl Octree<'_> {
         Some(Leaf {
             level,
             key,
-            center,
+            centre,
             radius,
             fit,
             grown,

@@ -23,8 +23,8 @@ impl<'a> Grid<'a> {
     /// Marks the points of the new support's `S` that are midpoints of two other points of
     /// `S`, and the centre, as covered.
     fn mark_covered(&self, s: &Support, covered: &mut [bool]) {
-        let base = self.base(s.center as usize);
-        covered[s.center as usize] = true;
+        let base = self.base(s.centre as usize);
+        covered[s.centre as usize] = true;
         let in_set = |o: [i32; 3]| -> bool {
             let Some(idx) = self.neighbour(base, o) else {
                 return false;
@@ -235,7 +235,7 @@ pub(super) fn covering_loop(
         let fits: Vec<Support> = batch.par_iter().map(|&c| fit(c)).collect();
         stats.fits += fits.len();
         for s in fits {
-            if !covered[s.center as usize] {
+            if !covered[s.centre as usize] {
                 take(s, &mut covered);
             }
         }

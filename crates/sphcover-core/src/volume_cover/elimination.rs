@@ -19,7 +19,7 @@ impl<'a> Grid<'a> {
     /// inside the support's ball.
     #[inline]
     fn for_each_member(&self, s: &Support, f: &mut dyn FnMut(usize)) {
-        let base = self.base(s.center as usize);
+        let base = self.base(s.centre as usize);
         for o in &self.offsets[..s.offsets] {
             if let Some(idx) = self.neighbour(base, o.step)
                 && (self.bounding_box || self.object[idx])
@@ -119,7 +119,7 @@ impl CornerSet {
 
     /// Calls `f` with the object corners strictly inside the support's ball.
     fn for_each_member(&self, grid: &Grid, s: &Support, mut f: impl FnMut(usize)) {
-        let base = grid.base(s.center as usize);
+        let base = grid.base(s.centre as usize);
         let limit = s.radius / grid.unit * (1.0 - 1e-9);
         let limit2 = limit * limit;
         for &(step, d2) in &self.offsets {

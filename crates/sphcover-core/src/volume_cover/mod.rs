@@ -434,11 +434,11 @@ pub fn build_volume_cover(
         VolumeCoverVariant::ObjectQuadratic => grid.cover::<QUADRATIC>(params, depth, &mut stats),
         VolumeCoverVariant::BoundingBoxLinear => grid.cover::<LINEAR>(params, None, &mut stats),
     };
-    let centers: Vec<DVec3> = supports
+    let centres: Vec<DVec3> = supports
         .iter()
-        .map(|s| volume.voxel_center(volume.ijk(s.center as usize)))
+        .map(|s| volume.voxel_centre(volume.ijk(s.centre as usize)))
         .collect();
-    let cover = supports_to_cover(&supports, centers, params, &mut stats)?;
+    let cover = supports_to_cover(&supports, centres, params, &mut stats)?;
     stats.time_cover = start.elapsed();
     Ok((cover, stats))
 }

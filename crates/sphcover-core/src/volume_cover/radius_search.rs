@@ -11,10 +11,10 @@ use super::grid::Grid;
 use super::support::Support;
 
 impl<'a> Grid<'a> {
-    /// Fits the support centred at voxel `center` (a pure function of `center`).
-    pub(super) fn fit<const N: usize>(&self, center: usize) -> Support {
-        let base = self.base(center);
-        let shift = self.sample(center).unwrap_or(0.0);
+    /// Fits the support centred at voxel `centre` (a pure function of `centre`).
+    pub(super) fn fit<const N: usize>(&self, centre: usize) -> Support {
+        let base = self.base(centre);
+        let shift = self.sample(centre).unwrap_or(0.0);
         let mut acc = NormalEquations::<N>::new();
         let mut next_offset = 0;
         // Accumulates shells up to `s` into `acc` (which holds shells below `next_offset`).
@@ -102,7 +102,7 @@ impl<'a> Grid<'a> {
         let end = self.shells[shell].1;
         let rms = self.direct_rms::<N>(base, end, &c, radius, shift);
         Support {
-            center: center as u32,
+            centre: centre as u32,
             radius,
             shell_d2: self.shells[shell].0,
             offsets: end,

@@ -170,11 +170,11 @@ pub fn build_scattered_cover(
         VolumeCoverVariant::ObjectQuadratic => samples.cover::<QUADRATIC>(params, &mut stats),
         VolumeCoverVariant::BoundingBoxLinear => samples.cover::<LINEAR>(params, &mut stats),
     };
-    let centers: Vec<DVec3> = supports
+    let centres: Vec<DVec3> = supports
         .iter()
-        .map(|s| positions[s.center as usize])
+        .map(|s| positions[s.centre as usize])
         .collect();
-    let cover = supports_to_cover(&supports, centers, params, &mut stats)?;
+    let cover = supports_to_cover(&supports, centres, params, &mut stats)?;
     stats.time_cover = start.elapsed();
     Ok((cover, stats))
 }
@@ -259,7 +259,7 @@ struct Samples<'a> {
 /// their shells.
 struct Neighbourhood<'s, 'a> {
     samples: &'s Samples<'a>,
-    center: DVec3,
+    centre: DVec3,
     /// `(distance² in frame d/h, sample index)`, ascending.
     entries: Vec<(f64, u32)>,
     /// Every sample with frame distance² below this is in `entries`.
@@ -273,11 +273,11 @@ struct Neighbourhood<'s, 'a> {
 }
 
 impl<'s, 'a> Neighbourhood<'s, 'a> {
-    fn new(samples: &'s Samples<'a>, center: DVec3) -> Self {
+    fn new(samples: &'s Samples<'a>, centre: DVec3) -> Self {
         let reach = samples.r_max / samples.unit;
         Neighbourhood {
             samples,
-            center,
+            centre,
             entries: Vec::new(),
             complete_below: 0.0,
             reach2: reach * reach * (1.0 - 1e-9),
@@ -300,16 +300,16 @@ impl<'s, 'a> Neighbourhood<'s, 'a> {
         let h = self.samples.unit;
         let previous = self.complete_below;
         self.scratch.clear();
-        let center = self.center;
+        let centre = self.centre;
         let scratch = &mut self.scratch;
         let slot_order = self.samples.index.order();
         let positions = self.samples.positions;
         self.samples.index.for_each_slot_within(
-            center,
+            centre,
             (limit * (1.0 + 1e-6)).sqrt() * h,
             |slot, _| {
                 let i = slot_order[slot];
-                let fd2 = ((positions[i as usize] - center) / h).length_squared();
+                let fd2 = ((positions[i as usize] - centre) / h).length_squared();
                 if fd2 >= previous && fd2 < limit {
                     scratch.push((fd2, i));
                 }
@@ -362,10 +362,10 @@ impl Samples<'_> {
         r.min(self.r_max).max(here)
     }
 
-    /// Fits the support centred at sample `center` (a pure function of `center`).
-    fn fit<const N: usize>(&self, center: usize) -> Support {
-        let c = self.positions[center];
-        let shift = self.values[center];
+    /// Fits the support centred at sample `centre` (a pure function of `centre`).
+    fn fit<const N: usize>(&self, centre: usize) -> Support {
+        let c = self.positions[centre];
+        let shift = self.values[centre];
         let mut nb = Neighbourhood::new(self, c);
         let mut acc = NormalEquations::<N>::new();
         let mut next_entry = 0;
@@ -460,7 +460,7 @@ impl Samples<'_> {
             count += 1;
         }
         Support {
-            center: center as u32,
+            centre: centre as u32,
             radius,
             shell_d2,
             offsets: end,
@@ -474,7 +474,7 @@ impl Samples<'_> {
     /// sample set, gathered again: the fits run ahead in parallel and keep no lists).
     fn ball(&self, s: &Support, out: &mut Vec<(f64, u32)>) {
         out.clear();
-        let c = self.positions[s.center as usize];
+        let c = self.positions[s.centre as usize];
         let h = self.unit;
         let limit = s.shell_d2;
         let order = self.index.order();
@@ -492,9 +492,9 @@ impl Samples<'_> {
     /// Marks the centre, and every uncovered point of `S` that some point of `S` exceeds
     /// along its own ray from the centre, as covered.
     fn mark_covered(&self, s: &Support, covered: &mut [bool], ball: &mut Vec<(f64, u32)>) {
-        covered[s.center as usize] = true;
+        covered[s.centre as usize] = true;
         self.ball(s, ball);
-        let c = self.positions[s.center as usize];
+        let c = self.positions[s.centre as usize];
         let in_set = |i: u32| self.bounding_box || self.object[i as usize];
         // Farthest first: a point is beaten only by points at least as far as itself.
         let set: Vec<DVec3> = ball
@@ -564,7 +564,7 @@ impl Samples<'_> {
     /// Calls `f` with every object sample (every sample, for the linear variant) strictly
     /// inside the support's ball.
     fn for_each_member(&self, s: &Support, f: &mut dyn FnMut(usize)) {
-        let c = self.positions[s.center as usize];
+        let c = self.positions[s.centre as usize];
         let h = self.unit;
         let limit = s.radius * (1.0 - 1e-9) / h;
         let limit2 = limit * limit;

@@ -14,7 +14,7 @@ use crate::local_function::{LinearFunction, LocalFunctions, QuadraticFunction};
 /// One accepted support (or a speculative fit).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Support {
-    pub(super) center: u32,
+    pub(super) centre: u32,
     pub(super) radius: f64,
     /// Squared distance (frame `d/h`) of the outermost shell inside the ball.
     pub(super) shell_d2: f64,
@@ -54,7 +54,7 @@ impl Support {
 /// Assembles the cover of the accepted supports (centres given) and fills the statistics.
 pub(super) fn supports_to_cover(
     supports: &[Support],
-    centers: Vec<DVec3>,
+    centres: Vec<DVec3>,
     params: &VolumeCoverParams,
     stats: &mut VolumeCoverStats,
 ) -> Result<Cover, VolumeCoverError> {
@@ -73,5 +73,5 @@ pub(super) fn supports_to_cover(
             LocalFunctions::from_linear(supports.iter().map(|s| s.linear()))
         }
     };
-    Ok(Cover::new(centers, radii, funcs, params.kernel)?)
+    Ok(Cover::new(centres, radii, funcs, params.kernel)?)
 }

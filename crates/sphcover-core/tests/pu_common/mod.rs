@@ -87,9 +87,9 @@ pub fn random_quadratic(n: usize) -> impl Strategy<Value = Vec<QuadraticFunction
 }
 
 pub fn build(supports: &[(DVec3, f64)], funcs: LocalFunctions, kernel: Kernel) -> Cover {
-    let centers = supports.iter().map(|s| s.0).collect();
+    let centres = supports.iter().map(|s| s.0).collect();
     let radii = supports.iter().map(|s| s.1).collect();
-    Cover::new(centers, radii, funcs, kernel).expect("valid random cover")
+    Cover::new(centres, radii, funcs, kernel).expect("valid random cover")
 }
 
 /// Brute-force sums of the weights at `x` (radius `σ r_i`): `W = Σ w_i`, `Σ ‖∇w_i‖`,
@@ -109,7 +109,7 @@ pub fn weight_stats(cover: &Cover, sigma: f64, x: DVec3) -> WeightStats {
         hess_sum: 0.0,
         count: 0,
     };
-    for (c, r) in cover.centers().iter().zip(cover.radii()) {
+    for (c, r) in cover.centres().iter().zip(cover.radii()) {
         let (w, g, h) = cover.kernel().weight_gradient_hessian(x, *c, sigma * r);
         if w > 0.0 {
             s.w += w;
@@ -126,7 +126,7 @@ pub fn oracle_value(cover: &Cover, sigma: f64, x: DVec3) -> Option<f64> {
     let mut w_sum = 0.0;
     let mut n_sum = 0.0;
     for i in 0..cover.len() {
-        let c = cover.centers()[i];
+        let c = cover.centres()[i];
         let w = cover.kernel().weight(x, c, sigma * cover.radii()[i]);
         if w > 0.0 {
             w_sum += w;
@@ -140,7 +140,7 @@ pub fn oracle_value(cover: &Cover, sigma: f64, x: DVec3) -> Option<f64> {
 /// (kernel kinks and the support boundaries, at radius `σ r_i`).
 pub fn distance_to_nonsmooth(cover: &Cover, sigma: f64, x: DVec3) -> f64 {
     let mut best = f64::INFINITY;
-    for (c, r) in cover.centers().iter().zip(cover.radii()) {
+    for (c, r) in cover.centres().iter().zip(cover.radii()) {
         let dist = x.distance(*c);
         for &k in cover.kernel().nonsmooth_radii().iter().chain([1.0].iter()) {
             best = best.min((dist - k * sigma * r).abs());

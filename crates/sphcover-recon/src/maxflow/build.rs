@@ -121,7 +121,7 @@ impl<'a> FlowGraph<'a> {
     }
 
     /// Builds the network from a symmetric adjacency in compressed sparse rows: row `v` is
-    /// `neighbors[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`, and `j` is
+    /// `neighbours[offsets[v]..offsets[v + 1]]`, strictly ascending, without `v`, and `j` is
     /// in row `i` exactly when `i` is in row `j` (e.g. a
     /// [`sphcover_core::SphereIntersectionGraph`]). `capacities[a]` is the capacity of the
     /// arc of entry `a` (from the row's node to the entry's node); the vector becomes the
@@ -132,33 +132,33 @@ impl<'a> FlowGraph<'a> {
         source_capacities: &[f64],
         sink_capacities: &[f64],
         offsets: &'a [u32],
-        neighbors: &'a [u32],
+        neighbours: &'a [u32],
         capacities: Vec<f64>,
     ) -> Result<FlowGraph<'a>, MaxFlowError> {
         let n = offsets.len().saturating_sub(1);
         let mut graph = FlowGraph::new(n, source_capacities, sink_capacities, &[])?;
         if offsets.is_empty() {
-            return if neighbors.is_empty() {
+            return if neighbours.is_empty() {
                 Ok(graph)
             } else {
                 Err(MaxFlowError::MalformedCsr("no offsets"))
             };
         }
-        if capacities.len() != neighbors.len() {
+        if capacities.len() != neighbours.len() {
             return Err(MaxFlowError::LengthMismatch {
                 array: "capacities",
-                expected: neighbors.len(),
+                expected: neighbours.len(),
                 found: capacities.len(),
             });
         }
-        if neighbors.len() > MAX_ARCS {
+        if neighbours.len() > MAX_ARCS {
             return Err(MaxFlowError::TooLarge {
                 nodes: n,
-                arcs: neighbors.len(),
+                arcs: neighbours.len(),
             });
         }
         if offsets[0] != 0
-            || offsets[n] as usize != neighbors.len()
+            || offsets[n] as usize != neighbours.len()
             || offsets.windows(2).any(|w| w[0] > w[1])
         {
             return Err(MaxFlowError::MalformedCsr("offsets"));
@@ -174,7 +174,7 @@ impl<'a> FlowGraph<'a> {
             });
         }
         use rayon::prelude::*;
-        let row = |v: usize| &neighbors[offsets[v] as usize..offsets[v + 1] as usize];
+        let row = |v: usize| &neighbours[offsets[v] as usize..offsets[v + 1] as usize];
         let malformed = (0..n)
             .into_par_iter()
             .with_min_len(1024)
@@ -199,14 +199,14 @@ impl<'a> FlowGraph<'a> {
         // own order. A cursor per row hands them out; an entry the cursor does not name
         // `v` has no reverse, and one never handed out keeps `u32::MAX`. (A binary search
         // per entry would cost more: its branches are unpredictable.)
-        let mut sister = vec![u32::MAX; neighbors.len()];
+        let mut sister = vec![u32::MAX; neighbours.len()];
         let mut cursor: Vec<u32> = offsets[..n].to_vec();
         for v in 0..n {
             let upper = row(v).partition_point(|&j| (j as usize) < v);
             for k in offsets[v] as usize + upper..offsets[v + 1] as usize {
-                let j = neighbors[k] as usize;
+                let j = neighbours[k] as usize;
                 let lower = cursor[j] as usize;
-                if lower >= offsets[j + 1] as usize || neighbors[lower] as usize != v {
+                if lower >= offsets[j + 1] as usize || neighbours[lower] as usize != v {
                     return Err(MaxFlowError::MalformedCsr("entry without a reverse entry"));
                 }
                 sister[k] = lower as u32;
@@ -219,7 +219,7 @@ impl<'a> FlowGraph<'a> {
         }
         graph.sister = sister;
         graph.first = Cow::Borrowed(offsets);
-        graph.head = Cow::Borrowed(neighbors);
+        graph.head = Cow::Borrowed(neighbours);
         graph.residual = capacities;
         Ok(graph)
     }
@@ -256,33 +256,33 @@ mod tests {
                 .collect();
             let csr = |rows: &[std::collections::BTreeSet<u32>]| {
                 let mut offsets = vec![0u32];
-                let mut neighbors = Vec::new();
+                let mut neighbours = Vec::new();
                 for row in rows {
-                    neighbors.extend(row.iter().copied());
-                    offsets.push(neighbors.len() as u32);
+                    neighbours.extend(row.iter().copied());
+                    offsets.push(neighbours.len() as u32);
                 }
-                (offsets, neighbors)
+                (offsets, neighbours)
             };
             let z = vec![0.0; n];
-            let (offsets, neighbors) = csr(&rows);
-            let g = FlowGraph::from_symmetric_csr(&z, &z, &offsets, &neighbors, vec![1.0; neighbors.len()]).unwrap();
+            let (offsets, neighbours) = csr(&rows);
+            let g = FlowGraph::from_symmetric_csr(&z, &z, &offsets, &neighbours, vec![1.0; neighbours.len()]).unwrap();
             for v in 0..n {
                 for k in offsets[v] as usize..offsets[v + 1] as usize {
                     let s = g.sister[k] as usize;
                     prop_assert_eq!(g.sister[s] as usize, k);
-                    prop_assert_eq!(neighbors[s] as usize, v);
-                    let j = neighbors[k] as usize;
+                    prop_assert_eq!(neighbours[s] as usize, v);
+                    let j = neighbours[k] as usize;
                     prop_assert!((offsets[j] as usize..offsets[j + 1] as usize).contains(&s));
                 }
             }
-            if !neighbors.is_empty() {
+            if !neighbours.is_empty() {
                 let mut one_sided = rows.clone();
-                let k = drop.index(neighbors.len());
+                let k = drop.index(neighbours.len());
                 let v = offsets.partition_point(|&o| o as usize <= k) - 1;
-                one_sided[v].remove(&neighbors[k]);
-                let (offsets, neighbors) = csr(&one_sided);
+                one_sided[v].remove(&neighbours[k]);
+                let (offsets, neighbours) = csr(&one_sided);
                 prop_assert!(matches!(
-                    FlowGraph::from_symmetric_csr(&z, &z, &offsets, &neighbors, vec![1.0; neighbors.len()]),
+                    FlowGraph::from_symmetric_csr(&z, &z, &offsets, &neighbours, vec![1.0; neighbours.len()]),
                     Err(MaxFlowError::MalformedCsr(_))
                 ));
             }
@@ -293,12 +293,12 @@ mod tests {
     fn malformed_csr_is_refused() {
         let z = [0.0; 3];
         // The graph borrows the adjacency: only whether it was built matters here.
-        let csr = |offsets: &[u32], neighbors: &[u32]| {
-            FlowGraph::from_symmetric_csr(&z, &z, offsets, neighbors, vec![1.0; neighbors.len()])
+        let csr = |offsets: &[u32], neighbours: &[u32]| {
+            FlowGraph::from_symmetric_csr(&z, &z, offsets, neighbours, vec![1.0; neighbours.len()])
                 .map(|_| ())
         };
         assert!(csr(&[0, 1, 2, 2], &[1, 0]).is_ok());
-        for (offsets, neighbors) in [
+        for (offsets, neighbours) in [
             (&[0u32, 1, 1, 1][..], &[1u32][..]),
             (&[0, 1, 2, 2], &[0, 0]),
             (&[0, 1, 2, 2], &[1, 5]),
@@ -307,8 +307,8 @@ mod tests {
             (&[1, 1, 2, 2], &[1, 0]),
         ] {
             assert!(
-                matches!(csr(offsets, neighbors), Err(MaxFlowError::MalformedCsr(_))),
-                "{offsets:?} {neighbors:?}"
+                matches!(csr(offsets, neighbours), Err(MaxFlowError::MalformedCsr(_))),
+                "{offsets:?} {neighbours:?}"
             );
         }
         assert!(matches!(

@@ -436,16 +436,16 @@ mod tests {
                 }
             }
             let mut offsets = vec![0u32; n + 1];
-            let (mut neighbors, mut capacities) = (Vec::new(), Vec::new());
+            let (mut neighbours, mut capacities) = (Vec::new(), Vec::new());
             for (&(a, b), &c) in &caps {
                 offsets[a as usize + 1] += 1;
-                neighbors.push(b);
+                neighbours.push(b);
                 capacities.push(c);
             }
             for v in 0..n {
                 offsets[v + 1] += offsets[v];
             }
-            let mut g = FlowGraph::from_symmetric_csr(&source, &sink, &offsets, &neighbors, capacities).unwrap();
+            let mut g = FlowGraph::from_symmetric_csr(&source, &sink, &offsets, &neighbours, capacities).unwrap();
             prop_assert_eq!(g.solve().flow, expected);
             prop_assert_eq!(cut_capacity(&source, &sink, &edges, &g.source_side()), expected);
         }

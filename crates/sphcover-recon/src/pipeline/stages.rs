@@ -288,7 +288,7 @@ fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
 fn build_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let cover = ctx.cover();
     let graph =
-        SphereIntersectionGraph::build(cover.centers(), cover.radii(), ctx.params.graph_shrink)?;
+        SphereIntersectionGraph::build(cover.centres(), cover.radii(), ctx.params.graph_shrink)?;
     ctx.stats.graph_mean_degree = graph.mean_degree();
     ctx.graph = Some(graph);
     Ok(())
@@ -297,7 +297,7 @@ fn build_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
 /// The support lists at the centres, gathered once: the graph cut and every diffusion round
 /// evaluate there, and the supports stay the same.
 fn centre_supports(cover: &Cover) -> Result<SupportLists, ReconError> {
-    Ok(PuEvaluator::new(cover, 1.0)?.support_lists(cover.centers()))
+    Ok(PuEvaluator::new(cover, 1.0)?.support_lists(cover.centres()))
 }
 
 /// The diffusion's pair geometry and the samples of each support: neither depends on the cut.
@@ -307,7 +307,7 @@ fn geometry_and_samples(
     index: &PointIndex,
 ) -> (Result<PairGeometry, OpsError>, SupportSamples) {
     rayon::join(
-        || PairGeometry::build(cover.centers(), cover.radii(), graph),
+        || PairGeometry::build(cover.centres(), cover.radii(), graph),
         || SupportSamples::gather(cover, index),
     )
 }

@@ -55,7 +55,7 @@ impl Grid {
     pub(super) fn around(eval: &PuEvaluator<'_>, step: f64) -> Result<Grid, PolygoniseError> {
         let cover = eval.cover();
         let mut defined = Aabb::EMPTY;
-        for (&c, &r) in cover.centers().iter().zip(cover.radii()) {
+        for (&c, &r) in cover.centres().iter().zip(cover.radii()) {
             let r = r * eval.sigma();
             defined.add(c - DVec3::splat(r));
             defined.add(c + DVec3::splat(r));

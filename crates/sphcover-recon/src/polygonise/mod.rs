@@ -417,7 +417,7 @@ mod tests {
         let cloud = sphere(DVec3::ZERO, 0.4, 4000);
         let cover = cover_of(&cloud);
         let eval = PuEvaluator::new(&cover, 1.0).unwrap();
-        let values: Vec<f64> = cover.centers().iter().map(|c| c.x + 2.0 * c.z).collect();
+        let values: Vec<f64> = cover.centres().iter().map(|c| c.x + 2.0 * c.z).collect();
         for (project, normals) in [(true, true), (false, true), (false, false)] {
             let p = PolygoniseParams {
                 project,

@@ -187,16 +187,16 @@ mod tests {
     /// A cover of `[-1, 1]³` by a 5×5×5 lattice of supports carrying the given linear
     /// functions: its zero set is an arbitrary smooth surface, with sheets close together.
     fn random_cover(funcs: &[(DVec3, f64)]) -> Cover {
-        let centers: Vec<DVec3> = (0..125)
+        let centres: Vec<DVec3> = (0..125)
             .map(|i| DVec3::new((i % 5) as f64, ((i / 5) % 5) as f64, (i / 25) as f64) * 0.5 - 1.0)
             .collect();
-        let lin = centers
+        let lin = centres
             .iter()
             .zip(funcs)
             .map(|(&c, &(a, b))| LinearFunction::from_global(a, b, c))
             .collect::<Vec<_>>();
         Cover::new(
-            centers,
+            centres,
             vec![0.8; 125],
             LocalFunctions::from_linear(lin),
             Kernel::QuadraticBSpline,
@@ -350,7 +350,7 @@ mod tests {
             seed_reach: 100.0,
             ..PolygoniseParams::default()
         };
-        match polygonise(&eval, cover.centers(), &p) {
+        match polygonise(&eval, cover.centres(), &p) {
             Ok((mesh, stats)) => Some((MeshTopology::of(&mesh), stats)),
             Err(PolygoniseError::NoSurfaceNearSeeds { .. }) => None,
             Err(e) => panic!("{e}"),

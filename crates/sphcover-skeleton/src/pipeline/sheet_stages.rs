@@ -162,7 +162,7 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
 fn tetrahedral_mesh(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     let cover = ctx.cover;
     let complex = dual_complex(
-        cover.centers(),
+        cover.centres(),
         cover.radii(),
         &DualComplexParams {
             shrink: ctx.params.tet_shrink,
@@ -195,7 +195,7 @@ fn derivatives(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     let positions: Vec<DVec3> = mesh
         .vertices
         .iter()
-        .map(|&s| cover.centers()[s as usize])
+        .map(|&s| cover.centres()[s as usize])
         .collect();
     let mut derivatives = match ctx.params.derivative_smoothing_voxels {
         Some(voxels) => {

@@ -18,7 +18,7 @@ fn torus_distance(p: DVec3) -> f64 {
 /// the cell diagonal (`band ≥ 0.5` refines every cell the surface may cross; larger values
 /// grade the cell sizes more smoothly): centres and radii.
 pub fn octree_torus_cover(max_depth: u32, band: f64) -> (Vec<DVec3>, Vec<f64>) {
-    let mut centers = Vec::new();
+    let mut centres = Vec::new();
     let mut radii = Vec::new();
     let mut stack = vec![(DVec3::splat(0.5), 0.5f64, 0u32)];
     while let Some((c, half, depth)) = stack.pop() {
@@ -34,11 +34,11 @@ pub fn octree_torus_cover(max_depth: u32, band: f64) -> (Vec<DVec3>, Vec<f64>) {
                 stack.push((c + o, h, depth + 1));
             }
         } else if depth >= 2 {
-            centers.push(c);
+            centres.push(c);
             radii.push(0.75 * diag);
         }
     }
-    (centers, radii)
+    (centres, radii)
 }
 
 /// A cover with about `n` supports (within a few percent, for `n` ≥ 10⁴): the deepest

@@ -374,7 +374,7 @@ impl RegularTriangulation {
 
     /// Neighbour handles of slot `t`: entry `i` is across the face opposite vertex `i`.
     #[inline]
-    pub fn neighbors(&self, t: u32) -> [u32; 4] {
+    pub fn neighbours(&self, t: u32) -> [u32; 4] {
         self.cells[t as usize].n
     }
 

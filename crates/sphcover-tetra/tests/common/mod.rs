@@ -89,11 +89,11 @@ pub fn euler_of_tets(tets: &[[u32; 4]]) -> i64 {
     verts.len() as i64 - edges.len() as i64 + faces.len() as i64 - tets.len() as i64
 }
 
-/// Total unsigned volume of `tets` over `centers`.
-pub fn total_volume(centers: &[sphcover_core::DVec3], tets: &[[u32; 4]]) -> f64 {
+/// Total unsigned volume of `tets` over `centres`.
+pub fn total_volume(centres: &[sphcover_core::DVec3], tets: &[[u32; 4]]) -> f64 {
     tets.iter()
         .map(|t| {
-            let [a, b, c, d] = t.map(|i| centers[i as usize]);
+            let [a, b, c, d] = t.map(|i| centres[i as usize]);
             ((b - a).cross(c - a).dot(d - a) / 6.0).abs()
         })
         .sum()
