@@ -4,6 +4,7 @@
 
 mod volume_common;
 
+use sphcover_core::synthetic::XorShift64;
 use sphcover_core::{
     Cover, DVec3, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
     build_scattered_cover, build_volume_cover,
@@ -87,13 +88,8 @@ fn voxel_centres_as_scattered_samples_cover_like_the_grid() {
 
 /// Jittered samples (uniform ±0.35 spacing per axis) of a blurred ball: `1/(1 + e^{(d−R)/w})`.
 fn jittered_ball(n: usize, seed: u64) -> (Vec<DVec3>, Vec<f64>) {
-    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = XorShift64::new(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let mut uniform = move || rng.uniform();
     let centre = DVec3::splat(0.5 * (n as f64 - 1.0));
     let (mut points, mut values) = (Vec::new(), Vec::new());
     for k in 0..n {

@@ -3,6 +3,7 @@
 //! same noise.
 //!
 //! `cargo run --release -p sphcover-skeleton --example bench_160`
+use sphcover_core::synthetic::XorShift64;
 use sphcover_core::{DVec3, Volume, VoxelValues};
 use sphcover_evaluation::sheet_metrics::score_mesh;
 use sphcover_evaluation::thin_phantoms::{
@@ -27,13 +28,8 @@ fn main() {
     let phantom = thin_phantom(shape, &params);
     let [nx, ny, nz] = phantom.volume.dims();
     // Embed in N³, centred in z, padding with noisy air (xorshift + Box–Muller, seeded).
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = XorShift64::new(0x9e37_79b9_7f4a_7c15u64);
+    let mut uniform = move || rng.uniform();
     let dz = (N - nz) / 2;
     let mut values = Vec::with_capacity(N * N * N);
     for k in 0..N {

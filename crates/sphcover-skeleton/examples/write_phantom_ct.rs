@@ -4,6 +4,7 @@
 //! grid, 10 % noise, padded with noisy air, as in the `bench_160` example.
 //!
 //! `cargo run --release -p sphcover-skeleton --example write_phantom_ct -- N OUT.nii`
+use sphcover_core::synthetic::XorShift64;
 use sphcover_evaluation::thin_phantoms::{
     AIR_HU, MATERIAL_HU, PhantomParams, ThinShape, thin_phantom,
 };
@@ -31,13 +32,8 @@ fn main() {
         "the phantom ({nx}×{ny}×{nz}) exceeds {n}³"
     );
     // Noisy air around the phantom (xorshift + Box–Muller, seeded).
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = XorShift64::new(0x9e37_79b9_7f4a_7c15u64);
+    let mut uniform = move || rng.uniform();
     let dz = (n - nz) / 2;
     let voxel = params.voxel as f32;
     // NIfTI-1 header: 348 bytes, 4 bytes of extension flags, data at 352.

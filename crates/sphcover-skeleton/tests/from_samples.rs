@@ -3,19 +3,15 @@
 //! true sheet, and the same answer whatever the thread count.
 
 use glam::DVec3;
+use sphcover_core::synthetic::XorShift64;
 use sphcover_evaluation::sheet_metrics::score_mesh;
 use sphcover_evaluation::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{SkeletonError, SkeletonParams, extract_skeleton_from_samples};
 
 /// The voxel centres and values of `phantom`, keeping each voxel with probability `keep`.
 fn irregular_samples(phantom: &Phantom, keep: f64, seed: u64) -> (Vec<DVec3>, Vec<f64>) {
-    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = XorShift64::new(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let mut uniform = move || rng.uniform();
     let volume = &phantom.volume;
     let (mut positions, mut values) = (Vec::new(), Vec::new());
     for index in 0..volume.len() {

@@ -3,6 +3,7 @@
 
 #![allow(dead_code)]
 
+use sphcover_core::synthetic::XorShift64;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -141,13 +142,8 @@ pub fn write_jittered_samples(
     seed: u64,
     value: impl Fn(DVec3, usize) -> f64,
 ) {
-    let mut state = seed;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = XorShift64::new(seed);
+    let mut uniform = move || rng.uniform();
     let mut body = String::new();
     let mut count = 0;
     for k in 0..dims[2] {

@@ -197,15 +197,10 @@ mod tests {
         fn collapsing_keeps_the_topology(n in 3u32..7, height in 1u32..4, bound in 0.0f64..1.0,
                                          seed in any::<u64>()) {
             let mut m = base_with_fin(n, 1, 0, n.min(3), height);
-            let mut state = seed | 1;
+            let mut rng = sphcover_core::synthetic::XorShift64::new(seed | 1);
             let normals: Vec<DVec3> = (0..m.vertices.len())
                 .map(|_| {
-                    let mut next = || {
-                        state ^= state << 13;
-                        state ^= state >> 7;
-                        state ^= state << 17;
-                        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-                    };
+                    let mut next = || rng.uniform() - 0.5;
                     DVec3::new(next(), next(), next()).normalize_or(DVec3::Z)
                 })
                 .collect();
