@@ -37,7 +37,7 @@ use crate::symmetric_eigen::smallest_eigen;
 /// H_xz, H_yz`.
 const FIELDS: usize = 9;
 
-/// [`crate::ridge_points::vertex_derivatives`] with `∇f` and `∇²f` smoothed over the sphere
+/// `vertex_derivatives` with `∇f` and `∇²f` smoothed over the sphere
 /// intersection graph of the balls `(positions[i], radii[i])` by one implicit heat step of
 /// time `time` (world units squared; see the module documentation). `time = 0` returns the
 /// unsmoothed derivatives. Vertices where `f` is undefined stay `None` and do not take part.

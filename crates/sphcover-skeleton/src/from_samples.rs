@@ -26,7 +26,7 @@ use crate::pipeline::{
 /// noise), and on jittered samples of a flat plate: at factor 1, 2 / 2 / 1 / 1–3 components
 /// and coverage 0.94–0.99; at 0.7, 1 / 1 / 1 / 1–2; at 0.5, one component with the true
 /// Euler characteristic everywhere and coverage ≥ 0.996, at 1.6× the supports.
-pub const SAMPLE_MODEL_TOLERANCE_FACTOR: f64 = 0.5;
+pub(crate) const SAMPLE_MODEL_TOLERANCE_FACTOR: f64 = 0.5;
 
 /// Extracts the skeletal sheet of the thin object sampled by `positions` with intensity
 /// `values` (one per position), as [`crate::extract_skeleton`] does for a volume, with the
@@ -36,7 +36,7 @@ pub const SAMPLE_MODEL_TOLERANCE_FACTOR: f64 = 0.5;
 /// a sample to its nearest neighbour (the voxel edge of the equivalent grid, see
 /// [`VolumeCoverStats::sample_spacing`](sphcover_core::VolumeCoverStats::sample_spacing)).
 /// The automatic tolerance is tighter than a volume's (see
-/// [`SAMPLE_MODEL_TOLERANCE_FACTOR`]). The volume pipeline's grid steps have scattered
+/// `SAMPLE_MODEL_TOLERANCE_FACTOR`). The volume pipeline's grid steps have scattered
 /// counterparts: the Gaussian smoothing (before the automatic threshold, and for the
 /// smoothed object mask on noisy data) is a Gaussian-weighted mean over the samples within
 /// three standard deviations, and the 26-neighbourhood of the speck test is the sample

@@ -5,7 +5,7 @@ use sphcover_core::Volume;
 
 /// The values of `volume` smoothed by a Gaussian of standard deviation `sigma` voxels along
 /// each grid axis, non-finite values replaced by `fill` first. `sigma = 0` copies.
-pub fn smoothed_values(volume: &Volume, sigma: f64, fill: f64) -> Vec<f64> {
+pub(crate) fn smoothed_values(volume: &Volume, sigma: f64, fill: f64) -> Vec<f64> {
     let mut data: Vec<f64> = (0..volume.len())
         .map(|i| {
             let v = volume.value(i);
@@ -22,7 +22,7 @@ pub fn smoothed_values(volume: &Volume, sigma: f64, fill: f64) -> Vec<f64> {
 
 /// Convolves `data` (grid `dims`, x fastest) along `axis` with a Gaussian of standard
 /// deviation `sigma` (truncated at 3σ, renormalised at the borders).
-pub fn gaussian_along(data: &[f64], dims: [usize; 3], axis: usize, sigma: f64) -> Vec<f64> {
+pub(crate) fn gaussian_along(data: &[f64], dims: [usize; 3], axis: usize, sigma: f64) -> Vec<f64> {
     let radius = (3.0 * sigma).ceil() as i64;
     let kernel: Vec<f64> = (-radius..=radius)
         .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())

@@ -2,12 +2,12 @@
 //! background and object placed from Otsu's split, the two class levels (the contrast), and the noise level
 //! from the background's median absolute deviation.
 //!
-//! The automatic threshold works on the volume smoothed by a Gaussian of [`OTSU_SMOOTHING`]
+//! The automatic threshold works on the volume smoothed by a Gaussian of `OTSU_SMOOTHING`
 //! voxels: a thin part is a few percent of the voxels, and on a noisy image (30 % of the
 //! contrast) the wide air peak drags Otsu's split deep into its own tail (−460 HU between
 //! air at −1000 and material at +2000 on the phantoms), selecting a fifth of the air.
 //! Smoothing narrows the peaks (Otsu then splits near −30 HU, still low because of the
-//! class imbalance), and [`midpoint_threshold`] moves the split to half the contrast. The noise is the
+//! class imbalance), and `midpoint_threshold` moves the split to half the contrast. The noise is the
 //! median absolute deviation of the air *below* its median, which contains no material and
 //! no partial-volume voxel, so it is not biased by the object or by the threshold.
 //!
@@ -23,7 +23,7 @@ use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
 
 /// Standard deviation (voxels) of the smoothing before Otsu's method.
-pub const OTSU_SMOOTHING: f64 = 1.0;
+pub(crate) const OTSU_SMOOTHING: f64 = 1.0;
 /// Bins of the Otsu histogram.
 const OTSU_BINS: usize = 1024;
 /// `1 / Φ⁻¹(3/4)`: turns a median absolute deviation into a Gaussian standard deviation.
@@ -83,8 +83,8 @@ pub fn estimate_intensity_model(
 }
 
 /// Estimates the [`IntensityModel`] of scattered samples' `values`, with the caller's
-/// threshold or [`midpoint_threshold`] of the `smooth`ed values (the samples' counterpart of
-/// the volume's smoothing by [`OTSU_SMOOTHING`] voxels).
+/// threshold or `midpoint_threshold` of the `smooth`ed values (the samples' counterpart of
+/// the volume's smoothing by `OTSU_SMOOTHING` voxels).
 pub fn estimate_sample_intensity_model(
     values: &[f64],
     smooth: &[f64],
@@ -175,7 +175,7 @@ fn model_from_values(
 /// volume; the upper quartile of the upper class sits on the part's plateau instead of its
 /// partial-volume shell, so the midpoint lands near half the contrast, where the rendered
 /// surface of a blurred solid lies.
-pub fn midpoint_threshold(smooth: &[f64], lo: f64, hi: f64) -> f64 {
+pub(crate) fn midpoint_threshold(smooth: &[f64], lo: f64, hi: f64) -> f64 {
     let split = otsu_threshold(smooth, lo, hi);
     let (mut below, mut above): (Vec<f64>, Vec<f64>) = smooth
         .iter()

@@ -98,3 +98,4 @@ pub use repair::tunnels::{TunnelParams, close_material_tunnels};
 pub use ridge_points::{
     RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
 };
+pub use symmetric_eigen::SmallestEigen;

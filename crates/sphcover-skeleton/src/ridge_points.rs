@@ -45,7 +45,7 @@ pub struct VertexDerivatives {
 
 /// Evaluates [`VertexDerivatives`] at `positions` (in parallel, per point: deterministic);
 /// `None` where `f` is undefined or its Hessian not finite.
-pub fn vertex_derivatives(
+pub(crate) fn vertex_derivatives(
     evaluator: &PuEvaluator<'_>,
     positions: &[DVec3],
 ) -> Vec<Option<VertexDerivatives>> {
@@ -104,7 +104,10 @@ pub struct RidgePoint {
 
 /// The ridge point on the edge from `a` to `b`, if the ridge crosses it (eq. 6.4, 6.5).
 /// Filters are not applied.
-pub fn ridge_point_on_edge(a: &VertexDerivatives, b: &VertexDerivatives) -> Option<RidgePoint> {
+pub(crate) fn ridge_point_on_edge(
+    a: &VertexDerivatives,
+    b: &VertexDerivatives,
+) -> Option<RidgePoint> {
     let e1 = a.eigen.vector;
     let e2 = if e1.dot(b.eigen.vector) < 0.0 {
         -b.eigen.vector

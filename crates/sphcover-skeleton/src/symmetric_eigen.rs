@@ -16,7 +16,7 @@ pub struct SmallestEigen {
 /// The smallest eigenpair of the symmetric matrix `m` (only its lower triangle is read),
 /// from the core's decomposition. `None` when `m` is not finite or the solver's vector
 /// vanished.
-pub fn smallest_eigen(m: &DMat3) -> Option<SmallestEigen> {
+pub(crate) fn smallest_eigen(m: &DMat3) -> Option<SmallestEigen> {
     let eig = SymmetricEigen3::of(m)?;
     let vector = eig.vectors[0];
     (vector != DVec3::ZERO).then_some(SmallestEigen {

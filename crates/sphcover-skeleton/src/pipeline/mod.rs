@@ -251,7 +251,7 @@ pub(crate) fn sheet_from_cover(
 
 /// The geometric mean of the voxel edge lengths: the length unit of the voxel-based
 /// parameters.
-pub fn voxel_length(volume: &Volume) -> f64 {
+pub(crate) fn voxel_length(volume: &Volume) -> f64 {
     let s = volume.voxel_size();
     (s.x * s.y * s.z).cbrt()
 }

@@ -11,7 +11,7 @@
 //! object extends farther than `h` in every direction along the sheet. In the rim, at
 //! distance `δ` beyond the true boundary, the surface lies `t/2 − δ` away along the sheet
 //! (outwards) while `h = √(t²/4 − δ²)`. So a vertex is in the rim when, in one of
-//! [`DIRECTIONS`] directions perpendicular to `e`, the surface is closer than `κ·h`
+//! `DIRECTIONS` directions perpendicular to `e`, the surface is closer than `κ·h`
 //! (`κ` = [`RimTrimParams::factor`]; with `κ = 0.9` this trims what lies more than about
 //! `0.05 t` beyond the true boundary), and triangles with two rim corners are removed. At a
 //! T-junction the other sheet's material continues along the sheet, so nothing is trimmed
@@ -51,7 +51,7 @@ impl Default for RimTrimParams {
 }
 
 /// In-plane directions tested around each vertex.
-pub const DIRECTIONS: usize = 12;
+pub(crate) const DIRECTIONS: usize = 12;
 
 /// Removes the rim triangles of `mesh` (whose normals must hold the ridge directions `e`) in
 /// the part `surface`; `voxel` is the length unit of `params` (world units). Returns the
@@ -106,7 +106,7 @@ pub fn trim_rims(
 /// triangles (across shared edges) joining it to a larger piece (see [`trim_rims`]). Pieces
 /// are handled largest first; a restored chain merges the pieces, so later ones may join
 /// through it.
-pub fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area: f64) {
+pub(crate) fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area: f64) {
     let nt = mesh.triangles.len();
     if nt == 0 || !min_area.is_finite() {
         return;
@@ -239,7 +239,13 @@ pub fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area: f64) 
 /// True when the part's surface is closer than `factor · h(p)` along some direction
 /// perpendicular to `e` (see the module documentation), marching in steps of `step` (world
 /// units).
-pub fn is_rim(surface: &PartSurface<'_>, p: DVec3, e: DVec3, factor: f64, step: f64) -> bool {
+pub(crate) fn is_rim(
+    surface: &PartSurface<'_>,
+    p: DVec3,
+    e: DVec3,
+    factor: f64,
+    step: f64,
+) -> bool {
     let Some(h) = surface.half_thickness(p, e, step) else {
         return false;
     };
@@ -262,7 +268,7 @@ pub fn is_rim(surface: &PartSurface<'_>, p: DVec3, e: DVec3, factor: f64, step: 
 
 /// Geodesic (shortest path over edges) distance from every vertex to the mesh boundary (the
 /// vertices of edges used by one triangle), `+∞` beyond `limit` or without a boundary.
-pub fn distance_to_boundary(mesh: &TriMesh, limit: f64) -> Vec<f64> {
+pub(crate) fn distance_to_boundary(mesh: &TriMesh, limit: f64) -> Vec<f64> {
     let n = mesh.vertices.len();
     let mut edges: Vec<(u32, u32)> = mesh
         .triangles

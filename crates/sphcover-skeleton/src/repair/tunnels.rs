@@ -33,7 +33,7 @@ pub struct TunnelParams {
     pub max_perimeter_voxels: f64,
     /// Most loops closed (a bound on the work on pathological input).
     pub max_tunnels: usize,
-    /// Remove closed pockets first (see [`remove_closed_pockets`]).
+    /// Remove closed pockets first (see `remove_closed_pockets`).
     pub remove_pockets: bool,
 }
 
@@ -259,7 +259,7 @@ pub fn close_material_tunnels(
 /// opens is collapsed (triangles with an edge freed by the removals go too, until edges
 /// shared by two or more remaining triangles stop it), so no flap is left. A sheet without
 /// pockets is unchanged. Returns the triangles removed.
-pub fn remove_closed_pockets(mesh: &mut TriMesh) -> usize {
+pub(crate) fn remove_closed_pockets(mesh: &mut TriMesh) -> usize {
     let alignment = triangle_alignment(mesh);
     let mut order: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
     order.sort_by(|&a, &b| {
