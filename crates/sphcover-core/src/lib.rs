@@ -49,6 +49,7 @@ pub mod kernel;
 pub mod local_function;
 pub mod mesh;
 pub mod mesh_topology;
+mod parameter_error;
 pub mod partition_of_unity;
 pub mod point_cloud;
 pub mod point_index;
@@ -75,6 +76,7 @@ pub use mesh::{
     remove_unused_vertices, triangle_area, vertex_normals,
 };
 pub use mesh_topology::MeshTopology;
+pub use parameter_error::ParameterError;
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};

@@ -13,6 +13,7 @@
 //! Randomness comes from `rand_pcg::Pcg64` seeded by the caller, so the same parameters give
 //! the same cover on every platform and for any thread count.
 
+use crate::ParameterError;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -53,15 +54,8 @@ impl SyntheticCover {
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum SyntheticError {
     /// A parameter is out of its documented range.
-    #[error("parameter `{name}` = {value} is out of range ({expected})")]
-    InvalidParameter {
-        /// Name of the parameter.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// The accepted range, in words.
-        expected: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// The domain box is empty or not finite.
     #[error("the domain box is empty or not finite")]
     InvalidDomain,
@@ -82,11 +76,11 @@ fn check(
     if ok {
         Ok(())
     } else {
-        Err(SyntheticError::InvalidParameter {
+        Err(SyntheticError::InvalidParameter(ParameterError {
             name,
             value,
             expected,
-        })
+        }))
     }
 }
 

@@ -2,8 +2,8 @@
 //! normals are skipped and counted.
 
 use sphcover_core::{
-    DVec3, PointCloud, SurfaceCoverError, SurfaceCoverParams, SurfaceSamples, build_surface_cover,
-    build_surface_cover_from_cloud,
+    DVec3, ParameterError, PointCloud, SurfaceCoverError, SurfaceCoverParams, SurfaceSamples,
+    build_surface_cover, build_surface_cover_from_cloud,
 };
 
 /// A small plane patch z = 0 with upward normals.
@@ -117,7 +117,9 @@ fn invalid_parameters_are_named() {
     ];
     for (params, name) in bad.iter().zip(names) {
         match build_surface_cover(&SurfaceSamples::new(&points, &normals), params) {
-            Err(SurfaceCoverError::InvalidParameter { name: got, .. }) => assert_eq!(got, name),
+            Err(SurfaceCoverError::InvalidParameter(ParameterError { name: got, .. })) => {
+                assert_eq!(got, name)
+            }
             other => panic!("{name}: expected InvalidParameter, got {other:?}"),
         }
     }

@@ -12,6 +12,7 @@
 //! a fixed order inside each row, so iterates are bit-identical for any thread count.
 
 use rayon::prelude::*;
+use sphcover_core::ParameterError;
 use thiserror::Error;
 
 use crate::gauss_seidel::{SparseRows, SymmetricGaussSeidel};
@@ -113,15 +114,8 @@ pub enum CgError {
         index: usize,
     },
     /// A parameter is out of range.
-    #[error("parameter `{name}` = {value} is out of range ({expected})")]
-    InvalidParameter {
-        /// Name of the parameter.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// The accepted range.
-        expected: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// `pᵀ A p ≤ 0` for a search direction: the operator is not positive definite (or the
     /// system is singular and the right-hand side not in its range).
     #[error("operator not positive definite: pᵀAp = {curvature} at iteration {iteration}")]
@@ -208,18 +202,18 @@ pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
         }
     }
     if !(params.relative_tolerance >= 0.0 && params.relative_tolerance.is_finite()) {
-        return Err(CgError::InvalidParameter {
+        return Err(CgError::InvalidParameter(ParameterError {
             name: "relative_tolerance",
             value: params.relative_tolerance,
             expected: "finite and >= 0",
-        });
+        }));
     }
     if !(params.absolute_tolerance >= 0.0 && params.absolute_tolerance.is_finite()) {
-        return Err(CgError::InvalidParameter {
+        return Err(CgError::InvalidParameter(ParameterError {
             name: "absolute_tolerance",
             value: params.absolute_tolerance,
             expected: "finite and >= 0",
-        });
+        }));
     }
     for (array, v) in [("b", b), ("x", &*x)] {
         if let Some(index) = v.iter().position(|e| !e.is_finite()) {

@@ -1,6 +1,7 @@
 //! Typed errors of the operator constructors and solvers.
 
 use glam::DVec3;
+use sphcover_core::ParameterError;
 use thiserror::Error;
 
 /// Why operators could not be built on a cover, or a problem on them could not be set up.
@@ -57,15 +58,8 @@ pub enum OpsError {
         index: usize,
     },
     /// A parameter is out of its documented range.
-    #[error("parameter `{name}` = {value} is out of range ({expected})")]
-    InvalidParameter {
-        /// Name of the parameter.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// The accepted range, in words.
-        expected: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// A boundary condition names a support out of range.
     #[error("boundary condition names support {support}, but the cover has {len}")]
     BoundarySupportOutOfRange {

@@ -7,6 +7,7 @@
 //! mass, zero row) keeps its value.
 
 use rayon::prelude::*;
+use sphcover_core::ParameterError;
 
 use crate::conjugate_gradient::{
     CgInfo, CgParams, CgScratch, SymmetricOperator, conjugate_gradient,
@@ -31,11 +32,11 @@ impl<'a> ShiftedStiffness<'a> {
         time: f64,
     ) -> Result<ShiftedStiffness<'a>, OpsError> {
         if !(time >= 0.0 && time.is_finite()) {
-            return Err(OpsError::InvalidParameter {
+            return Err(OpsError::InvalidParameter(ParameterError {
                 name: "time",
                 value: time,
                 expected: "finite and >= 0",
-            });
+            }));
         }
         Ok(ShiftedStiffness {
             geometry,

@@ -61,6 +61,7 @@
 //! of threads.
 
 use rayon::prelude::*;
+use sphcover_core::ParameterError;
 use sphcover_core::{
     Cover, CoverError, DVec3, LocalFunctions, PointIndex, SupportLists, SupportSamples,
 };
@@ -167,13 +168,8 @@ pub enum DiffusionError {
         found: usize,
     },
     /// A parameter is out of range.
-    #[error("diffusion parameter `{name}` = {value} must be finite and non-negative")]
-    InvalidParameter {
-        /// Parameter name.
-        name: &'static str,
-        /// Its value.
-        value: f64,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// The cover could not be evaluated or updated.
     #[error(transparent)]
     Cover(#[from] CoverError),
@@ -366,7 +362,11 @@ pub fn diffuse(
         ("confidence_power", params.confidence_power),
     ] {
         if !(value.is_finite() && value >= 0.0) {
-            return Err(DiffusionError::InvalidParameter { name, value });
+            return Err(DiffusionError::InvalidParameter(ParameterError::new(
+                name,
+                value,
+                "a finite, non-negative number",
+            )));
         }
     }
     let LocalFunctions::Linear { alpha, beta } = cover.funcs().clone() else {

@@ -433,7 +433,10 @@ fn finite_capacity(c: f64) -> f64 {
 
 /// The partition-of-unity values of `cover` at `points` (σ = 1); undefined values become 0.
 /// Returns the values and how many were undefined.
-pub(crate) fn values_at(cover: &Cover, points: &[DVec3]) -> Result<(Vec<f64>, usize), GraphCutError> {
+pub(crate) fn values_at(
+    cover: &Cover,
+    points: &[DVec3],
+) -> Result<(Vec<f64>, usize), GraphCutError> {
     let eval = PuEvaluator::new(cover, 1.0)?;
     Ok(undefined_as_zero(eval.values(points)))
 }

@@ -27,6 +27,7 @@
 //!
 //! The mesh is in the cover's coordinates; triangles face outward (inside = positive `f`).
 
+use sphcover_core::ParameterError;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
@@ -42,15 +43,8 @@ use crate::mesh_smoothing::{SmoothingError, smooth_two_step};
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum GraphCutReconstructionError {
     /// A parameter is out of range.
-    #[error("parameter {name} = {value} is invalid: {requirement}")]
-    InvalidParameter {
-        /// Name of the parameter.
-        name: &'static str,
-        /// Value given.
-        value: f64,
-        /// What it must satisfy.
-        requirement: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// The tetrahedral mesh could not be built (e.g. fewer than four non-coplanar supports).
     #[error("tetrahedral mesh: {0}")]
     Tetra(#[from] TetraError),
@@ -260,11 +254,13 @@ pub fn reconstruct_graphcut(
 
 fn check(p: &GraphCutReconstructionParams) -> Result<(), GraphCutReconstructionError> {
     let bad = |name, value, requirement| {
-        Err(GraphCutReconstructionError::InvalidParameter {
-            name,
-            value,
-            requirement,
-        })
+        Err(GraphCutReconstructionError::InvalidParameter(
+            ParameterError {
+                name,
+                value,
+                expected: requirement,
+            },
+        ))
     };
     if !(p.k.is_finite() && p.k > 0.0) {
         return bad("k", p.k, "finite and positive");
@@ -402,7 +398,7 @@ mod tests {
         };
         assert!(matches!(
             reconstruct_graphcut(&cover, &[], &bad),
-            Err(GraphCutReconstructionError::InvalidParameter { .. })
+            Err(GraphCutReconstructionError::InvalidParameter(_))
         ));
     }
 }

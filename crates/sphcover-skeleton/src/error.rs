@@ -1,5 +1,6 @@
 //! Why a skeletal sheet could not be extracted.
 
+use sphcover_core::ParameterError;
 use sphcover_core::{CoverError, VolumeCoverError};
 use sphcover_tetra::TetraError;
 
@@ -40,15 +41,8 @@ pub enum SkeletonError {
         max: f64,
     },
     /// A parameter is out of its domain.
-    #[error("parameter {name} = {value} is invalid: {reason}")]
-    InvalidParameter {
-        /// The parameter.
-        name: &'static str,
-        /// Its value.
-        value: f64,
-        /// What it must be.
-        reason: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// A stage found nothing, so there is no sheet to output.
     #[error("empty result: {stage} found nothing ({hint})")]
     EmptyResult {

@@ -17,6 +17,7 @@
 //! a model tolerance proportional to the contrast (5 % of it by default, the thesis value on
 //! noise-free data).
 
+use sphcover_core::ParameterError;
 use sphcover_core::Volume;
 
 use crate::error::SkeletonError;
@@ -114,11 +115,11 @@ fn model_from_values(
     }
     let (threshold, automatic_threshold) = match threshold {
         Some(t) if t.is_nan() => {
-            return Err(SkeletonError::InvalidParameter {
+            return Err(SkeletonError::InvalidParameter(ParameterError {
                 name: "threshold",
                 value: t,
-                reason: "must be a number",
-            });
+                expected: "must be a number",
+            }));
         }
         Some(t) => (t, false),
         None => (automatic(), true),
@@ -288,7 +289,7 @@ mod tests {
         ));
         assert!(matches!(
             estimate_intensity_model(&v, Some(f64::NAN)),
-            Err(SkeletonError::InvalidParameter { .. })
+            Err(SkeletonError::InvalidParameter(_))
         ));
     }
 }

@@ -14,6 +14,7 @@
 
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
+use sphcover_core::ParameterError;
 use sphcover_core::Volume;
 
 use crate::error::SkeletonError;
@@ -61,11 +62,11 @@ pub fn nms_skeleton(
     params: &NmsParams,
 ) -> Result<(Vec<DVec3>, NmsStats), SkeletonError> {
     if !(params.sigma.is_finite() && params.sigma > 0.0 && params.sigma <= 64.0) {
-        return Err(SkeletonError::InvalidParameter {
+        return Err(SkeletonError::InvalidParameter(ParameterError {
             name: "sigma",
             value: params.sigma,
-            reason: "must lie in (0, 64] voxels",
-        });
+            expected: "must lie in (0, 64] voxels",
+        }));
     }
     let intensity = estimate_intensity_model(volume, params.threshold)?;
     let dims = volume.dims();

@@ -3,6 +3,7 @@
 
 use std::sync::Mutex;
 
+use sphcover_core::ParameterError;
 use sphcover_evaluation::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{
     SheetRepairs, SkeletonError, SkeletonParams, extract_skeleton, stage_names,
@@ -109,10 +110,10 @@ fn contradicting_or_invalid_repairs_are_refused_before_any_work() {
     assert!(
         matches!(
             err,
-            SkeletonError::InvalidParameter {
+            SkeletonError::InvalidParameter(ParameterError {
                 name: "junction_fold",
                 ..
-            }
+            })
         ),
         "{err}"
     );
@@ -124,10 +125,10 @@ fn contradicting_or_invalid_repairs_are_refused_before_any_work() {
     assert!(
         matches!(
             err,
-            SkeletonError::InvalidParameter {
+            SkeletonError::InvalidParameter(ParameterError {
                 name: "centring.step_voxels",
                 ..
-            }
+            })
         ),
         "{err}"
     );
@@ -135,6 +136,6 @@ fn contradicting_or_invalid_repairs_are_refused_before_any_work() {
     negative.repairs.cleaning.max_hole_perimeter_voxels = -1.0;
     assert!(matches!(
         extract_skeleton(&volume, &negative, &|_| panic!("no stage may run")),
-        Err(SkeletonError::InvalidParameter { .. })
+        Err(SkeletonError::InvalidParameter(_))
     ));
 }

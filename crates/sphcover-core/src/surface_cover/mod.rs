@@ -53,6 +53,7 @@ mod expansion;
 mod fit;
 mod octree;
 
+use crate::ParameterError;
 use crate::cover::{Cover, CoverError};
 use crate::geometry::Normalisation;
 use crate::kernel::Kernel;
@@ -139,15 +140,8 @@ pub enum SurfaceCoverError {
         found: usize,
     },
     /// A parameter is out of its range.
-    #[error("parameter {name} = {value} is invalid: {requirement}")]
-    InvalidParameter {
-        /// Field name in [`SurfaceCoverParams`].
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// What the value must satisfy.
-        requirement: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// A point has a NaN or infinite coordinate.
     #[error("point {index} ({point}) is not finite")]
     NonFinitePoint {
@@ -522,11 +516,11 @@ pub fn build_surface_cover_from_cloud(
 
 fn check_params(p: &SurfaceCoverParams) -> Result<(), SurfaceCoverError> {
     let invalid = |name, value, requirement| {
-        Err(SurfaceCoverError::InvalidParameter {
+        Err(SurfaceCoverError::InvalidParameter(ParameterError {
             name,
             value,
-            requirement,
-        })
+            expected: requirement,
+        }))
     };
     if !(p.eps.is_finite() && p.eps > 0.0) {
         return invalid("eps", p.eps, "a finite positive number");

@@ -130,6 +130,7 @@ mod support;
 
 pub use scattered::{build_scattered_cover, median_nearest_distance};
 
+use crate::ParameterError;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -320,15 +321,8 @@ pub enum VolumeCoverError {
         max: f64,
     },
     /// A parameter is out of its domain.
-    #[error("parameter {name} = {value} is invalid: {reason}")]
-    InvalidParameter {
-        /// The parameter.
-        name: &'static str,
-        /// Its value.
-        value: f64,
-        /// What it must be.
-        reason: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// The volume has more voxels than `u32` indices reach.
     #[error("{voxels} voxels exceed the u32 index range")]
     TooManyVoxels {
@@ -445,11 +439,11 @@ pub fn build_volume_cover(
 
 pub(super) fn check_params(p: &VolumeCoverParams) -> Result<(), VolumeCoverError> {
     let bad = |name, value, reason| {
-        Err(VolumeCoverError::InvalidParameter {
+        Err(VolumeCoverError::InvalidParameter(ParameterError {
             name,
             value,
-            reason,
-        })
+            expected: reason,
+        }))
     };
     if !(p.tolerance.is_finite() && p.tolerance > 0.0) {
         return bad("tolerance", p.tolerance, "must be finite and positive");

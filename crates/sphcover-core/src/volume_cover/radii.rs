@@ -4,6 +4,7 @@
 //! It runs once, before the covering, and its time is reported on its own; the scattered
 //! builder shares the cap with a thickness of its own.
 
+use crate::ParameterError;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -53,11 +54,11 @@ pub(super) fn radius_cap(
         }
     };
     if r_max < r_min {
-        return Err(VolumeCoverError::InvalidParameter {
+        return Err(VolumeCoverError::InvalidParameter(ParameterError {
             name: "r_max",
             value: r_max,
-            reason: "must be at least r_min",
-        });
+            expected: "must be at least r_min",
+        }));
     }
     Ok((r_max, thickness))
 }

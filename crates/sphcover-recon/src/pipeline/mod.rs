@@ -22,6 +22,7 @@
 
 mod stages;
 
+use sphcover_core::ParameterError;
 use std::time::Duration;
 
 use sphcover_core::stages::{StageProgress, run_stages};
@@ -191,15 +192,8 @@ pub enum ReconError {
     #[error("all {0} points coincide: there is no surface to reconstruct")]
     NoExtent(usize),
     /// A parameter is out of range.
-    #[error("parameter `{name}` = {value} is out of range ({expected})")]
-    InvalidParameter {
-        /// Parameter name.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// The accepted range.
-        expected: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// Normal estimation failed.
     #[error("normal estimation: {0}")]
     Normals(#[from] NormalError),
@@ -395,11 +389,11 @@ fn check_params(params: &ReconParams) -> Result<(), ReconError> {
     ];
     for (name, value, ok, expected) in checks {
         if !ok {
-            return Err(ReconError::InvalidParameter {
+            return Err(ReconError::InvalidParameter(ParameterError {
                 name,
                 value,
                 expected,
-            });
+            }));
         }
     }
     Ok(())
@@ -529,7 +523,7 @@ mod tests {
         ] {
             assert!(matches!(
                 reconstruct(&cloud, &params, &|_| {}),
-                Err(ReconError::InvalidParameter { .. })
+                Err(ReconError::InvalidParameter(_))
             ));
         }
         assert!(matches!(

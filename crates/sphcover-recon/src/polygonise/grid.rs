@@ -4,6 +4,7 @@
 //! the active cells, the tube faces), so the grid, the choice of its step and the key layout
 //! sit apart from any one of them.
 
+use sphcover_core::ParameterError;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -29,11 +30,11 @@ pub(super) fn grid_step(
         Ok(h)
     } else {
         // A single seed (or coincident seeds) has a bounding box without extent.
-        Err(PolygoniseError::InvalidParameter {
+        Err(PolygoniseError::InvalidParameter(ParameterError {
             name: "step",
             value: h,
-            requirement: "a positive step: give an absolute step when the seeds span no box",
-        })
+            expected: "a positive step: give an absolute step when the seeds span no box",
+        }))
     }
 }
 

@@ -63,6 +63,7 @@ mod search;
 mod trim;
 mod tubes;
 
+use sphcover_core::ParameterError;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -131,15 +132,8 @@ pub enum PolygoniseError {
         given: usize,
     },
     /// A parameter is out of its range.
-    #[error("parameter {name} = {value} is invalid: {requirement}")]
-    InvalidParameter {
-        /// Field name in [`PolygoniseParams`].
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// What the value must satisfy.
-        requirement: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParameterError),
     /// The grid step is so small that the box where `f` is defined needs more than
     /// 2²¹ − 2 cells along an axis.
     #[error(
@@ -351,11 +345,11 @@ pub fn polygonise_blending(
 
 fn check_params(params: &PolygoniseParams) -> Result<(), PolygoniseError> {
     let invalid = |name, value, requirement| {
-        Err(PolygoniseError::InvalidParameter {
+        Err(PolygoniseError::InvalidParameter(ParameterError {
             name,
             value,
-            requirement,
-        })
+            expected: requirement,
+        }))
     };
     match params.step {
         GridStep::Depth(d) if d > 20 => return invalid("step", f64::from(d), "depth ≤ 20"),
@@ -646,7 +640,10 @@ mod tests {
         // One seed spans no box, so a depth gives no step.
         assert!(matches!(
             polygonise(&eval, &cloud.positions[..1], &p),
-            Err(PolygoniseError::InvalidParameter { name: "step", .. })
+            Err(PolygoniseError::InvalidParameter(ParameterError {
+                name: "step",
+                ..
+            }))
         ));
         let absolute = PolygoniseParams {
             step: GridStep::Absolute(0.02),
@@ -673,7 +670,7 @@ mod tests {
         ] {
             assert!(matches!(
                 polygonise(&eval, &cloud.positions, &bad),
-                Err(PolygoniseError::InvalidParameter { .. })
+                Err(PolygoniseError::InvalidParameter(_))
             ));
         }
         let too_fine = PolygoniseParams {

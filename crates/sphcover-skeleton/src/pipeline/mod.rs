@@ -9,6 +9,7 @@
 mod front_stages;
 mod sheet_stages;
 
+use sphcover_core::ParameterError;
 use sphcover_core::stages::{StageProgress, StageTimes, run_stages};
 use sphcover_core::{Kernel, TriMesh, Volume, VolumeCoverStats};
 
@@ -258,11 +259,11 @@ pub(crate) fn voxel_length(volume: &Volume) -> f64 {
 
 pub(crate) fn check_params(p: &SkeletonParams) -> Result<(), SkeletonError> {
     let bad = |name, value, reason| {
-        Err(SkeletonError::InvalidParameter {
+        Err(SkeletonError::InvalidParameter(ParameterError {
             name,
             value,
-            reason,
-        })
+            expected: reason,
+        }))
     };
     if !(p.sigma.is_finite() && p.sigma >= 1.0) {
         return bad("sigma", p.sigma, "must be at least 1");
@@ -361,11 +362,11 @@ fn check_repairs(r: &SheetRepairs) -> Result<(), SkeletonError> {
     }
     for (name, value) in values {
         if !(value.is_finite() && value >= 0.0) {
-            return Err(SkeletonError::InvalidParameter {
+            return Err(SkeletonError::InvalidParameter(ParameterError {
                 name,
                 value,
-                reason: "must be finite and non-negative",
-            });
+                expected: "must be finite and non-negative",
+            }));
         }
     }
     // A march that never advances would not end.
@@ -378,19 +379,19 @@ fn check_repairs(r: &SheetRepairs) -> Result<(), SkeletonError> {
     ];
     for (name, step) in steps.into_iter().flatten() {
         if step <= 0.0 {
-            return Err(SkeletonError::InvalidParameter {
+            return Err(SkeletonError::InvalidParameter(ParameterError {
                 name,
                 value: step,
-                reason: "must be positive",
-            });
+                expected: "must be positive",
+            }));
         }
     }
     if r.junction_fold.is_some() && r.centring.is_none() {
-        return Err(SkeletonError::InvalidParameter {
+        return Err(SkeletonError::InvalidParameter(ParameterError {
             name: "junction_fold",
             value: 1.0,
-            reason: "folds junction vertices onto re-centred ones: it needs the centring",
-        });
+            expected: "folds junction vertices onto re-centred ones: it needs the centring",
+        }));
     }
     Ok(())
 }
