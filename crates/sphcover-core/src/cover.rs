@@ -1,5 +1,6 @@
 //! The cover: supports (balls) with their local functions and the weight kernel (thesis §3.2).
 
+use crate::LengthMismatch;
 use crate::kernel::Kernel;
 use crate::local_function::{LocalFunction, LocalFunctions};
 use glam::DVec3;
@@ -8,15 +9,8 @@ use glam::DVec3;
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum CoverError {
     /// An array does not have one entry per support.
-    #[error("{array} has {found} entries, expected one per support ({expected})")]
-    LengthMismatch {
-        /// Name of the offending array (`radii`, or a local-function coefficient array).
-        array: &'static str,
-        /// Number of supports (length of `centres`).
-        expected: usize,
-        /// Length of the offending array.
-        found: usize,
-    },
+    #[error(transparent)]
+    LengthMismatch(#[from] LengthMismatch),
     /// More supports than `u32` indices can name.
     #[error("{count} supports exceed the u32 index range")]
     TooManySupports {
@@ -134,11 +128,11 @@ impl Cover {
             return Err(CoverError::TooManySupports { count: n });
         }
         if radii.len() != n {
-            return Err(CoverError::LengthMismatch {
+            return Err(CoverError::LengthMismatch(LengthMismatch {
                 array: "radii",
                 expected: n,
                 found: radii.len(),
-            });
+            }));
         }
         check_funcs(&funcs, n)?;
         if let Some(index) = centres.iter().position(|c| !c.is_finite()) {
@@ -218,11 +212,11 @@ impl Cover {
 fn check_funcs(funcs: &LocalFunctions, n: usize) -> Result<(), CoverError> {
     for (array, len) in funcs.array_lengths() {
         if len != n {
-            return Err(CoverError::LengthMismatch {
+            return Err(CoverError::LengthMismatch(LengthMismatch {
                 array,
                 expected: n,
                 found: len,
-            });
+            }));
         }
     }
     match funcs.first_non_finite() {

@@ -76,7 +76,7 @@ pub use mesh::{
     remove_unused_vertices, triangle_area, vertex_normals,
 };
 pub use mesh_topology::MeshTopology;
-pub use parameter_error::ParameterError;
+pub use parameter_error::{LengthMismatch, ParameterError};
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};

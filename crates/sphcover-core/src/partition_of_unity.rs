@@ -25,6 +25,7 @@
 
 mod packed;
 
+use crate::LengthMismatch;
 use crate::ball_index::BallIndex;
 use crate::cover::{Cover, CoverError};
 use crate::geometry::Aabb;
@@ -241,11 +242,11 @@ impl<'a> PuEvaluator<'a> {
     /// which is several times cheaper than one index query per point.
     pub fn blend(&self, points: &[DVec3], values: &[f64]) -> Result<Vec<Option<f64>>, CoverError> {
         if values.len() != self.cover.len() {
-            return Err(CoverError::LengthMismatch {
+            return Err(CoverError::LengthMismatch(LengthMismatch {
                 array: "blended values",
                 expected: self.cover.len(),
                 found: values.len(),
-            });
+            }));
         }
         Ok(self.batch(points, |x, ids| dispatch!(self, x, ids, blend_sum, values)))
     }
@@ -260,11 +261,11 @@ impl<'a> PuEvaluator<'a> {
         values: &[f64],
     ) -> Result<Vec<Option<(ValueGradient, f64)>>, CoverError> {
         if values.len() != self.cover.len() {
-            return Err(CoverError::LengthMismatch {
+            return Err(CoverError::LengthMismatch(LengthMismatch {
                 array: "blended values",
                 expected: self.cover.len(),
                 found: values.len(),
-            });
+            }));
         }
         Ok(self.batch(points, |x, ids| {
             dispatch!(self, x, ids, value_gradient_blend_sum, values)

@@ -49,6 +49,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+use crate::LengthMismatch;
 use crate::cover::{Cover, CoverError};
 use crate::kernel::Kernel;
 use crate::point_index::PointIndex;
@@ -224,11 +225,11 @@ impl SupportSamples {
         values: &[f64],
     ) -> Result<Vec<Option<f64>>, CoverError> {
         if values.len() != cover.len() {
-            return Err(CoverError::LengthMismatch {
+            return Err(CoverError::LengthMismatch(LengthMismatch {
                 array: "blended values",
                 expected: cover.len(),
                 found: values.len(),
-            });
+            }));
         }
         self.assert_fits(cover, index);
         let by_slot = match cover.kernel() {
@@ -428,11 +429,11 @@ mod tests {
         let incidence = SupportSamples::gather(&cover, &index);
         assert!(matches!(
             incidence.blend(&cover, &index, &[1.0, 2.0]),
-            Err(CoverError::LengthMismatch {
+            Err(CoverError::LengthMismatch(LengthMismatch {
                 expected: 1,
                 found: 2,
                 ..
-            })
+            }))
         ));
         assert_eq!(
             incidence.blend(&cover, &index, &[0.5]).unwrap(),

@@ -1,6 +1,7 @@
 //! Bad input to the surface cover builder gives typed errors, never a panic; unusable
 //! normals are skipped and counted.
 
+use sphcover_core::LengthMismatch;
 use sphcover_core::{
     DVec3, ParameterError, PointCloud, SurfaceCoverError, SurfaceCoverParams, SurfaceSamples,
     build_surface_cover, build_surface_cover_from_cloud,
@@ -35,20 +36,20 @@ fn inconsistent_or_non_finite_input_is_refused() {
     let p = SurfaceCoverParams::default();
     assert!(matches!(
         build_surface_cover(&SurfaceSamples::new(&points, &normals[1..]), &p),
-        Err(SurfaceCoverError::LengthMismatch {
+        Err(SurfaceCoverError::LengthMismatch(LengthMismatch {
             array: "normals",
             ..
-        })
+        }))
     ));
     assert!(matches!(
         build_surface_cover(
             &SurfaceSamples::new(&points, &normals).with_confidence(Some(&[1.0])),
             &p
         ),
-        Err(SurfaceCoverError::LengthMismatch {
+        Err(SurfaceCoverError::LengthMismatch(LengthMismatch {
             array: "confidence",
             ..
-        })
+        }))
     ));
     let mut conf = vec![1.0; points.len()];
     conf[3] = -1.0;

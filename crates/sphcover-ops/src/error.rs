@@ -1,6 +1,7 @@
 //! Typed errors of the operator constructors and solvers.
 
 use glam::DVec3;
+use sphcover_core::LengthMismatch;
 use sphcover_core::ParameterError;
 use thiserror::Error;
 
@@ -8,15 +9,8 @@ use thiserror::Error;
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum OpsError {
     /// An array does not have one entry per support.
-    #[error("{array} has {found} entries, expected one per support ({expected})")]
-    LengthMismatch {
-        /// Name of the offending array.
-        array: &'static str,
-        /// Number of supports.
-        expected: usize,
-        /// Length of the offending array.
-        found: usize,
-    },
+    #[error(transparent)]
+    LengthMismatch(#[from] LengthMismatch),
     /// The graph was built on a different number of supports than the cover has.
     #[error("the graph has {graph} nodes but the cover has {supports} supports")]
     GraphMismatch {

@@ -7,6 +7,7 @@
 //! mass, zero row) keeps its value.
 
 use rayon::prelude::*;
+use sphcover_core::LengthMismatch;
 use sphcover_core::ParameterError;
 
 use crate::conjugate_gradient::{
@@ -101,11 +102,11 @@ pub fn implicit_smoothing(
 ) -> Result<(Vec<f64>, CgInfo), SolveError> {
     let op = ShiftedStiffness::new(geometry, mass, time)?;
     if u0.len() != geometry.len() {
-        return Err(OpsError::LengthMismatch {
+        return Err(OpsError::LengthMismatch(LengthMismatch {
             array: "u0",
             expected: geometry.len(),
             found: u0.len(),
-        }
+        })
         .into());
     }
     let m = geometry.mass(mass);

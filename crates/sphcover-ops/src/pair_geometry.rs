@@ -24,6 +24,7 @@
 //! `r_i² − l_i²` for nearly tangent or nearly nested balls, and make `φ_ij` and `φ_ji` the same
 //! floating-point number: every operand of ρ² is symmetric in `i`, `j` bit for bit.
 
+use sphcover_core::LengthMismatch;
 use std::f64::consts::PI;
 
 use glam::DVec3;
@@ -133,11 +134,11 @@ impl PairGeometry {
     ) -> Result<PairGeometry, OpsError> {
         let n = centres.len();
         if radii.len() != n {
-            return Err(OpsError::LengthMismatch {
+            return Err(OpsError::LengthMismatch(LengthMismatch {
                 array: "radii",
                 expected: n,
                 found: radii.len(),
-            });
+            }));
         }
         if graph.len() != n {
             return Err(OpsError::GraphMismatch {
@@ -224,14 +225,14 @@ impl PairGeometry {
         })
     }
 
-    /// Number of supports.
+    /// Number of supports: the rows of the graph the geometry was built over.
     pub fn len(&self) -> usize {
-        self.centres.len()
+        self.offsets.len().saturating_sub(1)
     }
 
     /// True when there is no support.
     pub fn is_empty(&self) -> bool {
-        self.centres.is_empty()
+        self.len() == 0
     }
 
     /// Support centres.

@@ -16,6 +16,7 @@
 //! supports the equation `Lap u = f` is replaced by the fixed value.
 
 use rayon::prelude::*;
+use sphcover_core::LengthMismatch;
 
 use crate::conjugate_gradient::{
     CgInfo, CgParams, CgScratch, SymmetricOperator, conjugate_gradient,
@@ -119,11 +120,11 @@ pub fn solve_poisson(
 ) -> Result<(Vec<f64>, CgInfo), SolveError> {
     let n = geometry.len();
     if f.len() != n {
-        return Err(OpsError::LengthMismatch {
+        return Err(OpsError::LengthMismatch(LengthMismatch {
             array: "f",
             expected: n,
             found: f.len(),
-        }
+        })
         .into());
     }
     if let Some(index) = f.iter().position(|v| !v.is_finite()) {

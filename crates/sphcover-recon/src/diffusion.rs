@@ -61,6 +61,7 @@
 //! of threads.
 
 use rayon::prelude::*;
+use sphcover_core::LengthMismatch;
 use sphcover_core::ParameterError;
 use sphcover_core::{
     Cover, CoverError, DVec3, LocalFunctions, PointIndex, SupportLists, SupportSamples,
@@ -158,15 +159,8 @@ pub enum DiffusionError {
     #[error("diffusion needs a cover of linear local functions")]
     NotLinear,
     /// Arrays of different lengths.
-    #[error("{array} has {found} entries, expected {expected}")]
-    LengthMismatch {
-        /// Which array.
-        array: &'static str,
-        /// Expected length.
-        expected: usize,
-        /// Length found.
-        found: usize,
-    },
+    #[error(transparent)]
+    LengthMismatch(#[from] LengthMismatch),
     /// A parameter is out of range.
     #[error(transparent)]
     InvalidParameter(#[from] ParameterError),
@@ -212,19 +206,19 @@ impl FittingTerms {
     ) -> Result<FittingTerms, DiffusionError> {
         for (array, found) in [("normals", normals.len()), ("confidence", confidence.len())] {
             if found != points.len() {
-                return Err(DiffusionError::LengthMismatch {
+                return Err(DiffusionError::LengthMismatch(LengthMismatch {
                     array,
                     expected: points.len(),
                     found,
-                });
+                }));
             }
         }
         if index.input_len() != points.len() || !incidence.fits(cover, index) {
-            return Err(DiffusionError::LengthMismatch {
+            return Err(DiffusionError::LengthMismatch(LengthMismatch {
                 array: "point index",
                 expected: points.len(),
                 found: index.input_len(),
-            });
+            }));
         }
         let kernel = cover.kernel();
         // The samples' normals and confidences in the index's slot order, so the per-support
@@ -344,11 +338,11 @@ pub fn diffuse(
         ("fitting terms", terms.len()),
     ] {
         if found != n {
-            return Err(DiffusionError::LengthMismatch {
+            return Err(DiffusionError::LengthMismatch(LengthMismatch {
                 array,
                 expected: n,
                 found,
-            });
+            }));
         }
     }
     for (name, value) in [

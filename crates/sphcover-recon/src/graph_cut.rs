@@ -33,6 +33,7 @@
 //! whole graph as `l_v` (1 when there is none); an edge of zero length (coincident centres)
 //! uses a length of `1e-9` times the mean edge length, which ties its ends together.
 
+use sphcover_core::LengthMismatch;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
@@ -54,15 +55,8 @@ pub enum GraphCutError {
     #[error("reference degree {0} is not finite and positive")]
     InvalidReferenceDegree(f64),
     /// A per-node array does not have one entry per node.
-    #[error("{array} has {found} entries for {expected} nodes")]
-    LengthMismatch {
-        /// Name of the array.
-        array: &'static str,
-        /// Number of nodes.
-        expected: usize,
-        /// Length of the array.
-        found: usize,
-    },
+    #[error(transparent)]
+    LengthMismatch(#[from] LengthMismatch),
     /// A node position or value is NaN or infinite.
     #[error("node {index} has a non-finite position or value")]
     NonFinite {
@@ -326,11 +320,11 @@ fn check_nodes(
     }
     let n = positions.len();
     if values.len() != n {
-        return Err(GraphCutError::LengthMismatch {
+        return Err(GraphCutError::LengthMismatch(LengthMismatch {
             array: "values",
             expected: n,
             found: values.len(),
-        });
+        }));
     }
     if let Some(index) = (0..n).find(|&i| !(positions[i].is_finite() && values[i].is_finite())) {
         return Err(GraphCutError::NonFinite { index });
@@ -367,11 +361,11 @@ fn graph_cut_csr_alongside<R: Send>(
     check_nodes(positions, values, params)?;
     let n = positions.len();
     if offsets.len() != n + 1 {
-        return Err(GraphCutError::LengthMismatch {
+        return Err(GraphCutError::LengthMismatch(LengthMismatch {
             array: "offsets",
             expected: n + 1,
             found: offsets.len(),
-        });
+        }));
     }
     if offsets[0] != 0
         || offsets[n] as usize != neighbours.len()
@@ -475,11 +469,11 @@ pub(crate) fn graph_cut_sig_alongside<R: Send>(
     alongside: impl FnOnce() -> R + Send,
 ) -> Result<(GraphCut, R), GraphCutError> {
     if sig.len() != cover.len() {
-        return Err(GraphCutError::LengthMismatch {
+        return Err(GraphCutError::LengthMismatch(LengthMismatch {
             array: "sphere intersection graph",
             expected: cover.len(),
             found: sig.len(),
-        });
+        }));
     }
     let (values, undefined) = undefined_as_zero(at_centres.values(cover, cover.centres())?);
     let (mut cut, beside) = graph_cut_csr_alongside(
@@ -739,7 +733,7 @@ mod tests {
         ));
         assert!(matches!(
             graph_cut(&p, &[0.0; 2], &[], &GraphCutParams::default()),
-            Err(GraphCutError::LengthMismatch { .. })
+            Err(GraphCutError::LengthMismatch(_))
         ));
         assert!(matches!(
             graph_cut(&p, &[0.0, f64::NAN, 0.0], &[], &GraphCutParams::default()),

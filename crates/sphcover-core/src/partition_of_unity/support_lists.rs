@@ -11,6 +11,7 @@ use super::{
     BATCH_MIN_LEN, BatchState, PuEvaluator, QuadraticBSplineKernel, TruncatedGaussianKernel,
     ValueGradient, WendlandC2Kernel, value_gradient_sum, value_sum,
 };
+use crate::LengthMismatch;
 use crate::concat::concat_in_parallel;
 use crate::cover::{Cover, CoverError};
 use crate::kernel::Kernel;
@@ -238,11 +239,11 @@ impl SupportLists {
             ),
         ] {
             if expected != found {
-                return Err(CoverError::LengthMismatch {
+                return Err(CoverError::LengthMismatch(LengthMismatch {
                     array,
                     expected,
                     found,
-                });
+                }));
             }
         }
         let bits = |v: DVec3| v.to_array().map(f64::to_bits);

@@ -53,6 +53,7 @@ mod expansion;
 mod fit;
 mod octree;
 
+use crate::LengthMismatch;
 use crate::ParameterError;
 use crate::cover::{Cover, CoverError};
 use crate::geometry::Normalisation;
@@ -130,15 +131,8 @@ pub enum SurfaceCoverError {
     )]
     MissingNormals,
     /// A per-point array does not have one entry per point.
-    #[error("{array} has {found} entries, expected one per point ({expected})")]
-    LengthMismatch {
-        /// `normals` or `confidence`.
-        array: &'static str,
-        /// Number of points.
-        expected: usize,
-        /// Length of the array.
-        found: usize,
-    },
+    #[error(transparent)]
+    LengthMismatch(#[from] LengthMismatch),
     /// A parameter is out of its range.
     #[error(transparent)]
     InvalidParameter(#[from] ParameterError),
@@ -331,19 +325,19 @@ fn build(
     check_params(params)?;
     let n = points.len();
     if normals.len() != n {
-        return Err(SurfaceCoverError::LengthMismatch {
+        return Err(SurfaceCoverError::LengthMismatch(LengthMismatch {
             array: "normals",
             expected: n,
             found: normals.len(),
-        });
+        }));
     }
     if let Some(c) = confidence {
         if c.len() != n {
-            return Err(SurfaceCoverError::LengthMismatch {
+            return Err(SurfaceCoverError::LengthMismatch(LengthMismatch {
                 array: "confidence",
                 expected: n,
                 found: c.len(),
-            });
+            }));
         }
         if let Some(index) = c.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             return Err(SurfaceCoverError::InvalidConfidence {

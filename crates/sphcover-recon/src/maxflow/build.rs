@@ -5,6 +5,7 @@
 //! their sister arcs, the paper's reduction of terminal capacities); the search in `solve`
 //! then trusts the arrays it is given.
 
+use sphcover_core::LengthMismatch;
 use std::borrow::Cow;
 
 use super::{FREE, FlowEdge, FlowGraph, MAX_ARCS, MaxFlowError, NO_PARENT};
@@ -25,11 +26,11 @@ impl<'a> FlowGraph<'a> {
             ("sink_capacities", sink_capacities.len()),
         ] {
             if len != num_nodes {
-                return Err(MaxFlowError::LengthMismatch {
+                return Err(MaxFlowError::LengthMismatch(LengthMismatch {
                     array,
                     expected: num_nodes,
                     found: len,
-                });
+                }));
             }
         }
         let valid = |c: f64| c.is_finite() && c >= 0.0;
@@ -145,11 +146,11 @@ impl<'a> FlowGraph<'a> {
             };
         }
         if capacities.len() != neighbours.len() {
-            return Err(MaxFlowError::LengthMismatch {
+            return Err(MaxFlowError::LengthMismatch(LengthMismatch {
                 array: "capacities",
                 expected: neighbours.len(),
                 found: capacities.len(),
-            });
+            }));
         }
         if neighbours.len() > MAX_ARCS {
             return Err(MaxFlowError::TooLarge {
@@ -313,7 +314,7 @@ mod tests {
         }
         assert!(matches!(
             FlowGraph::from_symmetric_csr(&z, &z, &[0, 1, 2, 2], &[1, 0], vec![1.0]),
-            Err(MaxFlowError::LengthMismatch { .. })
+            Err(MaxFlowError::LengthMismatch(_))
         ));
         assert!(matches!(
             FlowGraph::from_symmetric_csr(&z, &z, &[0, 1, 2, 2], &[1, 0], vec![1.0, -1.0]),
@@ -326,7 +327,7 @@ mod tests {
         let e = |f, t, c| [FlowEdge::undirected(f, t, c)];
         assert!(matches!(
             FlowGraph::new(2, &[0.0], &[0.0, 0.0], &[]),
-            Err(MaxFlowError::LengthMismatch { .. })
+            Err(MaxFlowError::LengthMismatch(_))
         ));
         assert!(matches!(
             FlowGraph::new(2, &[0.0; 2], &[0.0; 2], &e(0, 2, 1.0)),

@@ -29,6 +29,7 @@
 mod build;
 mod solve;
 
+use sphcover_core::LengthMismatch;
 use std::borrow::Cow;
 
 use thiserror::Error;
@@ -50,15 +51,8 @@ const SINK_TREE: u8 = 2;
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum MaxFlowError {
     /// The terminal capacity arrays do not have one entry per node.
-    #[error("{array} has {found} entries for {expected} nodes")]
-    LengthMismatch {
-        /// `source_capacities` or `sink_capacities`.
-        array: &'static str,
-        /// Number of nodes.
-        expected: usize,
-        /// Length of the array.
-        found: usize,
-    },
+    #[error(transparent)]
+    LengthMismatch(#[from] LengthMismatch),
     /// An edge names a node that does not exist.
     #[error("edge {edge} joins nodes {from} and {to}, but there are {nodes} nodes")]
     NodeOutOfRange {
