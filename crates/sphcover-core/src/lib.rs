@@ -37,6 +37,9 @@
 //! assert!((0..cover.len()).all(|i| graph.degree(i) > 0));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! Parameter structs (`SurfaceCoverParams`, `VolumeCoverParams`, …) implement `Default` with
+//! the documented defaults; set what you need and take the rest with `..Default::default()`.
 #![deny(missing_docs)]
 
 pub mod ball_index;

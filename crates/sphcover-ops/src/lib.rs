@@ -43,6 +43,9 @@
 //! assert_eq!(smooth.len(), sq.len());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! Parameter structs implement `Default` with the documented defaults; set what you need and
+//! take the rest with `..Default::default()`.
 #![deny(missing_docs)]
 
 pub mod conjugate_gradient;

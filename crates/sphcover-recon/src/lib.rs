@@ -35,6 +35,9 @@
 //! assert!(result.mesh.vertices.iter().all(|v| (v.length() - 2.0).abs() < 0.05));
 //! # Ok::<(), sphcover_recon::ReconError>(())
 //! ```
+//!
+//! [`ReconParams`] and the stages' parameter structs implement `Default` with the documented
+//! defaults; set what you need and take the rest with `..ReconParams::default()`.
 #![deny(missing_docs)]
 
 mod angle;

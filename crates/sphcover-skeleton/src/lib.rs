@@ -58,6 +58,11 @@
 //! (no grid), which image-based methods cannot take.
 //! [`nms_skeleton`] is the image-based baseline the thesis compares against (Gaussian
 //! smoothing and non-maximum suppression along the Hessian's smallest eigenvector).
+//!
+//! [`SkeletonParams`] and the repairs' parameter structs are `#[non_exhaustive]`, so that a
+//! new setting is not a breaking change: start from `Default` and assign the fields you need
+//! (`let mut p = SkeletonParams::default(); p.threshold = Some(300.0);`); a repair is switched
+//! off by setting its entry of [`SheetRepairs`] to `None`.
 #![deny(missing_docs)]
 
 pub mod derivative_smoothing;

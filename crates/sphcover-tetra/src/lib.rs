@@ -55,6 +55,9 @@
 //! Determinism: the same input and seed give the same output, whatever the thread count
 //! (insertion is sequential; the sorts of distinct keys, the renumbering and the
 //! per-tetrahedron filter run in parallel, item by item).
+//!
+//! Parameter structs implement `Default` with the documented defaults; set what you need and
+//! take the rest with `..Default::default()`, as the example does.
 #![deny(missing_docs)]
 
 pub mod dual_complex;
