@@ -56,6 +56,7 @@ mod parameter_error;
 pub mod partition_of_unity;
 pub mod point_cloud;
 pub mod point_index;
+pub mod random;
 mod spatial_order;
 pub mod sphere_intersection_graph;
 pub mod stages;

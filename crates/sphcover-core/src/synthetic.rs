@@ -484,38 +484,3 @@ fn guard_count(count: u64) -> Result<(), SyntheticError> {
         Ok(())
     }
 }
-
-/// Marsaglia's xorshift generator: a seeded stream of uniform numbers for synthetic data
-/// (jittered samples, noisy phantoms) that is the same on every platform and needs no
-/// dependency. Not for statistics that need a strong generator.
-///
-/// ```
-/// use sphcover_core::synthetic::XorShift64;
-///
-/// let mut rng = XorShift64::new(7);
-/// let u = rng.uniform();
-/// assert!((0.0..1.0).contains(&u));
-/// assert_eq!(XorShift64::new(7).uniform(), u);
-/// ```
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct XorShift64 {
-    state: u64,
-}
-
-impl XorShift64 {
-    /// A generator started at `state` (0 is replaced by 1: the all-zero state never moves).
-    pub fn new(state: u64) -> XorShift64 {
-        XorShift64 {
-            state: state.max(1),
-        }
-    }
-
-    /// The next number, uniform in `[0, 1)` with 53 random bits.
-    pub fn uniform(&mut self) -> f64 {
-        let s = &mut self.state;
-        *s ^= *s << 13;
-        *s ^= *s >> 7;
-        *s ^= *s << 17;
-        (*s >> 11) as f64 / (1u64 << 53) as f64
-    }
-}

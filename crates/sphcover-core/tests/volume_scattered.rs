@@ -4,7 +4,7 @@
 
 mod volume_common;
 
-use sphcover_core::synthetic::XorShift64;
+use sphcover_core::random::XorShift64;
 use sphcover_core::{
     Cover, DVec3, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
     build_scattered_cover, build_volume_cover,

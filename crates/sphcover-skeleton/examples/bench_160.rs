@@ -3,7 +3,7 @@
 //! same noise.
 //!
 //! `cargo run --release -p sphcover-skeleton --example bench_160`
-use sphcover_core::synthetic::XorShift64;
+use sphcover_core::random::XorShift64;
 use sphcover_core::{DVec3, Volume, VoxelValues};
 use sphcover_evaluation::sheet_metrics::score_mesh;
 use sphcover_evaluation::thin_phantoms::{

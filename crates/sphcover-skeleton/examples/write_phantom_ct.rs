@@ -4,7 +4,7 @@
 //! grid, 10 % noise, padded with noisy air, as in the `bench_160` example.
 //!
 //! `cargo run --release -p sphcover-skeleton --example write_phantom_ct -- N OUT.nii`
-use sphcover_core::synthetic::XorShift64;
+use sphcover_core::random::XorShift64;
 use sphcover_evaluation::thin_phantoms::{
     AIR_HU, MATERIAL_HU, PhantomParams, ThinShape, thin_phantom,
 };

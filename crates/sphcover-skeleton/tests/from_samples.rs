@@ -3,7 +3,7 @@
 //! true sheet, and the same answer whatever the thread count.
 
 use glam::DVec3;
-use sphcover_core::synthetic::XorShift64;
+use sphcover_core::random::XorShift64;
 use sphcover_evaluation::sheet_metrics::score_mesh;
 use sphcover_evaluation::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{SkeletonError, SkeletonParams, extract_skeleton_from_samples};

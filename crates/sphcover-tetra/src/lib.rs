@@ -43,7 +43,7 @@
 //!   orthocentre-power sign, each exact and adaptive (static float filter, then an `i128`
 //!   stage for dyadic inputs such as grids and octrees, then expansions), with CGAL's
 //!   lexicographic symbolic perturbation for ties.
-//! * [`spatial_sort`]: the insertion order.
+//! * `spatial_sort` (private): the insertion order.
 //! * [`regular`]: [`RegularTriangulation`], incremental Bowyer–Watson with a remembering
 //!   stochastic walk, an infinite vertex, hidden (redundant) points; `u32` handles, per
 //!   tetrahedron one 32-byte block of its 4 vertices and 4 neighbours, a free list.
@@ -67,7 +67,7 @@ pub mod marching;
 pub mod mesh_file;
 pub mod predicates;
 pub mod regular;
-pub mod spatial_sort;
+mod spatial_sort;
 pub mod tet_mesh;
 
 pub use dual_complex::{DualComplex, DualComplexParams, dual_complex, dual_complex_of};

@@ -880,7 +880,7 @@ mod tests {
         // Points on a grid of unit 1/8 (spans up to 600 units: both sides of the 2^9 limit),
         // weights equal or of octree levels (w, 4w, 16w) or zero: the grid stage, when it
         // answers, agrees with the staged predicate, ties included.
-        let mut rng = crate::spatial_sort::SplitMix64::new(3);
+        let mut rng = sphcover_core::random::SplitMix64::new(3);
         let (mut answered, mut ties) = (0, 0);
         for round in 0..40_000 {
             let span = [4u64, 40, 600][rng.below(3) as usize];
@@ -915,7 +915,7 @@ mod tests {
         // Grids of unit 2^e for e in {-300, -3, 0, 40, 300} (the range the triangulation uses
         // it for), spans on both sides of the 2^16 limit and tiny ones (many coplanar
         // quadruples): when it answers it agrees with the staged predicate, zeros included.
-        let mut rng = crate::spatial_sort::SplitMix64::new(7);
+        let mut rng = sphcover_core::random::SplitMix64::new(7);
         let (mut answered, mut zeros) = (0, 0);
         for round in 0..40_000 {
             let e = [-300, -3, 0, 40, 300][round % 5];

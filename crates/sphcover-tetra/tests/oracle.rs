@@ -6,8 +6,8 @@
 mod common;
 use common::*;
 use proptest::prelude::*;
+use sphcover_core::random::SplitMix64;
 use sphcover_tetra::predicates::{in_power_sphere_sos, orient3d};
-use sphcover_tetra::spatial_sort::SplitMix64;
 use sphcover_tetra::{RegularTriangulation, TriangulationParams, VertexStatus, dual_complex_of};
 
 /// The finite tetrahedra of the regular triangulation by definition: the positively oriented

@@ -37,7 +37,7 @@ proptest! {
     fn grids_with_random_weights_are_valid(n in 2usize..6, k in 0u64..1000) {
         // Few distinct weights: many exact ties between equal spheres.
         let (p, _) = grid(n, 0.5, 0.0);
-        let mut rng = sphcover_tetra::spatial_sort::SplitMix64::new(k);
+        let mut rng = sphcover_core::random::SplitMix64::new(k);
         let w: Vec<f64> = p.iter().map(|_| [0.0, 0.0625, 0.25][rng.below(3) as usize]).collect();
         let t = build(&p, &w).unwrap();
         prop_assert!(t.check_validity().is_ok(), "{:?}", t.check_validity());

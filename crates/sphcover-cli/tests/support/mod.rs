@@ -3,7 +3,7 @@
 
 #![allow(dead_code)]
 
-use sphcover_core::synthetic::XorShift64;
+use sphcover_core::random::XorShift64;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

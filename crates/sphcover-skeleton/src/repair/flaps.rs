@@ -197,7 +197,7 @@ mod tests {
         fn collapsing_keeps_the_topology(n in 3u32..7, height in 1u32..4, bound in 0.0f64..1.0,
                                          seed in any::<u64>()) {
             let mut m = base_with_fin(n, 1, 0, n.min(3), height);
-            let mut rng = sphcover_core::synthetic::XorShift64::new(seed | 1);
+            let mut rng = sphcover_core::random::XorShift64::new(seed | 1);
             let normals: Vec<DVec3> = (0..m.vertices.len())
                 .map(|_| {
                     let mut next = || rng.uniform() - 0.5;

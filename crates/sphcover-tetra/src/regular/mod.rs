@@ -1,7 +1,7 @@
 //! Incremental 3D regular (weighted Delaunay) triangulation.
 //!
 //! Design (after geogram's `Delaunay_3d`, BSD-3): points are inserted one at a time in BRIO +
-//! Hilbert order ([`crate::spatial_sort`]); each is located by a remembering stochastic walk
+//! Hilbert order (module `spatial_sort`); each is located by a remembering stochastic walk
 //! from the previous insertion; the *conflict zone* (tetrahedra whose orthosphere the new
 //! weighted point has negative power against) is grown by a depth-first search from the
 //! located tetrahedron and replaced by the cone from the new point to its boundary
@@ -57,8 +57,9 @@ use rayon::prelude::*;
 
 use crate::error::TetraError;
 use crate::predicates::{MAX_COORDINATE, MAX_WEIGHT, Point};
-use crate::spatial_sort::{SplitMix64, brio_order};
+use crate::spatial_sort::brio_order;
 use prepare::{distinct_points, integer_grid};
+use sphcover_core::random::SplitMix64;
 
 /// The infinite vertex, closing the hull.
 pub const INFINITE_VERTEX: u32 = u32::MAX;

@@ -1,7 +1,7 @@
 //! Shared helpers of the integration tests.
 #![allow(dead_code)]
 
-use sphcover_tetra::spatial_sort::SplitMix64;
+use sphcover_core::random::SplitMix64;
 
 /// Uniform random points in the unit cube with weights in `[0, wmax)`.
 pub fn random_points(n: usize, wmax: f64, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>) {
