@@ -5,7 +5,7 @@ use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use sphcover_core::stages::StageProgress;
+use sphcover_core::StageProgress;
 
 /// Where progress, timings and messages go, and how much of them.
 #[derive(Debug)]

@@ -1,43 +1,6 @@
 //! Spatial index over balls: "which balls contain x" and "which balls come near a point".
 //!
-//! # Structure
-//!
-//! Covers built from octrees (thesis §3.4.1) have radii spanning several orders of magnitude,
-//! so a single grid is either too coarse for the small balls or too fine for the large ones.
-//! Thesis Appendix B answers this with an octree keyed by sphere size; this index uses the
-//! flat equivalent, which needs no pointer chasing:
-//!
-//! * Balls are grouped into **radius levels**: level `L` holds the radii in
-//!   `[2^L, 2^{L+1}) · r_ref`, where `r_ref` is the smallest positive radius (zero and
-//!   negative radii join level 0). Within a level, radii differ by at most a factor of two, so
-//!   a query reach computed from the level's largest radius wastes little.
-//! * Each level has a uniform grid whose cells are about as wide as the level's largest radius
-//!   (`CELL_WIDTH_PER_RADIUS`). The level's balls are stored contiguously, sorted by cell, each
-//!   centre, radius and original index copied side by side; `cell_start` maps a cell to its
-//!   range of balls (compressed sparse rows over the dense cell array, x fastest), and a bit
-//!   per cell marks the occupied ones so that empty space is skipped cheaply. Consecutive cells
-//!   along x are consecutive in memory, so the cells of one grid row that a query needs form a
-//!   single range: a query costs two table loads per grid row, not one per cell.
-//! * A query with reach `t` visits, per level, the grid rows `(y, z)` that meet the ball of
-//!   radius `t` around `x`, and in each only the cells along `x` within that ball, i.e. the
-//!   cells cut by a sphere, not a cube.
-//! * Balls with a non-finite radius live in a short list checked on every query; balls with
-//!   a non-finite centre can never pass the test and are dropped.
-//!
-//! The grid is capped at `max(CELLS_PER_BALL · n_L, MIN_CELLS)` cells per level (coarsening
-//! `x` first, then `y` and `z`): memory stays `O(n)` whatever the spread of the coordinates
-//! (one far-away ball cannot blow up the table), at the price of longer cells.
-//!
-//! # Complexity
-//!
-//! Building takes `O(n log n)` time (one parallel sort of `u64` keys) and `O(n)` memory, and
-//! gives the same index for any thread count (the sort keys are distinct: cell, then index).
-//! A query with reach `t_L = max(scale·r, 0) + extra` over the radii `r` of level `L`, whose
-//! cells have width `w_L`, costs per non-empty level `O((1 + 2 t_L / w_L)² + k_L)`, where
-//! `k_L` is the number of balls in the cells cut by the ball of radius `t_L` around `x`. For a
-//! containment query (`scale = 1`, `extra = 0`) on a cover whose balls overlap a bounded
-//! number of times, that is `O(levels + answer)`. A query spanning more grid rows than its
-//! level has balls scans the level linearly instead, so no query costs more than `O(n)`.
+//! The method is described on [`BallIndex`].
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -121,8 +84,47 @@ struct Level {
     balls: Vec<PackedBall>,
 }
 
-/// An index over a fixed set of balls `(c_j, r_j)`; see the module documentation for the
+/// An index over a fixed set of balls `(c_j, r_j)`; see below for the
 /// structure and its cost.
+///
+/// # Structure
+///
+/// Covers built from octrees (thesis §3.4.1) have radii spanning several orders of magnitude,
+/// so a single grid is either too coarse for the small balls or too fine for the large ones.
+/// Thesis Appendix B answers this with an octree keyed by sphere size; this index uses the
+/// flat equivalent, which needs no pointer chasing:
+///
+/// * Balls are grouped into **radius levels**: level `L` holds the radii in
+///   `[2^L, 2^{L+1}) · r_ref`, where `r_ref` is the smallest positive radius (zero and
+///   negative radii join level 0). Within a level, radii differ by at most a factor of two, so
+///   a query reach computed from the level's largest radius wastes little.
+/// * Each level has a uniform grid whose cells are about as wide as the level's largest radius
+///   (`CELL_WIDTH_PER_RADIUS`). The level's balls are stored contiguously, sorted by cell, each
+///   centre, radius and original index copied side by side; `cell_start` maps a cell to its
+///   range of balls (compressed sparse rows over the dense cell array, x fastest), and a bit
+///   per cell marks the occupied ones so that empty space is skipped cheaply. Consecutive cells
+///   along x are consecutive in memory, so the cells of one grid row that a query needs form a
+///   single range: a query costs two table loads per grid row, not one per cell.
+/// * A query with reach `t` visits, per level, the grid rows `(y, z)` that meet the ball of
+///   radius `t` around `x`, and in each only the cells along `x` within that ball, i.e. the
+///   cells cut by a sphere, not a cube.
+/// * Balls with a non-finite radius live in a short list checked on every query; balls with
+///   a non-finite centre can never pass the test and are dropped.
+///
+/// The grid is capped at `max(CELLS_PER_BALL · n_L, MIN_CELLS)` cells per level (coarsening
+/// `x` first, then `y` and `z`): memory stays `O(n)` whatever the spread of the coordinates
+/// (one far-away ball cannot blow up the table), at the price of longer cells.
+///
+/// # Complexity
+///
+/// Building takes `O(n log n)` time (one parallel sort of `u64` keys) and `O(n)` memory, and
+/// gives the same index for any thread count (the sort keys are distinct: cell, then index).
+/// A query with reach `t_L = max(scale·r, 0) + extra` over the radii `r` of level `L`, whose
+/// cells have width `w_L`, costs per non-empty level `O((1 + 2 t_L / w_L)² + k_L)`, where
+/// `k_L` is the number of balls in the cells cut by the ball of radius `t_L` around `x`. For a
+/// containment query (`scale = 1`, `extra = 0`) on a cover whose balls overlap a bounded
+/// number of times, that is `O(levels + answer)`. A query spanning more grid rows than its
+/// level has balls scans the level linearly instead, so no query costs more than `O(n)`.
 #[derive(Clone, Debug)]
 pub struct BallIndex {
     len: usize,

@@ -1,22 +1,24 @@
 //! Union–find over `0..n`, with the smallest element of each set as its root.
 //!
-//! Keeping the smallest element as the root (rather than union by rank or size) makes the
-//! root of a set a property of the set alone, not of the order of the unions: code that
-//! labels pieces by their root, or walks them root by root, gives the same result however
-//! the unions were found, which parallel and sequential builds both rely on.
-//!
-//! ```
-//! use sphcover_core::DisjointSets;
-//!
-//! let mut sets = DisjointSets::new(5);
-//! sets.union(3, 1);
-//! sets.union(4, 3);
-//! assert_eq!(sets.find(4), 1);
-//! assert!(!sets.same_set(0, 4));
-//! assert_eq!(sets.count(), 3); // {0}, {1, 3, 4}, {2}
-//! ```
+//! The method is described on [`DisjointSets`].
 
-/// Disjoint sets of `0..n` (module docs): path halving, smallest element as root.
+/// Disjoint sets of `0..n`: path halving, smallest element as root.
+///
+/// Keeping the smallest element as the root (rather than union by rank or size) makes the
+/// root of a set a property of the set alone, not of the order of the unions: code that
+/// labels pieces by their root, or walks them root by root, gives the same result however
+/// the unions were found, which parallel and sequential builds both rely on.
+///
+/// ```
+/// use sphcover_core::DisjointSets;
+///
+/// let mut sets = DisjointSets::new(5);
+/// sets.union(3, 1);
+/// sets.union(4, 3);
+/// assert_eq!(sets.find(4), 1);
+/// assert!(!sets.same_set(0, 4));
+/// assert_eq!(sets.count(), 3); // {0}, {1, 3, 4}, {2}
+/// ```
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct DisjointSets {
     parent: Vec<u32>,

@@ -1,24 +1,6 @@
 //! Radial weight kernels of the partition of unity (thesis §3.2–§3.3).
 //!
-//! A support with centre `c` and radius `r` weighs a point `x` by `ψ(t)`, `t = ‖x − c‖ / r`,
-//! where `ψ` is one of the profiles of [`Kernel`]. Every profile vanishes for `t ≥ 1`, so the
-//! support of the weight is exactly the open ball.
-//!
-//! # Derivatives without dividing by zero
-//!
-//! With the scaled offset `u = (x − c) / r` (so `t = ‖u‖`), a radial weight has
-//!
-//! ```text
-//! ∇w  = A(t) u / r                      A(t) = ψ'(t) / t
-//! ∇²w = (A(t) I + B(t) u uᵀ) / r²       B(t) = (ψ''(t) − A(t)) / t²
-//! ```
-//!
-//! For every kernel here `A` has a finite limit at `t = 0` (the profiles are even and smooth
-//! at the centre), so the gradient is 0 and the Hessian `A(0) I / r²` at the centre. `B` may
-//! grow like `1/t` there (Wendland), but `B u uᵀ` is `O(t)`; the code evaluates `A` and
-//! `B u uᵀ` in closed form from `s = t²`, never dividing by `t` where `t` can be 0. The
-//! Gaussian needs no square root at all; the B-spline needs `t` only outside its inner
-//! parabola; Wendland always needs `t`.
+//! The method is described on [`Kernel`].
 
 use glam::{DMat3, DVec3};
 use std::fmt;
@@ -33,6 +15,26 @@ pub const GAUSSIAN_KAPPA: f64 = 1.0 / 3.0;
 const GAUSSIAN_RATE: f64 = 4.5;
 
 /// The radial weight profile of a support.
+///
+/// A support with centre `c` and radius `r` weighs a point `x` by `ψ(t)`, `t = ‖x − c‖ / r`,
+/// where `ψ` is one of the profiles of [`Kernel`]. Every profile vanishes for `t ≥ 1`, so the
+/// support of the weight is exactly the open ball.
+///
+/// # Derivatives without dividing by zero
+///
+/// With the scaled offset `u = (x − c) / r` (so `t = ‖u‖`), a radial weight has
+///
+/// ```text
+/// ∇w  = A(t) u / r                      A(t) = ψ'(t) / t
+/// ∇²w = (A(t) I + B(t) u uᵀ) / r²       B(t) = (ψ''(t) − A(t)) / t²
+/// ```
+///
+/// For every kernel here `A` has a finite limit at `t = 0` (the profiles are even and smooth
+/// at the centre), so the gradient is 0 and the Hessian `A(0) I / r²` at the centre. `B` may
+/// grow like `1/t` there (Wendland), but `B u uᵀ` is `O(t)`; the code evaluates `A` and
+/// `B u uᵀ` in closed form from `s = t²`, never dividing by `t` where `t` can be 0. The
+/// Gaussian needs no square root at all; the B-spline needs `t` only outside its inner
+/// parabola; Wendland always needs `t`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Kernel {
     /// Quadratic B-spline `b2(3t/2)` (thesis eq. 3.3): `b2(u) = 3/4 − u²` for `u ≤ 1/2`,
@@ -191,7 +193,7 @@ impl Kernel {
         }
     }
 
-    /// `(ψ, A)` as functions of `s = t²`, with `A = ψ'(t)/t` (see the module docs).
+    /// `(ψ, A)` as functions of `s = t²`, with `A = ψ'(t)/t` (see [`Kernel`]).
     #[inline]
     pub(crate) fn value_slope_sq(self, s: f64) -> (f64, f64) {
         if s >= 1.0 || s.is_nan() {

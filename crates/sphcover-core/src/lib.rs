@@ -42,38 +42,39 @@
 //! the documented defaults; set what you need and take the rest with `..Default::default()`.
 #![deny(missing_docs)]
 
-pub mod ball_index;
+mod ball_index;
 mod concat;
-pub mod cover;
-pub mod disjoint_sets;
-pub mod geometry;
+mod cover;
+mod disjoint_sets;
+mod geometry;
 pub mod io;
-pub mod kernel;
-pub mod local_function;
-pub mod mesh;
-pub mod mesh_topology;
+mod kernel;
+mod local_function;
+mod mesh;
+mod mesh_topology;
 mod parameter_error;
-pub mod partition_of_unity;
-pub mod point_cloud;
-pub mod point_index;
+mod partition_of_unity;
+mod point_cloud;
+mod point_index;
 pub mod random;
+mod small_cholesky;
 mod spatial_order;
-pub mod sphere_intersection_graph;
-pub mod stages;
-pub mod support_samples;
-pub mod surface_cover;
-pub mod symmetric_eigen;
+mod sphere_intersection_graph;
+mod stages;
+mod support_samples;
+mod surface_cover;
+mod symmetric_eigen;
 pub mod synthetic;
-pub mod threads;
-pub mod volume;
-pub mod volume_cover;
+mod threads;
+mod volume;
+mod volume_cover;
 
 pub use ball_index::{BallIndex, BallIndexError};
 pub use cover::{Cover, CoverError};
 pub use disjoint_sets::DisjointSets;
 pub use geometry::{Aabb, Normalisation};
 pub use glam::{DMat3, DVec3};
-pub use kernel::Kernel;
+pub use kernel::{GAUSSIAN_KAPPA, Kernel};
 pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, QuadraticFunction};
 pub use mesh::{
     SmallComponentsError, SmallComponentsStats, TriMesh, VertexTriangles, remove_small_components,
@@ -84,15 +85,18 @@ pub use parameter_error::{LengthMismatch, ParameterError};
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};
-pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph};
+pub use small_cholesky::SmallCholesky;
+pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph, balls_nested};
+pub use stages::{Stage, StageProgress, StageTimes, run_stages};
 pub use support_samples::SupportSamples;
 pub use surface_cover::{
-    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, SurfaceCoverTimings, SurfaceSamples,
-    build_surface_cover, build_surface_cover_from_cloud,
+    MAX_OCTREE_DEPTH, SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats,
+    SurfaceCoverTimings, SurfaceSamples, build_surface_cover, build_surface_cover_from_cloud,
 };
 pub use symmetric_eigen::SymmetricEigen3;
+pub use threads::on_threads;
 pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
     CentreOrder, Elimination, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
-    VolumeCoverVariant, build_scattered_cover, build_volume_cover,
+    VolumeCoverVariant, build_scattered_cover, build_volume_cover, median_nearest_distance,
 };

@@ -1,21 +1,7 @@
 //! Topology of a triangle mesh: connected components, boundary and non-manifold edges,
 //! non-manifold vertices, orientation consistency and the Euler characteristic.
 //!
-//! Reconstruction promises "a watertight 2-manifold where the object is closed" and the
-//! skeleton promises a sheet with the ground truth's Euler characteristic; both, and the
-//! benchmark scores, are checked with this one analysis so they cannot disagree.
-//!
-//! ```
-//! use sphcover_core::{TriMesh, DVec3};
-//! use sphcover_core::mesh_topology::MeshTopology;
-//!
-//! // A tetrahedron's surface: closed, one component, χ = 2.
-//! let v = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
-//! let t = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
-//! let topo = MeshTopology::of(&TriMesh::new(v, t));
-//! assert!(topo.is_watertight());
-//! assert_eq!((topo.components, topo.euler_characteristic()), (1, 2));
-//! ```
+//! The method is described on [`MeshTopology`].
 
 use rayon::prelude::*;
 
@@ -27,6 +13,22 @@ use crate::mesh::{TriMesh, bucketed};
 /// Triangles with an out-of-range or repeated vertex index are *invalid*: they are counted
 /// and otherwise ignored, so the analysis never fails. Vertices used by no valid triangle
 /// are ignored too (they do not count towards components or the Euler characteristic).
+///
+/// Reconstruction promises "a watertight 2-manifold where the object is closed" and the
+/// skeleton promises a sheet with the ground truth's Euler characteristic; both, and the
+/// benchmark scores, are checked with this one analysis so they cannot disagree.
+///
+/// ```
+/// use sphcover_core::{TriMesh, DVec3};
+/// use sphcover_core::MeshTopology;
+///
+/// // A tetrahedron's surface: closed, one component, χ = 2.
+/// let v = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+/// let t = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+/// let topo = MeshTopology::of(&TriMesh::new(v, t));
+/// assert!(topo.is_watertight());
+/// assert_eq!((topo.components, topo.euler_characteristic()), (1, 2));
+/// ```
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MeshTopology {
     /// Vertices used by at least one valid triangle.

@@ -1,27 +1,7 @@
 //! Partition-of-unity evaluation of a cover: `f`, `∇f`, `∇²f` (thesis eq. 3.1, 3.5, 3.9),
 //! with the support expansion factor σ of thesis §6.2.2.
 //!
-//! With `W = Σ w_i` and `N = Σ w_i g_i`, `f = N / W` where `W > 0`, and by the quotient rule
-//!
-//! ```text
-//! ∇f  = (∇N − f ∇W) / W
-//! ∇²f = (∇²N − f ∇²W − ∇f ⊗ ∇W − ∇W ⊗ ∇f) / W
-//! ```
-//!
-//! with `∇N = Σ (g_i ∇w_i + w_i ∇g_i)` and
-//! `∇²N = Σ (g_i ∇²w_i + ∇w_i ⊗ ∇g_i + ∇g_i ⊗ ∇w_i + w_i ∇²g_i)`.
-//!
-//! The expansion factor σ ≥ 1 evaluates each weight with radius `σ r_i` and keeps `g_i`
-//! unchanged (σ = 4 for the skeleton's derivatives in the thesis): more supports overlap at
-//! each point, which smooths `f` and its derivatives.
-//!
-//! # Determinism
-//!
-//! The sums run over the supports containing `x` in ascending support index, whatever order
-//! the spatial index reports them in; batch evaluation treats each point independently. So a
-//! result is bit-identical whatever the thread count and whatever the index's internals.
-//! Batches are evaluated in a spatially coherent order for cache efficiency and returned in
-//! input order; the order changes no result.
+//! The method is described on [`PuEvaluator`].
 
 mod packed;
 
@@ -106,6 +86,28 @@ pub struct ValueGradientHessian {
 ///
 /// The evaluator copies the local functions when it is built; to evaluate after changing
 /// them, build a new evaluator on the changed cover.
+///
+/// With `W = Σ w_i` and `N = Σ w_i g_i`, `f = N / W` where `W > 0`, and by the quotient rule
+///
+/// ```text
+/// ∇f  = (∇N − f ∇W) / W
+/// ∇²f = (∇²N − f ∇²W − ∇f ⊗ ∇W − ∇W ⊗ ∇f) / W
+/// ```
+///
+/// with `∇N = Σ (g_i ∇w_i + w_i ∇g_i)` and
+/// `∇²N = Σ (g_i ∇²w_i + ∇w_i ⊗ ∇g_i + ∇g_i ⊗ ∇w_i + w_i ∇²g_i)`.
+///
+/// The expansion factor σ ≥ 1 evaluates each weight with radius `σ r_i` and keeps `g_i`
+/// unchanged (σ = 4 for the skeleton's derivatives in the thesis): more supports overlap at
+/// each point, which smooths `f` and its derivatives.
+///
+/// # Determinism
+///
+/// The sums run over the supports containing `x` in ascending support index, whatever order
+/// the spatial index reports them in; batch evaluation treats each point independently. So a
+/// result is bit-identical whatever the thread count and whatever the index's internals.
+/// Batches are evaluated in a spatially coherent order for cache efficiency and returned in
+/// input order; the order changes no result.
 #[derive(Debug)]
 pub struct PuEvaluator<'a> {
     cover: &'a Cover,

@@ -1,20 +1,6 @@
 //! A static k-d tree over points: fixed-radius and k-nearest queries.
 //!
-//! Built once (in parallel, with a result that does not depend on the thread count) and
-//! queried from many threads through `&self`. The tree keeps its own copy of the points,
-//! permuted so that every leaf bucket is a contiguous run of memory; [`PointIndex::order`]
-//! maps these *slots* back to the caller's indices, so a caller that queries heavily can
-//! permute its own per-point data the same way and read it sequentially too.
-//!
-//! # Query conventions
-//!
-//! * A point `p` is *within* radius `r` of `x` when `‖p − x‖² < r²`, both sides computed in
-//!   `f64` exactly as written: the open ball, like the supports of a cover.
-//! * [`PointIndex::within`] and [`PointIndex::nearest_k`] report caller indices in a defined
-//!   order (ascending index; ascending `(distance², index)`), so results never depend on the
-//!   tree's internals. The `for_each_*` visitors report in tree order, which is fixed for a
-//!   given input and therefore deterministic too.
-//! * Non-finite points are not indexed: no query ever reports them.
+//! The method is described on [`PointIndex`].
 
 mod within_batch;
 
@@ -99,7 +85,23 @@ impl Node {
     }
 }
 
-/// A static k-d tree over a set of points (see the module docs for the query conventions).
+/// A static k-d tree over a set of points (query conventions below).
+///
+/// Built once (in parallel, with a result that does not depend on the thread count) and
+/// queried from many threads through `&self`. The tree keeps its own copy of the points,
+/// permuted so that every leaf bucket is a contiguous run of memory; [`PointIndex::order`]
+/// maps these *slots* back to the caller's indices, so a caller that queries heavily can
+/// permute its own per-point data the same way and read it sequentially too.
+///
+/// # Query conventions
+///
+/// * A point `p` is *within* radius `r` of `x` when `‖p − x‖² < r²`, both sides computed in
+///   `f64` exactly as written: the open ball, like the supports of a cover.
+/// * [`PointIndex::within`] and [`PointIndex::nearest_k`] report caller indices in a defined
+///   order (ascending index; ascending `(distance², index)`), so results never depend on the
+///   tree's internals. The `for_each_*` visitors report in tree order, which is fixed for a
+///   given input and therefore deterministic too.
+/// * Non-finite points are not indexed: no query ever reports them.
 #[derive(Clone, Debug)]
 pub struct PointIndex {
     /// Indexed points in slot order.

@@ -1,32 +1,6 @@
 //! The sphere intersection graph (SIG) of a cover (thesis Appendix B, §5.2.3).
 //!
-//! Supports `i ≠ j` are adjacent when their balls, shrunk by a factor `s`, overlap:
-//!
-//! ```text
-//! i ~ j  ⇔  ‖c_i − c_j‖ < s·(r_i + r_j)
-//! ```
-//!
-//! The shrink factor only thins the graph (the thesis uses `s = 0.7`, which takes the mean
-//! degree from about 100 to about 40 with no visible change in results); `s = 1` gives the true
-//! intersection graph. Every other computation uses the true radii.
-//!
-//! The graph is stored as compressed sparse rows with `u32` indices: row `i` is
-//! `neighbours[offsets[i]..offsets[i + 1]]`, sorted ascending, without `i` itself, and the
-//! relation is symmetric. Pairs where one ball contains the other (see [`balls_nested`]) stay in
-//! the graph; they have no intersection circle and carry zero operator weight (thesis §4), which
-//! is for the operators to decide.
-//!
-//! # Building
-//!
-//! Each row is one query of the [`BallIndex`] at `c_i` with reach `s·r_j + s·r_i`, filtered by
-//! the exact test, then sorted. Rows are computed in parallel in fixed chunks and concatenated
-//! in order, so the graph is identical for any thread count. Symmetry does not rely on luck:
-//! both directions evaluate the test through the same expression on the same operands (the
-//! lower index first), so `i ~ j` and `j ~ i` get the same floating-point answer.
-//!
-//! Cost: one ball-index query per support, `O(n log n + E log d)` overall for `E` directed
-//! entries and maximum degree `d`; memory `O(n + E)` (`4·E` bytes for the neighbour array plus
-//! the same again transiently while the chunks are joined).
+//! The method is described on [`SphereIntersectionGraph`].
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -88,6 +62,34 @@ pub enum SigError {
 }
 
 /// The sphere intersection graph of a cover, in compressed sparse rows.
+///
+/// Supports `i ≠ j` are adjacent when their balls, shrunk by a factor `s`, overlap:
+///
+/// ```text
+/// i ~ j  ⇔  ‖c_i − c_j‖ < s·(r_i + r_j)
+/// ```
+///
+/// The shrink factor only thins the graph (the thesis uses `s = 0.7`, which takes the mean
+/// degree from about 100 to about 40 with no visible change in results); `s = 1` gives the true
+/// intersection graph. Every other computation uses the true radii.
+///
+/// The graph is stored as compressed sparse rows with `u32` indices: row `i` is
+/// `neighbours[offsets[i]..offsets[i + 1]]`, sorted ascending, without `i` itself, and the
+/// relation is symmetric. Pairs where one ball contains the other (see [`balls_nested`]) stay in
+/// the graph; they have no intersection circle and carry zero operator weight (thesis §4), which
+/// is for the operators to decide.
+///
+/// # Building
+///
+/// Each row is one query of the [`BallIndex`] at `c_i` with reach `s·r_j + s·r_i`, filtered by
+/// the exact test, then sorted. Rows are computed in parallel in fixed chunks and concatenated
+/// in order, so the graph is identical for any thread count. Symmetry does not rely on luck:
+/// both directions evaluate the test through the same expression on the same operands (the
+/// lower index first), so `i ~ j` and `j ~ i` get the same floating-point answer.
+///
+/// Cost: one ball-index query per support, `O(n log n + E log d)` overall for `E` directed
+/// entries and maximum degree `d`; memory `O(n + E)` (`4·E` bytes for the neighbour array plus
+/// the same again transiently while the chunks are joined).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SphereIntersectionGraph {
     offsets: Vec<u32>,

@@ -1,39 +1,7 @@
 //! Pipelines as explicit lists of stages over a shared context, and the one runner that
 //! times them and reports their progress.
 //!
-//! A pipeline (reconstruction, skeletal sheet) keeps what its stages share (point index,
-//! sphere intersection graph, cover, samples of each support, …) in a context struct of its
-//! own; each stage is a plain function over that context. The list of stages is data, so a
-//! caller can print it, a progress display knows how many stages remain, and a new stage is
-//! one more entry rather than another branch in a long function.
-//!
-//! ```
-//! use sphcover_core::stages::{Stage, StageProgress, run_stages};
-//!
-//! #[derive(Default)]
-//! struct Sum {
-//!     values: Vec<f64>,
-//!     total: f64,
-//! }
-//! fn fill(ctx: &mut Sum) -> Result<(), String> {
-//!     ctx.values = (1..=4).map(f64::from).collect();
-//!     Ok(())
-//! }
-//! fn add(ctx: &mut Sum) -> Result<(), String> {
-//!     ctx.total = ctx.values.iter().sum();
-//!     Ok(())
-//! }
-//!
-//! let stages = [Stage::new("fill", fill), Stage::new("add", add)];
-//! let mut ctx = Sum::default();
-//! let started = std::sync::Mutex::new(Vec::new());
-//! let progress = |p: StageProgress| started.lock().unwrap().push((p.name, p.index, p.count));
-//! let times = run_stages(&mut ctx, &stages, &progress)?;
-//! assert_eq!(ctx.total, 10.0);
-//! assert_eq!(times.iter().map(|t| t.0).collect::<Vec<_>>(), ["fill", "add"]);
-//! assert_eq!(*started.lock().unwrap(), [("fill", 0, 2), ("add", 1, 2)]);
-//! # Ok::<(), String>(())
-//! ```
+//! The method is described on [`run_stages()`].
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -85,6 +53,40 @@ pub type StageTimes = Vec<(&'static str, Duration)>;
 
 /// Runs `stages` in order over `ctx`, telling `progress` as each starts, and returns the wall
 /// time of each. The first failing stage ends the run with its error.
+///
+/// A pipeline (reconstruction, skeletal sheet) keeps what its stages share (point index,
+/// sphere intersection graph, cover, samples of each support, …) in a context struct of its
+/// own; each stage is a plain function over that context. The list of stages is data, so a
+/// caller can print it, a progress display knows how many stages remain, and a new stage is
+/// one more entry rather than another branch in a long function.
+///
+/// ```
+/// use sphcover_core::{Stage, StageProgress, run_stages};
+///
+/// #[derive(Default)]
+/// struct Sum {
+///     values: Vec<f64>,
+///     total: f64,
+/// }
+/// fn fill(ctx: &mut Sum) -> Result<(), String> {
+///     ctx.values = (1..=4).map(f64::from).collect();
+///     Ok(())
+/// }
+/// fn add(ctx: &mut Sum) -> Result<(), String> {
+///     ctx.total = ctx.values.iter().sum();
+///     Ok(())
+/// }
+///
+/// let stages = [Stage::new("fill", fill), Stage::new("add", add)];
+/// let mut ctx = Sum::default();
+/// let started = std::sync::Mutex::new(Vec::new());
+/// let progress = |p: StageProgress| started.lock().unwrap().push((p.name, p.index, p.count));
+/// let times = run_stages(&mut ctx, &stages, &progress)?;
+/// assert_eq!(ctx.total, 10.0);
+/// assert_eq!(times.iter().map(|t| t.0).collect::<Vec<_>>(), ["fill", "add"]);
+/// assert_eq!(*started.lock().unwrap(), [("fill", 0, 2), ("add", 1, 2)]);
+/// # Ok::<(), String>(())
+/// ```
 pub fn run_stages<C, E>(
     ctx: &mut C,
     stages: &[Stage<C, E>],

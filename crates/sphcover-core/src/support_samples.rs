@@ -1,53 +1,6 @@
 //! The samples inside each support's ball, gathered once for several passes over them.
 //!
-//! A reconstruction visits the samples of every support several times: the support
-//! confidence (thesis eq. 5.38) takes their principal axes, the sample confidence
-//! (eq. 5.39–5.40) blends the support confidences at every sample, and the fitting terms of
-//! the diffusion (eq. 5.33) sum over them again. Each of those would otherwise ask the point
-//! index (or, for the blend, the index over the balls) for the same incidences.
-//! [`SupportSamples`] asks once and keeps, per support, the slots of the point index inside
-//! a ball a hair larger than the support's (so that every test below is a filter of the
-//! stored slots):
-//!
-//! * [`SupportSamples::for_each_slot_within`] reports exactly what
-//!   [`PointIndex::for_each_slot_within`] reports for the support's ball: the same slots in
-//!   the same order with the same squared distances, so sums over them keep their bits;
-//! * [`SupportSamples::blend`] is the partition-of-unity blend of one value per support at
-//!   every indexed point, bitwise equal to [`crate::PuEvaluator::blend`] with σ = 1. Its
-//!   sums run over the supports in ascending index as the evaluator's do, but they are
-//!   scattered from the supports to their samples, so no point has to look its supports up.
-//!
-//! The slots cost 4 bytes per incidence: about 34 MB for the 362K-point bunny's 8.5 million.
-//!
-//! # Example
-//!
-//! ```
-//! use sphcover_core::{Cover, DVec3, Kernel, LocalFunctions, PointIndex, PuEvaluator, SupportSamples};
-//!
-//! let points: Vec<DVec3> = (0..200).map(|i| DVec3::new(i as f64 * 0.01, 0.0, 0.0)).collect();
-//! let index = PointIndex::new(&points)?;
-//! let cover = Cover::new(
-//!     vec![DVec3::new(0.5, 0.0, 0.0), DVec3::new(1.5, 0.0, 0.0)],
-//!     vec![0.6, 0.6],
-//!     LocalFunctions::zero_linear(2),
-//!     Kernel::QuadraticBSpline,
-//! )?;
-//! let incidence = SupportSamples::gather(&cover, &index);
-//!
-//! let mut inside = 0;
-//! incidence.for_each_slot_within(&cover, &index, 0, |_slot, d2| {
-//!     assert!(d2 < 0.36);
-//!     inside += 1;
-//! });
-//! assert_eq!(inside, 110); // x = 0, 0.01, …, 1.09
-//!
-//! // The blend equals the evaluator's, bit for bit.
-//! let values = [1.0, 3.0];
-//! let blended = incidence.blend(&cover, &index, &values)?;
-//! let reference = PuEvaluator::new(&cover, 1.0)?.blend(&points, &values)?;
-//! assert_eq!(blended, reference);
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
+//! The method is described on [`SupportSamples`].
 
 use crate::LengthMismatch;
 use crate::cover::{Cover, CoverError};
@@ -70,6 +23,55 @@ const GATHER_RUN: usize = 16 * GATHER_BLOCK;
 /// The rows hold no reference to the cover or the index they were gathered from, so a
 /// pipeline can keep them beside both (and change the cover's local functions, which the
 /// rows do not depend on); every method takes the two again and checks their sizes.
+///
+/// A reconstruction visits the samples of every support several times: the support
+/// confidence (thesis eq. 5.38) takes their principal axes, the sample confidence
+/// (eq. 5.39–5.40) blends the support confidences at every sample, and the fitting terms of
+/// the diffusion (eq. 5.33) sum over them again. Each of those would otherwise ask the point
+/// index (or, for the blend, the index over the balls) for the same incidences.
+/// [`SupportSamples`] asks once and keeps, per support, the slots of the point index inside
+/// a ball a hair larger than the support's (so that every test below is a filter of the
+/// stored slots):
+///
+/// * [`SupportSamples::for_each_slot_within`] reports exactly what
+///   [`PointIndex::for_each_slot_within`] reports for the support's ball: the same slots in
+///   the same order with the same squared distances, so sums over them keep their bits;
+/// * [`SupportSamples::blend`] is the partition-of-unity blend of one value per support at
+///   every indexed point, bitwise equal to [`crate::PuEvaluator::blend`] with σ = 1. Its
+///   sums run over the supports in ascending index as the evaluator's do, but they are
+///   scattered from the supports to their samples, so no point has to look its supports up.
+///
+/// The slots cost 4 bytes per incidence: about 34 MB for the 362K-point bunny's 8.5 million.
+///
+/// # Example
+///
+/// ```
+/// use sphcover_core::{Cover, DVec3, Kernel, LocalFunctions, PointIndex, PuEvaluator, SupportSamples};
+///
+/// let points: Vec<DVec3> = (0..200).map(|i| DVec3::new(i as f64 * 0.01, 0.0, 0.0)).collect();
+/// let index = PointIndex::new(&points)?;
+/// let cover = Cover::new(
+///     vec![DVec3::new(0.5, 0.0, 0.0), DVec3::new(1.5, 0.0, 0.0)],
+///     vec![0.6, 0.6],
+///     LocalFunctions::zero_linear(2),
+///     Kernel::QuadraticBSpline,
+/// )?;
+/// let incidence = SupportSamples::gather(&cover, &index);
+///
+/// let mut inside = 0;
+/// incidence.for_each_slot_within(&cover, &index, 0, |_slot, d2| {
+///     assert!(d2 < 0.36);
+///     inside += 1;
+/// });
+/// assert_eq!(inside, 110); // x = 0, 0.01, …, 1.09
+///
+/// // The blend equals the evaluator's, bit for bit.
+/// let values = [1.0, 3.0];
+/// let blended = incidence.blend(&cover, &index, &values)?;
+/// let reference = PuEvaluator::new(&cover, 1.0)?.blend(&points, &values)?;
+/// assert_eq!(blended, reference);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct SupportSamples {
     /// Points of the index the rows were gathered from.

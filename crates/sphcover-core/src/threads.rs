@@ -7,7 +7,7 @@
 ///
 /// ```
 /// use rayon::prelude::*;
-/// use sphcover_core::threads::on_threads;
+/// use sphcover_core::on_threads;
 ///
 /// let sum = |threads| on_threads(threads, || (1..=100u64).into_par_iter().sum::<u64>());
 /// assert_eq!(sum(1), sum(3));

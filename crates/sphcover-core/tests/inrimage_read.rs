@@ -32,13 +32,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 
 fn parse(
     bytes: &[u8],
-) -> Result<
-    (
-        sphcover_core::volume::Volume,
-        sphcover_core::io::InrimageInfo,
-    ),
-    IoError,
-> {
+) -> Result<(sphcover_core::Volume, sphcover_core::io::InrimageInfo), IoError> {
     parse_inrimage(bytes, Path::new("t.inr"))
 }
 

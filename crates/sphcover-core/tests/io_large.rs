@@ -23,7 +23,7 @@ fn cloud(n: usize) -> PointCloud {
 }
 
 fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    sphcover_core::threads::on_threads(threads, f)
+    sphcover_core::on_threads(threads, f)
 }
 
 #[test]

@@ -4,11 +4,11 @@
 use std::path::Path;
 
 use glam::DVec3;
+use sphcover_core::PointCloud;
 use sphcover_core::io::{
     Format, IoError, Location, Problem, ReadOptions, WriteOptions, parse_geometry, read_geometry,
     write_point_cloud,
 };
-use sphcover_core::point_cloud::PointCloud;
 
 /// A LAS file: header fields the tests vary, and points as raw integers with intensity.
 struct Las {

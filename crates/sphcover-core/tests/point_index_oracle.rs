@@ -195,8 +195,7 @@ fn identical_points_and_large_clouds_are_handled() {
             )
         })
         .collect();
-    let build =
-        |threads| sphcover_core::threads::on_threads(threads, || PointIndex::new(&points).unwrap());
+    let build = |threads| sphcover_core::on_threads(threads, || PointIndex::new(&points).unwrap());
     let (a, b) = (build(1), build(2));
     assert_eq!(a.order(), b.order());
     let x = DVec3::splat(0.5);

@@ -5,10 +5,9 @@ mod pu_common;
 
 use proptest::prelude::*;
 use pu_common::*;
-use sphcover_core::LengthMismatch;
 use sphcover_core::{
-    Cover, CoverError, DMat3, DVec3, Kernel, LinearFunction, LocalFunctions, PuEvaluator,
-    QuadraticFunction, SupportLists,
+    Cover, CoverError, DMat3, DVec3, Kernel, LengthMismatch, LinearFunction, LocalFunctions,
+    PuEvaluator, QuadraticFunction, SupportLists,
 };
 
 fn brute_force_containing(cover: &Cover, sigma: f64, x: DVec3) -> Vec<u32> {
@@ -128,7 +127,7 @@ fn support_lists_serve_new_functions_for_any_thread_count() {
         let sigma = 1.5;
         let eval = PuEvaluator::new(&cover, sigma).unwrap();
         let lists_at = |threads: usize, points: &[DVec3]| {
-            sphcover_core::threads::on_threads(threads, || eval.support_lists(points))
+            sphcover_core::on_threads(threads, || eval.support_lists(points))
         };
         let lists = lists_at(1, &points);
         let three = lists_at(3, &points);
@@ -285,7 +284,7 @@ fn batch_equals_single_and_is_independent_of_thread_count() {
         let (cover, points) = sample_cover(kernel, spread);
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
-            sphcover_core::threads::on_threads(threads, || {
+            sphcover_core::on_threads(threads, || {
                 (
                     eval.values(&points),
                     eval.values_gradients(&points),
@@ -443,7 +442,7 @@ fn blend_equals_the_weighted_mean_of_weights_for_any_thread_count() {
         let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).sin()).collect();
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
-            sphcover_core::threads::on_threads(threads, || eval.blend(&points, &values).unwrap())
+            sphcover_core::on_threads(threads, || eval.blend(&points, &values).unwrap())
         };
         let one = run(1);
         assert_eq!(one, run(3), "{kernel}");
@@ -480,7 +479,7 @@ fn fused_gradient_and_blend_equal_the_separate_queries() {
         let values: Vec<f64> = (0..cover.len()).map(|i| (i as f64 * 0.37).cos()).collect();
         let eval = PuEvaluator::new(&cover, 1.5).unwrap();
         let run = |threads: usize| {
-            sphcover_core::threads::on_threads(threads, || {
+            sphcover_core::on_threads(threads, || {
                 eval.values_gradients_blends(&points, &values).unwrap()
             })
         };

@@ -4,11 +4,10 @@
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use sphcover_core::sphere_intersection_graph::balls_nested;
 use sphcover_core::synthetic::{
     AdaptiveCoverParams, Surface, adaptive_surface_cover, jittered_grid,
 };
-use sphcover_core::{Aabb, DVec3, SigError, SphereIntersectionGraph};
+use sphcover_core::{Aabb, DVec3, SigError, SphereIntersectionGraph, balls_nested};
 
 /// All pairs `i < j` with `‖c_i − c_j‖ < s·(r_i + r_j)`, the test written out literally.
 fn brute_edges(centres: &[DVec3], radii: &[f64], shrink: f64) -> Vec<(u32, u32)> {
@@ -203,7 +202,7 @@ fn graph_is_identical_for_any_thread_count() {
     let graphs: Vec<SphereIntersectionGraph> = [1, 2, 8]
         .into_iter()
         .map(|threads| {
-            sphcover_core::threads::on_threads(threads, || {
+            sphcover_core::on_threads(threads, || {
                 SphereIntersectionGraph::build(&cover.centres, &cover.radii, 0.7)
             })
             .unwrap()

@@ -207,9 +207,7 @@ fn adaptive_cover_spans_radius_levels_and_is_deterministic() {
     // refines the rest down to depth 4.
     assert_eq!(r_max / r_min, 4.0);
     for threads in [1, 3] {
-        let again = sphcover_core::threads::on_threads(threads, || {
-            adaptive_surface_cover(&params).unwrap()
-        });
+        let again = sphcover_core::on_threads(threads, || adaptive_surface_cover(&params).unwrap());
         assert_eq!(again, cover);
     }
 }

@@ -173,7 +173,7 @@ fn same_seed_gives_the_same_cover_on_one_and_two_threads() {
         ..SurfaceCoverParams::default()
     };
     let build = |threads| {
-        sphcover_core::threads::on_threads(threads, || {
+        sphcover_core::on_threads(threads, || {
             build_surface_cover(&SurfaceSamples::new(&points, &normals), &params).unwrap()
         })
     };

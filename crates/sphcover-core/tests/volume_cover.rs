@@ -243,9 +243,7 @@ fn greedy_order_is_deterministic_across_thread_counts() {
         ..hu_params()
     };
     let run = |threads: usize| {
-        sphcover_core::threads::on_threads(threads, || {
-            build_volume_cover(&volume, &params).unwrap().0
-        })
+        sphcover_core::on_threads(threads, || build_volume_cover(&volume, &params).unwrap().0)
     };
     assert_eq!(run(1), run(2));
 }
@@ -369,7 +367,7 @@ fn same_seed_gives_the_same_cover_whatever_the_thread_count() {
     let volume = test_phantom();
     let params = hu_params();
     let run = |threads: usize, seed: u64| {
-        sphcover_core::threads::on_threads(threads, || {
+        sphcover_core::on_threads(threads, || {
             build_volume_cover(
                 &volume,
                 &VolumeCoverParams {
@@ -596,7 +594,6 @@ fn deepest_first_centres_cover_the_plate_with_fewer_supports() {
         cover.len(),
         random_cover.len()
     );
-    let two =
-        sphcover_core::threads::on_threads(2, || build_volume_cover(&volume, &deepest).unwrap().0);
+    let two = sphcover_core::on_threads(2, || build_volume_cover(&volume, &deepest).unwrap().0);
     assert_eq!(cover, two);
 }

@@ -160,7 +160,7 @@ fn the_linear_variant_covers_every_sample() {
 fn same_seed_gives_the_same_cover_whatever_the_thread_count() {
     let (points, values) = jittered_ball(14, 9);
     let run = |threads: usize, seed: u64| {
-        sphcover_core::threads::on_threads(threads, || {
+        sphcover_core::on_threads(threads, || {
             let params = VolumeCoverParams {
                 seed,
                 ..VolumeCoverParams::default()

@@ -68,7 +68,7 @@ fn laplacian_apply(c: &mut Criterion) {
     for threads in [1, 2] {
         let pool = pool(threads);
         group.bench_function(format!("dot_512MB_{threads}_threads"), |bench| {
-            bench.iter(|| pool.install(|| sphcover_ops::conjugate_gradient::dot(&a, &b)))
+            bench.iter(|| pool.install(|| sphcover_ops::dot(&a, &b)))
         });
     }
     group.finish();

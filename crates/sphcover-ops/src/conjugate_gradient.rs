@@ -1,15 +1,6 @@
 //! Preconditioned conjugate gradients for the symmetric systems the operators give.
 //!
-//! `Lap = M⁻¹ L_W` with `L_W = W − diag(W·1)` symmetric negative semi-definite (thesis §4), so
-//! implicit smoothing `(M − t L_W) u = M u₀` and Poisson problems `−L_W u = −M f` with fixed
-//! values are symmetric positive definite: conjugate gradients apply. The solver follows the
-//! faer conventions: a [`CgParams`] with `Default`, a [`CgInfo`] on success, a typed
-//! [`CgError`], and caller-provided scratch ([`CgScratch`]) so that repeated solves allocate
-//! nothing.
-//!
-//! Reproducibility: every dot product is reduced over fixed chunks of [`DOT_CHUNK`] entries
-//! whose partial sums are then added in order, and the operator applies are row-parallel with
-//! a fixed order inside each row, so iterates are bit-identical for any thread count.
+//! The method is described on [`conjugate_gradient()`].
 
 use rayon::prelude::*;
 use sphcover_core::ParameterError;
@@ -188,6 +179,17 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// On success `x` holds the solution and [`CgInfo`] the iteration count and residual; on
 /// [`CgError::NotConverged`] `x` holds the last iterate. The result is bit-identical for any
 /// thread count when `A`'s apply is.
+///
+/// `Lap = M⁻¹ L_W` with `L_W = W − diag(W·1)` symmetric negative semi-definite (thesis §4), so
+/// implicit smoothing `(M − t L_W) u = M u₀` and Poisson problems `−L_W u = −M f` with fixed
+/// values are symmetric positive definite: conjugate gradients apply. The solver follows the
+/// faer conventions: a [`CgParams`] with `Default`, a [`CgInfo`] on success, a typed
+/// [`CgError`], and caller-provided scratch ([`CgScratch`]) so that repeated solves allocate
+/// nothing.
+///
+/// Reproducibility: every dot product is reduced over fixed chunks of 8,192 entries
+/// whose partial sums are then added in order, and the operator applies are row-parallel with
+/// a fixed order inside each row, so iterates are bit-identical for any thread count.
 pub fn conjugate_gradient<A: SymmetricOperator + ?Sized>(
     op: &A,
     b: &[f64],

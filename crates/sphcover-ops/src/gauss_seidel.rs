@@ -1,14 +1,7 @@
 //! Symmetric Gauss–Seidel preconditioning on fixed row blocks (block Jacobi with a
 //! symmetric Gauss–Seidel sweep inside each block).
 //!
-//! The rows are cut into fixed blocks of [`BLOCK`] consecutive rows (the cover's order, which
-//! keeps neighbours close in memory); inside a block, `M_b = (D + L) D⁻¹ (D + Lᵀ)` with `L` the
-//! strictly lower part of the block's diagonal block of `A`, and couplings between blocks are
-//! left out. `M = diag(M_b)` is symmetric positive definite when `A` is, and the blocks never
-//! depend on the thread pool, so iterates are bit-identical for any thread count. A global
-//! greedy multicolour ordering would take 184 iterations instead of Jacobi's 350 on the 205K
-//! benchmark but runs 7× slower: the colour order scatters every row's neighbours over the
-//! whole vector.
+//! The method is described on [`SymmetricGaussSeidel`].
 
 use rayon::prelude::*;
 
@@ -30,6 +23,15 @@ pub struct SparseRows {
 pub const BLOCK: usize = 32768;
 
 /// The block symmetric Gauss–Seidel preconditioner of a [`SparseRows`] matrix.
+///
+/// The rows are cut into fixed blocks of 32,768 consecutive rows (the cover's order, which
+/// keeps neighbours close in memory); inside a block, `M_b = (D + L) D⁻¹ (D + Lᵀ)` with `L` the
+/// strictly lower part of the block's diagonal block of `A`, and couplings between blocks are
+/// left out. `M = diag(M_b)` is symmetric positive definite when `A` is, and the blocks never
+/// depend on the thread pool, so iterates are bit-identical for any thread count. A global
+/// greedy multicolour ordering would take 184 iterations instead of Jacobi's 350 on the 205K
+/// benchmark but runs 7× slower: the colour order scatters every row's neighbours over the
+/// whole vector.
 #[derive(Clone, Debug)]
 pub struct SymmetricGaussSeidel {
     /// Per row, its strictly lower in-block entries, then its strictly upper ones.

@@ -1,14 +1,9 @@
 //! Implicit (backward Euler) smoothing by the symmetric Laplacian: `(M − t L_W) u = M u₀`.
 //!
-//! One backward-Euler step of the heat equation `∂u/∂t = Lap u` with `Lap = M⁻¹ L_W`
-//! (thesis §4, `L_W = W − diag(W·1)`). The matrix `M − t L_W` is symmetric positive definite
-//! for `t ≥ 0` wherever `m_i > 0`, so conjugate gradients solve it; unconditionally stable, so
-//! `t` can be as large as the smoothing wanted. A support without usable neighbours (zero
-//! mass, zero row) keeps its value.
+//! The method is described on [`implicit_smoothing()`].
 
 use rayon::prelude::*;
-use sphcover_core::LengthMismatch;
-use sphcover_core::ParameterError;
+use sphcover_core::{LengthMismatch, ParameterError};
 
 use crate::conjugate_gradient::{
     CgInfo, CgParams, CgScratch, SymmetricOperator, conjugate_gradient,
@@ -93,6 +88,12 @@ impl SymmetricOperator for ShiftedStiffness<'_> {
 
 /// One implicit smoothing step of the scalar field `u0` (one value per support) over time
 /// `t`: returns `u` with `(M − t L_W) u = M u₀`, starting CG from `u₀`.
+///
+/// One backward-Euler step of the heat equation `∂u/∂t = Lap u` with `Lap = M⁻¹ L_W`
+/// (thesis §4, `L_W = W − diag(W·1)`). The matrix `M − t L_W` is symmetric positive definite
+/// for `t ≥ 0` wherever `m_i > 0`, so conjugate gradients solve it; unconditionally stable, so
+/// `t` can be as large as the smoothing wanted. A support without usable neighbours (zero
+/// mass, zero row) keeps its value.
 pub fn implicit_smoothing(
     geometry: &PairGeometry,
     mass: MassKind,

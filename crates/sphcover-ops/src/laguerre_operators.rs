@@ -1,33 +1,6 @@
 //! A Laguerre (power-diagram) partition variant with the symmetric finite-volume structure.
 //!
-//! The power cell of support `i` is `{x : |x − c_i|² − r_i² ≤ |x − c_j|² − r_j² ∀ j}`; within
-//! the union of the balls only intersecting balls can share a face (a face point has equal,
-//! non-positive power for both). Here the cell is computed from the graph neighbours only:
-//! a convex polyhedron (the bound, [`CellBound`]) clipped by the radical plane
-//! `n_ij · (x − c_i) ≤ l_i` of every neighbour (`n_ij = (c_j − c_i)/d_ij`,
-//! `l_i = (d² + r_i² − r_j²)/(2d)`, thesis eq. 4.33), which gives the face areas `A_ij`, the
-//! cell volume `V_i` and the area of the cell's faces on the bound. Then
-//!
-//! ```text
-//! Lap(u)_i  = (1/V_i) Σ_j (Ā_ij / d_ij) (u_j − u_i)          Ā_ij = (A_ij + A_ji)/2, symmetric
-//! Grad(u)_i = (1/2V_i) Σ_j A_ij n_ij (u_j − u_i)
-//! Div(v)_i  = (1/2V_i) Σ_j A_ij n_ij · (v_j − v_i)
-//! Curl(v)_i = (1/2V_i) Σ_j A_ij n_ij × (v_j − v_i)
-//! ```
-//!
-//! The difference forms equal the central-flux forms `(1/V)Σ A n·(v_i + v_j)/2` wherever the
-//! cell is closed by neighbour faces (`Σ_j A_ij n_ij = 0`), and vanish on constants exactly
-//! everywhere. `Lap` is `V⁻¹(W − diag(W·1))` with the symmetric `W = [Ā_ij/d_ij]`: symmetric
-//! and negative semi-definite like the thesis form, so it can go into conjugate gradients.
-//! For closed cells `Lap` of a linear field is `a · Σ_j A_ij n_ij = 0` to rounding (faces are
-//! perpendicular to `c_j − c_i`); it is not exact on quadratics unless the radii are equal
-//! (Voronoi) and the face centroids lie on the centre lines; the consistency example measures
-//! by how much.
-//!
-//! The cell of `i` uses only `i`'s neighbours, so `A_ij` (from `i`'s cell) and `A_ji` (from
-//! `j`'s) agree only when both cells see every plane that cuts them; build the graph with
-//! shrink factor 1 (every intersecting pair) for that. [`LaguerreStats`] reports the largest
-//! mismatch.
+//! The method is described on [`LaguerreOperators`].
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -247,7 +220,36 @@ fn polygon_area(vertices: &[DVec3]) -> f64 {
     0.5 * sum.length()
 }
 
-/// The power-cell operators of a cover (see the module documentation).
+/// The power-cell operators of a cover (method below).
+///
+/// The power cell of support `i` is `{x : |x − c_i|² − r_i² ≤ |x − c_j|² − r_j² ∀ j}`; within
+/// the union of the balls only intersecting balls can share a face (a face point has equal,
+/// non-positive power for both). Here the cell is computed from the graph neighbours only:
+/// a convex polyhedron (the bound, [`CellBound`]) clipped by the radical plane
+/// `n_ij · (x − c_i) ≤ l_i` of every neighbour (`n_ij = (c_j − c_i)/d_ij`,
+/// `l_i = (d² + r_i² − r_j²)/(2d)`, thesis eq. 4.33), which gives the face areas `A_ij`, the
+/// cell volume `V_i` and the area of the cell's faces on the bound. Then
+///
+/// ```text
+/// Lap(u)_i  = (1/V_i) Σ_j (Ā_ij / d_ij) (u_j − u_i)          Ā_ij = (A_ij + A_ji)/2, symmetric
+/// Grad(u)_i = (1/2V_i) Σ_j A_ij n_ij (u_j − u_i)
+/// Div(v)_i  = (1/2V_i) Σ_j A_ij n_ij · (v_j − v_i)
+/// Curl(v)_i = (1/2V_i) Σ_j A_ij n_ij × (v_j − v_i)
+/// ```
+///
+/// The difference forms equal the central-flux forms `(1/V)Σ A n·(v_i + v_j)/2` wherever the
+/// cell is closed by neighbour faces (`Σ_j A_ij n_ij = 0`), and vanish on constants exactly
+/// everywhere. `Lap` is `V⁻¹(W − diag(W·1))` with the symmetric `W = [Ā_ij/d_ij]`: symmetric
+/// and negative semi-definite like the thesis form, so it can go into conjugate gradients.
+/// For closed cells `Lap` of a linear field is `a · Σ_j A_ij n_ij = 0` to rounding (faces are
+/// perpendicular to `c_j − c_i`); it is not exact on quadratics unless the radii are equal
+/// (Voronoi) and the face centroids lie on the centre lines; the consistency example measures
+/// by how much.
+///
+/// The cell of `i` uses only `i`'s neighbours, so `A_ij` (from `i`'s cell) and `A_ji` (from
+/// `j`'s) agree only when both cells see every plane that cuts them; build the graph with
+/// shrink factor 1 (every intersecting pair) for that. [`LaguerreStats`] reports the largest
+/// mismatch.
 #[derive(Clone, Debug)]
 pub struct LaguerreOperators {
     centres: Vec<DVec3>,

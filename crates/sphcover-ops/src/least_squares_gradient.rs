@@ -1,25 +1,6 @@
 //! The thesis gradient at support centres by φ-weighted least squares (thesis eq. 4.22).
 //!
-//! The thesis defines `Grad(u)_i` only through the Taylor relation
-//! `u_j = u_i + Grad(u)_i · (c_j − c_i)` over the neighbours. Its φ-weighted least-squares
-//! solution is
-//!
-//! ```text
-//! Grad(u)_i = Σ_j w_ij (u_j − u_i),   w_ij = G_i⁺ φ_ij d_ij,   G_i = Σ_j φ_ij d_ij d_ijᵀ,   d_ij = c_j − c_i
-//! ```
-//!
-//! exact for linear `u` whenever the neighbour offsets span ℝ³. When they do not (one
-//! neighbour, or all neighbours on a line or plane), the result is the minimum-norm gradient:
-//! the projection of the true gradient onto the span of the offsets, which still reproduces
-//! every difference `u_j − u_i` of a linear field. Then `Div(Grad(u)) = Lap(u)` holds for
-//! linear `u` in every case (thesis eq. 4.23–4.28).
-//!
-//! Accuracy. The weights `w_ij` are computed from a singular-value decomposition of the
-//! row-weighted, column-scaled offsets (never from `G_i`, whose condition number is the square
-//! of theirs), and then refined so that `Σ_j w_ij d_ijᵀ = I` holds to rounding: with
-//! `E = I − Σ_j w_ij d_ijᵀ`, `w ← (I + E) w` leaves `I − E²`. The gradient of a linear field
-//! then reproduces every neighbour difference to rounding, however badly conditioned the
-//! neighbourhood (nearly nested or nearly coplanar neighbours).
+//! The method is described on [`LeastSquaresGradient`].
 
 use glam::DVec3;
 use nalgebra::DMatrix;
@@ -35,6 +16,27 @@ const RANK_TOLERANCE: f64 = 1e-12;
 
 /// The least-squares gradient operator of a [`PairGeometry`]: one weight vector per stored
 /// neighbour (zero for unusable pairs), aligned with [`PairGeometry::neighbour_array`].
+///
+/// The thesis defines `Grad(u)_i` only through the Taylor relation
+/// `u_j = u_i + Grad(u)_i · (c_j − c_i)` over the neighbours. Its φ-weighted least-squares
+/// solution is
+///
+/// ```text
+/// Grad(u)_i = Σ_j w_ij (u_j − u_i),   w_ij = G_i⁺ φ_ij d_ij,   G_i = Σ_j φ_ij d_ij d_ijᵀ,   d_ij = c_j − c_i
+/// ```
+///
+/// exact for linear `u` whenever the neighbour offsets span ℝ³. When they do not (one
+/// neighbour, or all neighbours on a line or plane), the result is the minimum-norm gradient:
+/// the projection of the true gradient onto the span of the offsets, which still reproduces
+/// every difference `u_j − u_i` of a linear field. Then `Div(Grad(u)) = Lap(u)` holds for
+/// linear `u` in every case (thesis eq. 4.23–4.28).
+///
+/// Accuracy. The weights `w_ij` are computed from a singular-value decomposition of the
+/// row-weighted, column-scaled offsets (never from `G_i`, whose condition number is the square
+/// of theirs), and then refined so that `Σ_j w_ij d_ijᵀ = I` holds to rounding: with
+/// `E = I − Σ_j w_ij d_ijᵀ`, `w ← (I + E) w` leaves `I − E²`. The gradient of a linear field
+/// then reproduces every neighbour difference to rounding, however badly conditioned the
+/// neighbourhood (nearly nested or nearly coplanar neighbours).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LeastSquaresGradient {
     weights: Vec<DVec3>,

@@ -48,22 +48,23 @@
 //! take the rest with `..Default::default()`.
 #![deny(missing_docs)]
 
-pub mod conjugate_gradient;
-pub mod discrete_operators;
-pub mod error;
-pub mod gauss_seidel;
-pub mod implicit_smoothing;
-pub mod laguerre_operators;
-pub mod least_squares_gradient;
-pub mod pair_geometry;
-pub mod poisson;
-pub mod quadratic_fit_operators;
-pub mod thesis_operators;
-pub mod two_level;
+mod conjugate_gradient;
+mod discrete_operators;
+mod error;
+mod gauss_seidel;
+mod implicit_smoothing;
+mod laguerre_operators;
+mod least_squares_gradient;
+mod pair_geometry;
+mod poisson;
+mod quadratic_fit_operators;
+mod thesis_operators;
+mod two_level;
 mod weighted_fit;
 
 pub use conjugate_gradient::{
     CgError, CgInfo, CgParams, CgScratch, Preconditioner, SymmetricOperator, conjugate_gradient,
+    dot,
 };
 pub use discrete_operators::DiscreteOperators;
 pub use error::{OpsError, SolveError};

@@ -1,35 +1,12 @@
 //! Geometry of intersecting pairs of supports (thesis eq. 4.33–4.36), computed once per graph.
 //!
-//! For supports `i`, `j` with `d = ‖c_j − c_i‖` and `|r_i − r_j| < d < r_i + r_j`, the two
-//! spheres meet in a circle lying in the radical plane:
-//!
-//! ```text
-//! l_i  = (d² + r_i² − r_j²) / (2d)    signed distance from c_i to the radical plane
-//! ρ²   = r_i² − l_i²                  radius² of the intersection disk (symmetric)
-//! D_ij = π ρ²                         intersection-disk area (symmetric)
-//! A_ij = 2π r_i (r_i − l_i)           area of the cap of ∂s_i inside s_j
-//! S_i  = Σ_j A_ij                     normaliser (eq. 4.19)
-//! φ_ij = D_ij / d                     symmetric edge weight (eq. 4.20)
-//! m_i  = r_i S_i / 3                  thesis mass: the ball's volume when the caps tile ∂s_i
-//! ```
-//!
-//! Pairs where one ball contains the other (`d ≤ |r_i − r_j|`, including `d = 0`), and pairs
-//! whose balls do not meet (possible when the graph was built with a shrink factor above 1),
-//! have no intersection circle and get `φ = 0`, `A = 0`. A support without any usable pair has
-//! zero mass and, by convention, zero operators (never NaN).
-//!
-//! ρ² and `r_i − l_i` are evaluated in factored forms,
-//! `ρ² = ((r_i + r_j)² − d²)(d² − (r_i − r_j)²) / (4d²)` and
-//! `r_i − l_i = (r_i + r_j − d)(r_j − r_i + d) / (2d)`, which avoid the cancellation of
-//! `r_i² − l_i²` for nearly tangent or nearly nested balls, and make `φ_ij` and `φ_ji` the same
-//! floating-point number: every operand of ρ² is symmetric in `i`, `j` bit for bit.
+//! The method is described on [`PairGeometry`].
 
-use sphcover_core::LengthMismatch;
+use sphcover_core::{LengthMismatch, SphereIntersectionGraph};
 use std::f64::consts::PI;
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::SphereIntersectionGraph;
 
 use crate::error::OpsError;
 
@@ -107,6 +84,30 @@ pub enum MassKind {
 /// It is also the symmetric weight matrix `W = [φ_ij]`, and applies the stiffness
 /// `L_W = W − diag(W·1)` (symmetric, negative semi-definite) and the Laplacian
 /// `Lap = M⁻¹ L_W` for either [`MassKind`].
+///
+/// For supports `i`, `j` with `d = ‖c_j − c_i‖` and `|r_i − r_j| < d < r_i + r_j`, the two
+/// spheres meet in a circle lying in the radical plane:
+///
+/// ```text
+/// l_i  = (d² + r_i² − r_j²) / (2d)    signed distance from c_i to the radical plane
+/// ρ²   = r_i² − l_i²                  radius² of the intersection disk (symmetric)
+/// D_ij = π ρ²                         intersection-disk area (symmetric)
+/// A_ij = 2π r_i (r_i − l_i)           area of the cap of ∂s_i inside s_j
+/// S_i  = Σ_j A_ij                     normaliser (eq. 4.19)
+/// φ_ij = D_ij / d                     symmetric edge weight (eq. 4.20)
+/// m_i  = r_i S_i / 3                  thesis mass: the ball's volume when the caps tile ∂s_i
+/// ```
+///
+/// Pairs where one ball contains the other (`d ≤ |r_i − r_j|`, including `d = 0`), and pairs
+/// whose balls do not meet (possible when the graph was built with a shrink factor above 1),
+/// have no intersection circle and get `φ = 0`, `A = 0`. A support without any usable pair has
+/// zero mass and, by convention, zero operators (never NaN).
+///
+/// ρ² and `r_i − l_i` are evaluated in factored forms,
+/// `ρ² = ((r_i + r_j)² − d²)(d² − (r_i − r_j)²) / (4d²)` and
+/// `r_i − l_i = (r_i + r_j − d)(r_j − r_i + d) / (2d)`, which avoid the cancellation of
+/// `r_i² − l_i²` for nearly tangent or nearly nested balls, and make `φ_ij` and `φ_ji` the same
+/// floating-point number: every operand of ρ² is symmetric in `i`, `j` bit for bit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PairGeometry {
     centres: Vec<DVec3>,

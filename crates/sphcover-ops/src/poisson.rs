@@ -1,19 +1,7 @@
 //! The Poisson problem `Lap u = f` with `Lap = M⁻¹ L_W`, fixed by an anchor or by Dirichlet
 //! values.
 //!
-//! `L_W` is singular (constants are in its kernel on every connected component), so values
-//! must be fixed somewhere. With the fixed set `F` and free set `U`, the system solved is
-//! the free block of `−L_W u = −M f`, moving the known values to the right-hand side:
-//!
-//! ```text
-//! −L_W[U,U] u_U = −M_U f_U + L_W[U,F] g_F
-//! ```
-//!
-//! which is symmetric positive definite when every connected component of the usable pairs
-//! (`φ > 0`) holds a fixed support; conjugate gradients solve it. A component without one is
-//! an error ([`OpsError::UnconstrainedComponent`]), except a support without any usable pair,
-//! which gets 0 (its Laplacian is identically zero, so no equation constrains it). At fixed
-//! supports the equation `Lap u = f` is replaced by the fixed value.
+//! The method is described on [`solve_poisson()`].
 
 use rayon::prelude::*;
 use sphcover_core::LengthMismatch;
@@ -111,6 +99,20 @@ impl SymmetricOperator for FreeStiffness<'_> {
 
 /// Solves `Lap u = f` (one value of `f` per support) with the given mass and boundary
 /// condition; returns `u` and the CG report.
+///
+/// `L_W` is singular (constants are in its kernel on every connected component), so values
+/// must be fixed somewhere. With the fixed set `F` and free set `U`, the system solved is
+/// the free block of `−L_W u = −M f`, moving the known values to the right-hand side:
+///
+/// ```text
+/// −L_W[U,U] u_U = −M_U f_U + L_W[U,F] g_F
+/// ```
+///
+/// which is symmetric positive definite when every connected component of the usable pairs
+/// (`φ > 0`) holds a fixed support; conjugate gradients solve it. A component without one is
+/// an error ([`OpsError::UnconstrainedComponent`]), except a support without any usable pair,
+/// which gets 0 (its Laplacian is identically zero, so no equation constrains it). At fixed
+/// supports the equation `Lap u = f` is replaced by the fixed value.
 pub fn solve_poisson(
     geometry: &PairGeometry,
     mass: MassKind,

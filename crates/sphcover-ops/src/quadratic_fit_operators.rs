@@ -1,45 +1,7 @@
 //! Consistent operators from a φ-weighted second-order least-squares fit over the graph
 //! neighbours.
 //!
-//! At support `i`, with offsets `d_j = c_j − c_i` scaled by `h = r_i` for conditioning, fit
-//!
-//! ```text
-//! u_j − u_i ≈ g·d_j + ½ d_jᵀ H d_j        (9 unknowns: g, and H symmetric)
-//! ```
-//!
-//! by least squares with weights `φ_ij`, interpolating `u_i` (so constants give exactly zero).
-//! `Lap(u)_i = tr H`, `Grad(u)_i = g`, `Div(v)_i = Σ_j Grad_j · (v_j − v_i)` and
-//! `Curl(v)_i = Σ_j Grad_j × (v_j − v_i)` with the per-neighbour gradient weights `Grad_j`.
-//! All four are linear in the differences, so they are stored as per-entry coefficients
-//! (one `f64` and one `DVec3` per stored neighbour) and applied like a sparse matrix.
-//!
-//! Exactness. The fit is solved by a singular-value decomposition of the weighted,
-//! column-scaled design matrix (not its normal matrix, whose condition number is the square).
-//! The Laplacian is exact on every quadratic exactly when the functional `tr H` is determined
-//! by the data (orthogonal to the numerical null space of the design): this holds with 9 or more
-//! neighbours in general position, and also on symmetric stencils with fewer (six axis
-//! neighbours determine `tr H` though not the mixed terms). Where it does not hold, the row
-//! *falls back* to the linear-exact form
-//!
-//! ```text
-//! Lap(u)_i = (1/m_i) Σ_j φ_ij (u_j − u_i − Grad(u)_i · d_j),   m_i = (1/6) Σ_j φ_ij ‖d_j‖²
-//! ```
-//!
-//! with the least-squares gradient: exact on linear fields and on `|x|²`, not on every
-//! quadratic. The gradient is exact on quadratics wherever it is determined, and otherwise is
-//! the linear least-squares one.
-//!
-//! Linear exactness by construction. Whatever the conditioning of the fit, the Laplacian
-//! coefficients are finally projected, `L_k ← L_k − (Σ_l L_l d_l)·G_k` (twice) with the linear
-//! least-squares gradient weights `G_k` (`Σ_k G_k d_kᵀ = I` to rounding), so `Σ_k L_k d_k`
-//! vanishes to the rounding of that sum and `Lap` of a linear field is rounding on any cover;
-//! the gradient weights are refined by `G ← (2I − Σ_k G_k d_kᵀ) G`, a left multiplication
-//! that keeps their quadratic moments zero. [`QuadraticFitStats`] counts the fallbacks.
-//!
-//! Trade-offs (measured by the `consistency` example): exact on quadratics and convergent on
-//! irregular covers, where the thesis form is not, but `Lap` is no longer symmetric nor
-//! guaranteed negative semi-definite, so it cannot go into conjugate gradients; use it to
-//! evaluate, and the symmetric [`crate::PairGeometry`] Laplacian to solve.
+//! The method is described on [`QuadraticFitOperators`].
 
 use glam::DVec3;
 use nalgebra::{DMatrix, SVector};
@@ -73,6 +35,46 @@ pub struct QuadraticFitStats {
 }
 
 /// The consistent operator family from second-order least squares.
+///
+/// At support `i`, with offsets `d_j = c_j − c_i` scaled by `h = r_i` for conditioning, fit
+///
+/// ```text
+/// u_j − u_i ≈ g·d_j + ½ d_jᵀ H d_j        (9 unknowns: g, and H symmetric)
+/// ```
+///
+/// by least squares with weights `φ_ij`, interpolating `u_i` (so constants give exactly zero).
+/// `Lap(u)_i = tr H`, `Grad(u)_i = g`, `Div(v)_i = Σ_j Grad_j · (v_j − v_i)` and
+/// `Curl(v)_i = Σ_j Grad_j × (v_j − v_i)` with the per-neighbour gradient weights `Grad_j`.
+/// All four are linear in the differences, so they are stored as per-entry coefficients
+/// (one `f64` and one `DVec3` per stored neighbour) and applied like a sparse matrix.
+///
+/// Exactness. The fit is solved by a singular-value decomposition of the weighted,
+/// column-scaled design matrix (not its normal matrix, whose condition number is the square).
+/// The Laplacian is exact on every quadratic exactly when the functional `tr H` is determined
+/// by the data (orthogonal to the numerical null space of the design): this holds with 9 or more
+/// neighbours in general position, and also on symmetric stencils with fewer (six axis
+/// neighbours determine `tr H` though not the mixed terms). Where it does not hold, the row
+/// *falls back* to the linear-exact form
+///
+/// ```text
+/// Lap(u)_i = (1/m_i) Σ_j φ_ij (u_j − u_i − Grad(u)_i · d_j),   m_i = (1/6) Σ_j φ_ij ‖d_j‖²
+/// ```
+///
+/// with the least-squares gradient: exact on linear fields and on `|x|²`, not on every
+/// quadratic. The gradient is exact on quadratics wherever it is determined, and otherwise is
+/// the linear least-squares one.
+///
+/// Linear exactness by construction. Whatever the conditioning of the fit, the Laplacian
+/// coefficients are finally projected, `L_k ← L_k − (Σ_l L_l d_l)·G_k` (twice) with the linear
+/// least-squares gradient weights `G_k` (`Σ_k G_k d_kᵀ = I` to rounding), so `Σ_k L_k d_k`
+/// vanishes to the rounding of that sum and `Lap` of a linear field is rounding on any cover;
+/// the gradient weights are refined by `G ← (2I − Σ_k G_k d_kᵀ) G`, a left multiplication
+/// that keeps their quadratic moments zero. [`QuadraticFitStats`] counts the fallbacks.
+///
+/// Trade-offs (measured by the `consistency` example): exact on quadratics and convergent on
+/// irregular covers, where the thesis form is not, but `Lap` is no longer symmetric nor
+/// guaranteed negative semi-definite, so it cannot go into conjugate gradients; use it to
+/// evaluate, and the symmetric [`crate::PairGeometry`] Laplacian to solve.
 #[derive(Clone, Debug)]
 pub struct QuadraticFitOperators {
     offsets: Vec<u32>,

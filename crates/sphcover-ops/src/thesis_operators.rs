@@ -1,22 +1,7 @@
 //! The thesis operators at centres (thesis eq. 4.21, 4.22, 4.27, 4.29, 4.39–4.41), plus the
 //! curl built the same way (the thesis left it as future work, §7.2):
 //!
-//! ```text
-//! Div(v)_i  = (1/m_i) Σ_j φ_ij v_j · (c_j − c_i)        (neighbour flux, eq. 4.18)
-//! Lap(u)_i  = (1/m_i) Σ_j φ_ij (u_j − u_i)
-//! Curl(v)_i = (1/m_i) Σ_j φ_ij (c_j − c_i) × v_j
-//! Grad(u)_i = φ-weighted least squares of u_j = u_i + Grad·(c_j − c_i)
-//! ```
-//!
-//! `φ_ij (c_j − c_i)` is the intersection disk `D_ij` times the unit direction to the
-//! neighbour: a discrete Stokes/Gauss sum over the disks that bound the support. The neighbour
-//! flux doubles the divergence of `v(x) = x` relative to the central flux `(v_i + v_j)/2`,
-//! both satisfy `Div(Grad(u)) = Lap(u)` for linear `u`; [`FluxKind`] selects. Neither vanishes
-//! on constant fields unless `Σ_j φ_ij (c_j − c_i) = 0` (overlapping caps do not close the
-//! surface), which the consistency example measures.
-//!
-//! The mass is the thesis mass or the moment-matched one ([`MassKind`]); with the latter this
-//! is the "moment-matched" family of the documentation.
+//! The method is described on [`ThesisOperators`].
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -36,6 +21,23 @@ pub enum FluxKind {
 }
 
 /// The thesis operator family on a [`PairGeometry`].
+///
+/// ```text
+/// Div(v)_i  = (1/m_i) Σ_j φ_ij v_j · (c_j − c_i)        (neighbour flux, eq. 4.18)
+/// Lap(u)_i  = (1/m_i) Σ_j φ_ij (u_j − u_i)
+/// Curl(v)_i = (1/m_i) Σ_j φ_ij (c_j − c_i) × v_j
+/// Grad(u)_i = φ-weighted least squares of u_j = u_i + Grad·(c_j − c_i)
+/// ```
+///
+/// `φ_ij (c_j − c_i)` is the intersection disk `D_ij` times the unit direction to the
+/// neighbour: a discrete Stokes/Gauss sum over the disks that bound the support. The neighbour
+/// flux doubles the divergence of `v(x) = x` relative to the central flux `(v_i + v_j)/2`,
+/// both satisfy `Div(Grad(u)) = Lap(u)` for linear `u`; [`FluxKind`] selects. Neither vanishes
+/// on constant fields unless `Σ_j φ_ij (c_j − c_i) = 0` (overlapping caps do not close the
+/// surface), which the consistency example measures.
+///
+/// The mass is the thesis mass or the moment-matched one ([`MassKind`]); with the latter this
+/// is the "moment-matched" family of the documentation.
 #[derive(Clone, Debug)]
 pub struct ThesisOperators<'g> {
     geometry: &'g PairGeometry,

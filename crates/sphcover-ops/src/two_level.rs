@@ -1,12 +1,6 @@
 //! An additive two-level preconditioner: Jacobi plus a coarse correction on aggregates.
 //!
-//! `M⁻¹ = D⁻¹ + P (PᵀAP)⁻¹ Pᵀ` with `P` the piecewise-constant prolongation of aggregates of
-//! about [`TwoLevel::aggregate_size`] rows, grown breadth-first over the matrix graph from
-//! seeds taken in index order (so they depend on the matrix alone), and the coarse matrix
-//! `PᵀAP` factored once by dense Cholesky. The coarse space carries the smooth modes that
-//! Jacobi cannot reduce (the reason CG on a Poisson problem needs `O(n^{1/3})` iterations),
-//! and every step is a fixed-order sum, so iterates are bit-identical for any thread count.
-//! `M` is symmetric positive definite when `A` is.
+//! The method is described on [`TwoLevel`].
 
 use std::collections::VecDeque;
 
@@ -19,6 +13,14 @@ use crate::gauss_seidel::SparseRows;
 const MAX_AGGREGATES: usize = 800;
 
 /// The two-level preconditioner of a [`SparseRows`] matrix.
+///
+/// `M⁻¹ = D⁻¹ + P (PᵀAP)⁻¹ Pᵀ` with `P` the piecewise-constant prolongation of aggregates of
+/// about [`TwoLevel::aggregate_size`] rows, grown breadth-first over the matrix graph from
+/// seeds taken in index order (so they depend on the matrix alone), and the coarse matrix
+/// `PᵀAP` factored once by dense Cholesky. The coarse space carries the smooth modes that
+/// Jacobi cannot reduce (the reason CG on a Poisson problem needs `O(n^{1/3})` iterations),
+/// and every step is a fixed-order sum, so iterates are bit-identical for any thread count.
+/// `M` is symmetric positive definite when `A` is.
 #[derive(Clone, Debug)]
 pub struct TwoLevel {
     aggregate: Vec<u32>,

@@ -15,9 +15,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use sphcover_core::io::{ReadOptions, WriteOptions, read_mesh, write_mesh};
-use sphcover_core::mesh_topology::MeshTopology;
 use sphcover_core::{
-    DVec3, Normalisation, PuEvaluator, SurfaceCoverParams, SurfaceSamples, TriMesh,
+    DVec3, MeshTopology, Normalisation, PuEvaluator, SurfaceCoverParams, SurfaceSamples, TriMesh,
     build_surface_cover,
 };
 use sphcover_recon::{GridStep, PolygoniseParams, polygonise};

@@ -1,34 +1,6 @@
 //! Confidence of samples (thesis §5.2.3, eq. 5.39–5.40) and outlier labels (§5.2.4).
 //!
-//! For each support `s_i`: the PCA of the samples inside it gives the centroid `G_i` and the
-//! direction of least variance `N_i`; `ω_i ∈ [0, π/2]` is the angle between the lines of
-//! `N_i` and `c_i − G_i`, and the support's confidence is
-//!
-//! ```text
-//! τ_i = exp(−2 ω_i²)
-//! ```
-//!
-//! Why it works: where the samples lie on a smooth sheet, the centroid of the part of the
-//! sheet inside a ball is (nearly) the foot of the perpendicular from the centre, so
-//! `c_i − G_i` is along the sheet's normal and `τ_i ≈ 1`; a ball over scattered outliers has
-//! no such structure. Each sample's confidence blends the confidences of the supports holding
-//! it with the cover's kernel weights:
-//!
-//! ```text
-//! σ_k = Σ_i w_i(p_k) τ_i / Σ_i w_i(p_k)
-//! ```
-//!
-//! Samples with `σ_k` below 0.007 (≈ `exp(−2 (π/2)²)`, the value of a support whose offset is
-//! perpendicular to its normal) are outliers. A scanner-given confidence replaces `σ_k`.
-//!
-//! Degenerate supports: fewer than 3 samples, or all samples at one point, carry no plane and
-//! get `τ_i = 0`. Collinear samples determine only a line, so the normal is any direction
-//! perpendicular to it and `ω_i` is the angle between `c_i − G_i` and that perpendicular
-//! plane. A centre at the centroid itself (`‖c_i − G_i‖ ≤ 1e-9 r_i`) gets `τ_i = 1`.
-//!
-//! Both stages run in parallel, one support or one sample per task, and each sum runs in an
-//! order fixed by the input (the point index's tree order; ascending support index): the
-//! result is bit-identical whatever the thread count.
+//! The method is described on [`sample_confidence()`].
 
 use std::time::{Duration, Instant};
 
@@ -191,6 +163,36 @@ fn tau_of(c: DVec3, r: f64, points: &[DVec3]) -> (f64, bool) {
 /// Confidence of every sample (thesis eq. 5.39–5.40) and outlier labels, from the supports
 /// of `cover` holding it, or from `scanner` (one value in `[0, 1]` per sample) when given.
 /// `samples` are in the cover's frame.
+///
+/// For each support `s_i`: the PCA of the samples inside it gives the centroid `G_i` and the
+/// direction of least variance `N_i`; `ω_i ∈ [0, π/2]` is the angle between the lines of
+/// `N_i` and `c_i − G_i`, and the support's confidence is
+///
+/// ```text
+/// τ_i = exp(−2 ω_i²)
+/// ```
+///
+/// Why it works: where the samples lie on a smooth sheet, the centroid of the part of the
+/// sheet inside a ball is (nearly) the foot of the perpendicular from the centre, so
+/// `c_i − G_i` is along the sheet's normal and `τ_i ≈ 1`; a ball over scattered outliers has
+/// no such structure. Each sample's confidence blends the confidences of the supports holding
+/// it with the cover's kernel weights:
+///
+/// ```text
+/// σ_k = Σ_i w_i(p_k) τ_i / Σ_i w_i(p_k)
+/// ```
+///
+/// Samples with `σ_k` below 0.007 (≈ `exp(−2 (π/2)²)`, the value of a support whose offset is
+/// perpendicular to its normal) are outliers. A scanner-given confidence replaces `σ_k`.
+///
+/// Degenerate supports: fewer than 3 samples, or all samples at one point, carry no plane and
+/// get `τ_i = 0`. Collinear samples determine only a line, so the normal is any direction
+/// perpendicular to it and `ω_i` is the angle between `c_i − G_i` and that perpendicular
+/// plane. A centre at the centroid itself (`‖c_i − G_i‖ ≤ 1e-9 r_i`) gets `τ_i = 1`.
+///
+/// Both stages run in parallel, one support or one sample per task, and each sum runs in an
+/// order fixed by the input (the point index's tree order; ascending support index): the
+/// result is bit-identical whatever the thread count.
 pub fn sample_confidence(
     cover: &Cover,
     samples: &[DVec3],
@@ -409,7 +411,7 @@ mod tests {
 
         // The same bits on one thread and on two.
         let on = |threads| {
-            sphcover_core::threads::on_threads(threads, || {
+            sphcover_core::on_threads(threads, || {
                 sample_confidence(&cover, &samples, None, &ConfidenceParams::default()).unwrap()
             })
         };

@@ -1,70 +1,12 @@
 //! Diffusion of local functions (thesis §5.2.3): smooth the linear functions of a surface
 //! cover over its sphere intersection graph while keeping them fitted to the samples.
 //!
-//! Each round:
-//!
-//! 1. `v_i = ∇f(c_i)`, the analytic gradient of the partition-of-unity function.
-//! 2. Gradients are smoothed with the anisotropic weights `ψ_ij = 1 / (1 + θ_ij²)` (θ the
-//!    angle between `v_i` and `v_j`, eq. 5.24) and pulled towards the samples' normals
-//!    (eq. 5.25–5.32):
-//!    `v̂_i = (S_i + t_i n̄_i) / (1 + t_i)` with `S_i = Σ_j φ_ij ψ_ij v_j / Σ_j φ_ij ψ_ij`
-//!    and `n̄_i` the confidence- and kernel-weighted mean of the samples' normals in the
-//!    convention of `α` (pointing inwards). This is the thesis update
-//!    `(a·(1/m_i)Σ φψ v_j + λ_n Σ σ w ñ) / (a² + λ_n Σ σ w)` divided through by `a²`, with
-//!    `a = (1/m_i) Σ φψ` and `t_i = λ_n W_i / a²`, `W_i = Σ_k σ_k w_i(p_k)`.
-//! 3. The constants solve the Poisson equation `Lap f(c_i) = Div v̂` with the fitting term
-//!    `Σ_k σ_k w_i(p_k) (β_i + v̂_i·(p_k − c_i))² → min` (eq. 5.23, 5.33–5.38). The thesis does
-//!    one Jacobi sweep per round ([`PoissonStep::ThesisJacobi`]):
-//!    `β_i = (Σ_j φψ (β_j + v̂_j·(c_i − c_j)) / Σ_j φψ + t'_i b_i) / (1 + t'_i)` with
-//!    `b_i = −v̂_i·P_i / W_i`, `P_i = Σ_k σ_k w_i(p_k)(p_k − c_i)`. Solved to convergence
-//!    ([`PoissonStep::Converged`], the default) it is the symmetric positive-definite system
-//!    `Σ_j φψ_ij (β_i − β_j − e_ij) + t'_i (Σ_j φψ_ij)(β_i − b_i) = 0` with the central flux
-//!    `e_ij = ½(v̂_i + v̂_j)·(c_i − c_j)`, solved by preconditioned conjugate gradients.
-//!
-//! **Fitting strength.** In the thesis form `t_i = λ W_i / a_i²` depends on the support
-//! size through `a_i ∝ r_i⁻²`, so one `λ` gives supports of different sizes fitting weights
-//! spread over orders of magnitude (the thesis sets λ "sufficiently large" for a unit box).
-//! [`FittingScale::Relative`] (the default) makes the weight dimensionless,
-//! `t_i = μ W_i / W̄` with `W̄` the mean of `W` over the supports holding samples, so the
-//! same `μ` means the same balance of smoothing and fitting at every scale and density.
-//! [`FittingScale::Thesis`] keeps the thesis form for fidelity.
-//!
-//! **Gates (beyond the thesis).** Smoothing the gradients over the graph averages each
-//! support with neighbours a support radius away, a fixed length that does not shrink with
-//! the sampling: on a clean scan it only costs accuracy (the 100K-point bunny: Chamfer 0.0113%
-//! of the diagonal with μ_n = 1, μ_p = 4, against 0.0064% for the undiffused function). So the
-//! fit is strong by default and two measurements of the scan weaken it where the samples are
-//! not to be trusted:
-//!
-//! - *Normal coherence*: `ĉ`, the median over the fitted supports of `‖N_i‖ / W_i` (the mean
-//!   resultant length of the samples' normals), is 0.995 for exact normals on the bunny,
-//!   0.954 for normals rotated by up to 30° and 0.843 for up to 60°. The normal strength used
-//!   is `max(μ_n ĉ^q, 1)` (q = 32: ×0.85, ×0.22, ×0.004), so noisy normals are smoothed
-//!   and the positions carry the shape, but never less than 1. The floor keeps some normal
-//!   fit where the normals are wrong but unbiased: with a fifth of a 600-point sphere's
-//!   normals flipped (ĉ = 0.57) the largest vertex error (depth 6) is 8.5% of the radius
-//!   with no floor, 6.6%, 6.1% and 5.8% with floors 0.5, 0.75 and 1; on the 100K bunny
-//!   with normals rotated by up to 60°, normal strengths 0.27 (no floor), 0.5, 0.75 and 1
-//!   give Chamfer 0.0106, 0.0108, 0.0113, 0.0117 and Hausdorff-99 0.0477,
-//!   0.0458, 0.0449, 0.0454 (% of the diagonal).
-//! - *Mean confidence*: both strengths of support `i` are multiplied by `W_i / K_i`, the mean
-//!   confidence of its samples. Surface supports score about 0.65, supports around the
-//!   outliers that the graph cut and the isolation test miss about 0.16. Without this gate
-//!   a position strength μ_p = 16 already lets 5% uniform outliers of the 100K bunny form
-//!   floating sheets; with it 64 does not. μ_p stays at 8 because the 2K-point noisy sphere
-//!   with 2% outliers (none isolated at that density) splits into 3 components from μ_p = 12
-//!   on without the graph cut.
-//!
-//! The per-support sample sums `W_i`, `N_i = Σ σ w ñ`, `P_i` do not change between rounds,
-//! so they are gathered once ([`FittingTerms::gather`]). Every sum runs over a fixed order
-//! (graph rows, tree order of the point index), so the result does not depend on the number
-//! of threads.
+//! The method is described on [`diffuse()`].
 
 use rayon::prelude::*;
-use sphcover_core::LengthMismatch;
-use sphcover_core::ParameterError;
 use sphcover_core::{
-    Cover, CoverError, DVec3, LocalFunctions, PointIndex, SupportLists, SupportSamples,
+    Cover, CoverError, DVec3, LengthMismatch, LocalFunctions, ParameterError, PointIndex,
+    SupportLists, SupportSamples,
 };
 use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
 use std::time::{Duration, Instant};
@@ -81,7 +23,7 @@ pub enum PoissonStep {
     Converged,
 }
 
-/// How the fitting weights are scaled against the smoothing (module docs).
+/// How the fitting weights are scaled against the smoothing (see [`diffuse`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FittingScale {
     /// `t_i = μ W_i / W̄`: dimensionless, the same at every support size and sampling density.
@@ -100,7 +42,7 @@ pub struct DiffusionParams {
     pub normal_fit: f64,
     /// Exponent `q` of the normal-coherence gate: the normal fitting strength used is
     /// `normal_fit · ĉ^q`, with `ĉ` the median over the fitted supports of `‖N_i‖ / W_i`
-    /// (1 when the samples' normals in a support agree, less when they scatter; module docs).
+    /// (1 when the samples' normals in a support agree, less when they scatter; see [`diffuse`]).
     /// 0 uses `normal_fit` as given.
     pub normal_coherence_exponent: f64,
     /// The gate never takes the normal strength below `min(normal_fit, normal_fit_floor)`:
@@ -111,7 +53,7 @@ pub struct DiffusionParams {
     pub position_fit: f64,
     /// Exponent `p` of the confidence gate of [`FittingScale::Relative`]: both strengths of
     /// support `i` are multiplied by `(W_i / K_i)^p`, the mean confidence of its samples
-    /// (module docs). 0 leaves them as they are.
+    /// (see [`diffuse`]). 0 leaves them as they are.
     pub confidence_power: f64,
     /// Interpretation of the two strengths.
     pub scale: FittingScale,
@@ -131,7 +73,7 @@ impl Default for DiffusionParams {
     /// 3 pieces without the graph cut, and a sphere with a fifth of its normals flipped 0.064
     /// radii off), relative fitting μ_n = 64 gated by the normal coherence with exponent 32
     /// down to 1, μ_p = 8, both gated by the mean confidence (power 1), anisotropic, converged
-    /// Poisson step to a relative residual of 1e-6 (module docs: how these were chosen).
+    /// Poisson step to a relative residual of 1e-6 ([`diffuse`]: how these were chosen).
     fn default() -> Self {
         DiffusionParams {
             rounds: 2,
@@ -177,7 +119,7 @@ pub enum DiffusionError {
     },
 }
 
-/// Per-support sums over the samples in the support (module docs), gathered once.
+/// Per-support sums over the samples in the support (see [`diffuse`]), gathered once.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FittingTerms {
     /// `W_i = Σ_k σ_k w_i(p_k)`.
@@ -319,11 +261,70 @@ pub struct DiffusionStats {
     pub time: Duration,
 }
 
-/// Diffuses the linear local functions of `cover` (thesis §5.2.3; module docs). `pairs` is
+/// Diffuses the linear local functions of `cover` (thesis §5.2.3; method below). `pairs` is
 /// the pair geometry of the cover over its sphere intersection graph, `terms` the samples'
 /// sums and `at_centres` the support lists gathered at its centres
 /// ([`sphcover_core::PuEvaluator::support_lists`]: the balls do not change, so every round
 /// evaluates its gradients over them); the cover's functions are replaced.
+///
+/// Each round:
+///
+/// 1. `v_i = ∇f(c_i)`, the analytic gradient of the partition-of-unity function.
+/// 2. Gradients are smoothed with the anisotropic weights `ψ_ij = 1 / (1 + θ_ij²)` (θ the
+///    angle between `v_i` and `v_j`, eq. 5.24) and pulled towards the samples' normals
+///    (eq. 5.25–5.32):
+///    `v̂_i = (S_i + t_i n̄_i) / (1 + t_i)` with `S_i = Σ_j φ_ij ψ_ij v_j / Σ_j φ_ij ψ_ij`
+///    and `n̄_i` the confidence- and kernel-weighted mean of the samples' normals in the
+///    convention of `α` (pointing inwards). This is the thesis update
+///    `(a·(1/m_i)Σ φψ v_j + λ_n Σ σ w ñ) / (a² + λ_n Σ σ w)` divided through by `a²`, with
+///    `a = (1/m_i) Σ φψ` and `t_i = λ_n W_i / a²`, `W_i = Σ_k σ_k w_i(p_k)`.
+/// 3. The constants solve the Poisson equation `Lap f(c_i) = Div v̂` with the fitting term
+///    `Σ_k σ_k w_i(p_k) (β_i + v̂_i·(p_k − c_i))² → min` (eq. 5.23, 5.33–5.38). The thesis does
+///    one Jacobi sweep per round ([`PoissonStep::ThesisJacobi`]):
+///    `β_i = (Σ_j φψ (β_j + v̂_j·(c_i − c_j)) / Σ_j φψ + t'_i b_i) / (1 + t'_i)` with
+///    `b_i = −v̂_i·P_i / W_i`, `P_i = Σ_k σ_k w_i(p_k)(p_k − c_i)`. Solved to convergence
+///    ([`PoissonStep::Converged`], the default) it is the symmetric positive-definite system
+///    `Σ_j φψ_ij (β_i − β_j − e_ij) + t'_i (Σ_j φψ_ij)(β_i − b_i) = 0` with the central flux
+///    `e_ij = ½(v̂_i + v̂_j)·(c_i − c_j)`, solved by preconditioned conjugate gradients.
+///
+/// **Fitting strength.** In the thesis form `t_i = λ W_i / a_i²` depends on the support
+/// size through `a_i ∝ r_i⁻²`, so one `λ` gives supports of different sizes fitting weights
+/// spread over orders of magnitude (the thesis sets λ "sufficiently large" for a unit box).
+/// [`FittingScale::Relative`] (the default) makes the weight dimensionless,
+/// `t_i = μ W_i / W̄` with `W̄` the mean of `W` over the supports holding samples, so the
+/// same `μ` means the same balance of smoothing and fitting at every scale and density.
+/// [`FittingScale::Thesis`] keeps the thesis form for fidelity.
+///
+/// **Gates (beyond the thesis).** Smoothing the gradients over the graph averages each
+/// support with neighbours a support radius away, a fixed length that does not shrink with
+/// the sampling: on a clean scan it only costs accuracy (the 100K-point bunny: Chamfer 0.0113%
+/// of the diagonal with μ_n = 1, μ_p = 4, against 0.0064% for the undiffused function). So the
+/// fit is strong by default and two measurements of the scan weaken it where the samples are
+/// not to be trusted:
+///
+/// - *Normal coherence*: `ĉ`, the median over the fitted supports of `‖N_i‖ / W_i` (the mean
+///   resultant length of the samples' normals), is 0.995 for exact normals on the bunny,
+///   0.954 for normals rotated by up to 30° and 0.843 for up to 60°. The normal strength used
+///   is `max(μ_n ĉ^q, 1)` (q = 32: ×0.85, ×0.22, ×0.004), so noisy normals are smoothed
+///   and the positions carry the shape, but never less than 1. The floor keeps some normal
+///   fit where the normals are wrong but unbiased: with a fifth of a 600-point sphere's
+///   normals flipped (ĉ = 0.57) the largest vertex error (depth 6) is 8.5% of the radius
+///   with no floor, 6.6%, 6.1% and 5.8% with floors 0.5, 0.75 and 1; on the 100K bunny
+///   with normals rotated by up to 60°, normal strengths 0.27 (no floor), 0.5, 0.75 and 1
+///   give Chamfer 0.0106, 0.0108, 0.0113, 0.0117 and Hausdorff-99 0.0477,
+///   0.0458, 0.0449, 0.0454 (% of the diagonal).
+/// - *Mean confidence*: both strengths of support `i` are multiplied by `W_i / K_i`, the mean
+///   confidence of its samples. Surface supports score about 0.65, supports around the
+///   outliers that the graph cut and the isolation test miss about 0.16. Without this gate
+///   a position strength μ_p = 16 already lets 5% uniform outliers of the 100K bunny form
+///   floating sheets; with it 64 does not. μ_p stays at 8 because the 2K-point noisy sphere
+///   with 2% outliers (none isolated at that density) splits into 3 components from μ_p = 12
+///   on without the graph cut.
+///
+/// The per-support sample sums `W_i`, `N_i = Σ σ w ñ`, `P_i` do not change between rounds,
+/// so they are gathered once ([`FittingTerms::gather`]). Every sum runs over a fixed order
+/// (graph rows, tree order of the point index), so the result does not depend on the number
+/// of threads.
 pub fn diffuse(
     cover: &mut Cover,
     pairs: &PairGeometry,

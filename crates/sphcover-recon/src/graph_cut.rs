@@ -1,43 +1,13 @@
 //! Inside/outside labelling of support centres by a minimum cut (thesis §5.2.2, Appendix A).
 //!
-//! Nodes are support centres `v` with partition-of-unity values `f(v)` (positive inside);
-//! the source is *inside* and the sink *outside*. With `l_v` the mean length of the edges at
-//! `v` and `l_ij` the length of edge `ij` (thesis eq. 5.1, 5.2):
-//!
-//! ```text
-//! f(v) > 0:  w(v, source) = k |f(v)| / l_v          f(v) < 0:  w(v, sink) = k |f(v)| / l_v
-//! edge ij:   w(v_i, v_j)  = |f(v_i) + f(v_j)| / l_ij
-//! ```
-//!
-//! Both costs are dimensionless; `k` is the ratio of terminal to edge cost.
-//!
-//! **Degree normalisation** (beyond the thesis). A node's terminal arc competes with the sum
-//! of its edges, so the balance set by `k` depends on the mean degree of the graph: the
-//! thesis's `k` ≈ 28 was tuned on sphere intersection graphs of mean degree about 40 (shrink
-//! 0.7), and its `k` ≈ 5–15 on tetrahedral meshes of mean degree about 15 — in both cases the
-//! terminal arc is about a third of the edge sum. Covers with more overlap (measured: mean
-//! degree 244 on a noisy sphere's cover) make the thesis weights label almost every node
-//! outside. With [`GraphCutParams::reference_degree`] `= Some(d₀)`, the terminal weight of a
-//! node of degree `d_v` is multiplied by `d_v / d₀`, which keeps the thesis's balance at any
-//! degree and reduces to eq. 5.1 at `d_v = d₀`. An edge whose
-//! ends have opposite signs of `f` near the true surface is cheap to cut (`f_i + f_j ≈ 0`),
-//! while an isolated blob of wrong sign (an outlier cluster, a flipped normal) is expensive to
-//! keep apart from its neighbours, so the cut relabels it. A node whose label disagrees with
-//! the sign of `f` is *inconsistent*.
-//!
-//! The graph is either the sphere intersection graph (the integrated pipeline, thesis §5.2.4,
-//! `k` ≈ 27–30: every support gets a label) or the edges of the tetrahedral mesh of the cover
-//! (the graph-cut-only path, `k` ≈ 5–15), see [`crate::graphcut_reconstruction`].
-//!
-//! Degenerate input: a node with no edge of positive length uses the mean edge length of the
-//! whole graph as `l_v` (1 when there is none); an edge of zero length (coincident centres)
-//! uses a length of `1e-9` times the mean edge length, which ties its ends together.
+//! The method is described on [`graph_cut()`].
 
-use sphcover_core::LengthMismatch;
+use sphcover_core::{
+    Cover, CoverError, DVec3, LengthMismatch, PuEvaluator, SphereIntersectionGraph, SupportLists,
+};
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, CoverError, DVec3, PuEvaluator, SphereIntersectionGraph, SupportLists};
 use thiserror::Error;
 
 use crate::maxflow::{FlowEdge, FlowGraph, MaxFlowError};
@@ -85,7 +55,7 @@ pub struct GraphCutParams {
     /// Ratio `k` of terminal to edge cost (thesis eq. 5.1).
     pub k: f64,
     /// Degree `d₀` at which `k` was calibrated: terminal weights are scaled by `d_v / d₀`
-    /// (see the module documentation). `None` is the thesis's eq. 5.1 as written.
+    /// (see [`graph_cut`]). `None` is the thesis's eq. 5.1 as written.
     pub reference_degree: Option<f64>,
 }
 
@@ -169,6 +139,39 @@ pub struct GraphCut {
 
 /// Labels the nodes at `positions` with values `values` (the partition-of-unity `f`,
 /// positive inside) over the undirected `edges`, by the minimum cut of thesis eq. 5.1–5.2.
+///
+/// Nodes are support centres `v` with partition-of-unity values `f(v)` (positive inside);
+/// the source is *inside* and the sink *outside*. With `l_v` the mean length of the edges at
+/// `v` and `l_ij` the length of edge `ij` (thesis eq. 5.1, 5.2):
+///
+/// ```text
+/// f(v) > 0:  w(v, source) = k |f(v)| / l_v          f(v) < 0:  w(v, sink) = k |f(v)| / l_v
+/// edge ij:   w(v_i, v_j)  = |f(v_i) + f(v_j)| / l_ij
+/// ```
+///
+/// Both costs are dimensionless; `k` is the ratio of terminal to edge cost.
+///
+/// **Degree normalisation** (beyond the thesis). A node's terminal arc competes with the sum
+/// of its edges, so the balance set by `k` depends on the mean degree of the graph: the
+/// thesis's `k` ≈ 28 was tuned on sphere intersection graphs of mean degree about 40 (shrink
+/// 0.7), and its `k` ≈ 5–15 on tetrahedral meshes of mean degree about 15 — in both cases the
+/// terminal arc is about a third of the edge sum. Covers with more overlap (measured: mean
+/// degree 244 on a noisy sphere's cover) make the thesis weights label almost every node
+/// outside. With [`GraphCutParams::reference_degree`] `= Some(d₀)`, the terminal weight of a
+/// node of degree `d_v` is multiplied by `d_v / d₀`, which keeps the thesis's balance at any
+/// degree and reduces to eq. 5.1 at `d_v = d₀`. An edge whose
+/// ends have opposite signs of `f` near the true surface is cheap to cut (`f_i + f_j ≈ 0`),
+/// while an isolated blob of wrong sign (an outlier cluster, a flipped normal) is expensive to
+/// keep apart from its neighbours, so the cut relabels it. A node whose label disagrees with
+/// the sign of `f` is *inconsistent*.
+///
+/// The graph is either the sphere intersection graph (the integrated pipeline, thesis §5.2.4,
+/// `k` ≈ 27–30: every support gets a label) or the edges of the tetrahedral mesh of the cover
+/// (the graph-cut-only path, `k` ≈ 5–15), see [`reconstruct_graphcut`](crate::reconstruct_graphcut).
+///
+/// Degenerate input: a node with no edge of positive length uses the mean edge length of the
+/// whole graph as `l_v` (1 when there is none); an edge of zero length (coincident centres)
+/// uses a length of `1e-9` times the mean edge length, which ties its ends together.
 pub fn graph_cut(
     positions: &[DVec3],
     values: &[f64],
@@ -687,7 +690,7 @@ mod tests {
             .collect();
         let sig = SphereIntersectionGraph::build(&positions, &vec![0.04; n], 1.0).unwrap();
         let run = |threads| {
-            sphcover_core::threads::on_threads(threads, || {
+            sphcover_core::on_threads(threads, || {
                 graph_cut_csr(
                     &positions,
                     &values,

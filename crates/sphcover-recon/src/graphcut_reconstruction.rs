@@ -2,42 +2,18 @@
 //! cut of its vertices, marching tetrahedra on the labels, two-step Laplacian smoothing of the
 //! vertices that were not placed by `f`.
 //!
-//! 1. The dual complex of the cover with the radius shrink `σ_t` (thesis §3.5.2) gives a
-//!    tetrahedral mesh whose vertices are support centres.
-//! 2. [`crate::graph_cut::graph_cut`] on the mesh edges labels them inside/outside (`k` ≈ 5–15).
-//!    Vertices on the boundary of the complex are then set outside (beyond the thesis,
-//!    [`GraphCutReconstructionParams::close_at_boundary`]): the
-//!    cut knows nothing of what lies beyond the complex, and an inside label there would
-//!    leave the surface open.
-//! 3. Marching tetrahedra over the tetrahedra with both labels: on a cut edge whose ends have
-//!    opposite signs of `f` the vertex goes to the linear zero (regula falsi); on an
-//!    *inconsistent* cut edge (same sign at both ends) it goes to the end with the smaller
-//!    `|f|`.
-//! 4. Only the vertices placed at an end, and the vertices on edges with an end whose support
-//!    holds fewer than 10 samples (under-sampled areas), are smoothed: 30 rounds of
-//!
-//!    ```text
-//!    v'  = v  + λ U(v),     U(v)   = (1/n) Σ_j v_j  − v     (over the 1-ring)
-//!    v'' = v' − λ U'(v'),   U'(v') = (1/n) Σ_j v'_j − v'
-//!    ```
-//!
-//!    with λ = 0.5 (thesis eq. 5.3–5.5: a Laplacian step and one in the reverse direction,
-//!    after Taubin and Kobbelt et al., which smooths without the shrinkage of plain Laplacian
-//!    steps). Every step moves all selected vertices at once from the previous positions.
-//!
-//! The mesh is in the cover's coordinates; triangles face outward (inside = positive `f`).
+//! The method is described on [`reconstruct_graphcut()`].
 
-use sphcover_core::ParameterError;
+use sphcover_core::{Cover, DVec3, ParameterError, PointIndex, PointIndexError, TriMesh};
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use sphcover_core::{Cover, DVec3, PointIndex, PointIndexError, TriMesh};
-use sphcover_tetra::regular::NO_TET;
+use sphcover_tetra::NO_TET;
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 use thiserror::Error;
 
 use crate::graph_cut::{GraphCutError, GraphCutParams, GraphCutStats, graph_cut, values_at};
-use crate::mesh_smoothing::{SmoothingError, smooth_two_step};
+use crate::mesh_smoothing::{DEFAULT_LAMBDA, DEFAULT_ROUNDS, SmoothingError, smooth_two_step};
 
 /// Why the graph-cut reconstruction failed.
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -90,8 +66,8 @@ impl Default for GraphCutReconstructionParams {
             k: 5.0,
             tet_shrink: 0.75,
             seed: DualComplexParams::default().seed,
-            smoothing_rounds: 30,
-            smoothing_lambda: 0.5,
+            smoothing_rounds: DEFAULT_ROUNDS,
+            smoothing_lambda: DEFAULT_LAMBDA,
             undersampled_below: 10,
             close_at_boundary: true,
         }
@@ -132,6 +108,31 @@ pub struct GraphCutReconstructionStats {
 /// Reconstructs the surface of `cover` by the graph-cut-only path of thesis §5.2.2 (see the
 /// module documentation). `samples` are the input points in the cover's frame; they decide
 /// which supports are under-sampled. Returns the mesh in the cover's coordinates.
+///
+/// 1. The dual complex of the cover with the radius shrink `σ_t` (thesis §3.5.2) gives a
+///    tetrahedral mesh whose vertices are support centres.
+/// 2. [`crate::graph_cut::graph_cut`] on the mesh edges labels them inside/outside (`k` ≈ 5–15).
+///    Vertices on the boundary of the complex are then set outside (beyond the thesis,
+///    [`GraphCutReconstructionParams::close_at_boundary`]): the
+///    cut knows nothing of what lies beyond the complex, and an inside label there would
+///    leave the surface open.
+/// 3. Marching tetrahedra over the tetrahedra with both labels: on a cut edge whose ends have
+///    opposite signs of `f` the vertex goes to the linear zero (regula falsi); on an
+///    *inconsistent* cut edge (same sign at both ends) it goes to the end with the smaller
+///    `|f|`.
+/// 4. Only the vertices placed at an end, and the vertices on edges with an end whose support
+///    holds fewer than 10 samples (under-sampled areas), are smoothed: 30 rounds of
+///
+///    ```text
+///    v'  = v  + λ U(v),     U(v)   = (1/n) Σ_j v_j  − v     (over the 1-ring)
+///    v'' = v' − λ U'(v'),   U'(v') = (1/n) Σ_j v'_j − v'
+///    ```
+///
+///    with λ = 0.5 (thesis eq. 5.3–5.5: a Laplacian step and one in the reverse direction,
+///    after Taubin and Kobbelt et al., which smooths without the shrinkage of plain Laplacian
+///    steps). Every step moves all selected vertices at once from the previous positions.
+///
+/// The mesh is in the cover's coordinates; triangles face outward (inside = positive `f`).
 pub fn reconstruct_graphcut(
     cover: &Cover,
     samples: &[DVec3],
@@ -277,7 +278,7 @@ fn check(p: &GraphCutReconstructionParams) -> Result<(), GraphCutReconstructionE
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
     use sphcover_core::{
         PuEvaluator, SphereIntersectionGraph, SurfaceCoverParams, build_surface_cover_from_cloud,
     };
@@ -438,7 +439,7 @@ mod speed {
             reconstruct_graphcut(&cover, &samples, &GraphCutReconstructionParams::default())
                 .unwrap();
         let recon_time = t.elapsed();
-        let topo = sphcover_core::mesh_topology::MeshTopology::of(&mesh);
+        let topo = sphcover_core::MeshTopology::of(&mesh);
         println!(
             "graphcut_speed: {} samples, {} supports, cover {:.2} s, graph-cut path {:.2} s ({:?}), components {}, watertight {}",
             cloud.len(),

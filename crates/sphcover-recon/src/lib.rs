@@ -1,12 +1,12 @@
 //! Surface reconstruction from scanned points (thesis §5), robust to noise, outliers and
 //! wrong normals.
 //!
-//! [`reconstruct`] runs the whole pipeline (module [`pipeline`]): scan statistics (spacing,
+//! [`reconstruct`] runs the whole pipeline: scan statistics (spacing,
 //! noise, isolated samples), normals when the input has none, the surface cover, the graph
-//! cut on the sphere intersection graph ([`mod@graph_cut`], in-house Boykov–Kolmogorov
-//! [`maxflow`]), the confidence of samples (eq. 5.39–5.40), diffusion of the local functions
-//! ([`diffusion`], over the operators of `sphcover-ops`), and polygonisation by surface nets
-//! visited only near the zero set ([`mod@polygonise`]). Every stage is public so a caller can run
+//! cut on the sphere intersection graph ([`graph_cut()`], in-house Boykov–Kolmogorov
+//! [`FlowGraph`]), the confidence of samples (eq. 5.39–5.40), diffusion of the local functions
+//! ([`diffuse`], over the operators of `sphcover-ops`), and polygonisation by surface nets
+//! visited only near the zero set ([`polygonise()`]). Every stage is public so a caller can run
 //! one alone.
 //!
 //! ```
@@ -41,17 +41,20 @@
 #![deny(missing_docs)]
 
 mod angle;
-pub mod confidence;
+mod confidence;
 mod csr;
-pub mod diffusion;
-pub mod graph_cut;
-pub mod graphcut_reconstruction;
-pub mod maxflow;
-pub mod memory_model;
-pub mod normals;
+mod diffusion;
+mod graph_cut;
+mod graphcut_reconstruction;
+mod maxflow;
+mod memory_model;
+mod mesh_smoothing;
+mod normals;
 mod pca;
-pub mod pipeline;
-pub mod scan_statistics;
+mod pipeline;
+mod polygonise;
+mod scan_statistics;
+mod vertex_refinement;
 
 pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
@@ -70,12 +73,8 @@ pub use graphcut_reconstruction::{
 };
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
 pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel};
-pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
-pub mod mesh_smoothing;
-pub mod polygonise;
-pub mod vertex_refinement;
-
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
+pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
 pub use pipeline::{
     Method, ReconError, ReconParams, ReconStats, Reconstruction, Trim, default_depth, reconstruct,
     stage_names,

@@ -2,21 +2,23 @@
 //! polygonisation depth, so that a caller with a memory budget can choose a coarser grid or
 //! refuse before the work starts instead of being killed part-way.
 //!
-//! The model is `peak = base + per_point · n + per_grid_cell · 4^depth`: the points and
-//! everything held per point (positions and normals, neighbour structures, confidences,
-//! labels) grow with `n`; the surface-net cells visited near the zero set, their function
-//! values and the mesh grow with the area of the surface in grid steps, `∝ 4^depth`; the
-//! cover and its operators depend on ε and the shape, not on `n` (the bunny's cover at the
-//! default ε has about 66,000 supports from 100K to 3M points), and sit in `base`.
-//!
-//! The coefficients are fitted to the peak resident set size of `sphcover recon` with
-//! default parameters (integrated method, normals given) on synthetic scans of the bunny,
-//! measured with `/usr/bin/time -v` (the table in `docs/benchmarks.md`, section *Memory*).
-//! The grid term scales with the surface's area relative to its bounding box: a shape
-//! with much more area than the bunny (a crumpled sheet, many thin parts) visits more cells
-//! at the same depth, one with less (a flat plate) fewer.
+//! The method is described on [`ReconMemoryModel`].
 
 /// The fitted model: bytes at the peak of a reconstruction.
+///
+/// The model is `peak = base + per_point · n + per_grid_cell · 4^depth`: the points and
+/// everything held per point (positions and normals, neighbour structures, confidences,
+/// labels) grow with `n`; the surface-net cells visited near the zero set, their function
+/// values and the mesh grow with the area of the surface in grid steps, `∝ 4^depth`; the
+/// cover and its operators depend on ε and the shape, not on `n` (the bunny's cover at the
+/// default ε has about 66,000 supports from 100K to 3M points), and sit in `base`.
+///
+/// The coefficients are fitted to the peak resident set size of `sphcover recon` with
+/// default parameters (integrated method, normals given) on synthetic scans of the bunny,
+/// measured with `/usr/bin/time -v` (the table in `docs/benchmarks.md`, section *Memory*).
+/// The grid term scales with the surface's area relative to its bounding box: a shape
+/// with much more area than the bunny (a crumpled sheet, many thin parts) visits more cells
+/// at the same depth, one with less (a flat plate) fewer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReconMemoryModel {
     /// Bytes whatever the input: the program, thread stacks, the cover and its operators.

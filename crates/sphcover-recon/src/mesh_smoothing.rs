@@ -1,30 +1,19 @@
 //! Two-step Laplacian smoothing of a triangle mesh (thesis §5.2.2, eq. 5.3–5.5).
 //!
-//! One round moves every movable vertex twice, with the umbrella operator over its 1-ring
-//! `U(v) = (1/n) Σ_j (v_j − v)`:
-//!
-//! ```text
-//! v'  = v  + λ U(v)        (shrinking step)
-//! v'' = v' − λ U'(v')      (inflating step, U' taken on the positions v')
-//! ```
-//!
-//! The second step undoes most of the shrinkage of the first (Taubin's λ|μ idea with μ = −λ),
-//! so high-frequency noise goes while the volume stays roughly where it was. The thesis uses
-//! λ = 0.5 and 30 rounds on the vertices placed at an end of an inconsistent cut edge.
-//!
-//! Each step is a Jacobi update: every vertex reads the positions of the previous step only,
-//! and its sum runs over its neighbours in ascending index. So the result is bit-identical
-//! whatever the thread count.
+//! The method is described on [`smooth_two_step()`].
 
 use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::TriMesh;
 
+#[cfg(doc)]
+use crate::GraphCutReconstructionParams;
+
 /// The λ of the thesis (eq. 5.3–5.5).
-pub const DEFAULT_LAMBDA: f64 = 0.5;
+pub(crate) const DEFAULT_LAMBDA: f64 = 0.5;
 
 /// The round count of the thesis for the graph-cut surface (§5.2.2).
-pub const DEFAULT_ROUNDS: usize = 30;
+pub(crate) const DEFAULT_ROUNDS: usize = 30;
 
 /// Vertices per rayon task at least: one umbrella costs tens of nanoseconds.
 const MIN_VERTICES_PER_TASK: usize = 1024;
@@ -169,7 +158,7 @@ fn umbrella(positions: &[DVec3], ring: &[u32], v: DVec3) -> DVec3 {
 }
 
 /// Smooths `mesh` in place with `rounds` rounds of the two-step Laplacian
-/// `v' = v + λU(v)`, `v'' = v' − λU'(v')` (thesis eq. 5.3–5.5; λ = [`DEFAULT_LAMBDA`] there).
+/// `v' = v + λU(v)`, `v'' = v' − λU'(v')` (thesis eq. 5.3–5.5; λ = 0.5 and 30 rounds there, the defaults of [`GraphCutReconstructionParams`]).
 ///
 /// Only vertices with `movable[v] == true` move (all of them when `movable` is `None`); the
 /// others stay put but still pull on their neighbours. Vertices in no triangle never move.
@@ -178,6 +167,22 @@ fn umbrella(positions: &[DVec3], ring: &[u32], v: DVec3) -> DVec3 {
 /// per-vertex values are kept.
 ///
 /// Bit-identical whatever the thread count. On error the mesh is unchanged.
+///
+/// One round moves every movable vertex twice, with the umbrella operator over its 1-ring
+/// `U(v) = (1/n) Σ_j (v_j − v)`:
+///
+/// ```text
+/// v'  = v  + λ U(v)        (shrinking step)
+/// v'' = v' − λ U'(v')      (inflating step, U' taken on the positions v')
+/// ```
+///
+/// The second step undoes most of the shrinkage of the first (Taubin's λ|μ idea with μ = −λ),
+/// so high-frequency noise goes while the volume stays roughly where it was. The thesis uses
+/// λ = 0.5 and 30 rounds on the vertices placed at an end of an inconsistent cut edge.
+///
+/// Each step is a Jacobi update: every vertex reads the positions of the previous step only,
+/// and its sum runs over its neighbours in ascending index. So the result is bit-identical
+/// whatever the thread count.
 pub fn smooth_two_step(
     mesh: &mut TriMesh,
     movable: Option<&[bool]>,

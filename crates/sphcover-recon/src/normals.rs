@@ -1,25 +1,6 @@
 //! Normals for unoriented points (beyond the thesis, which needs oriented input).
 //!
-//! 1. **Estimation.** The normal of each point is the direction of least variance of its `k`
-//!    nearest neighbours (itself included) — the PCA plane fit of Hoppe et al., "Surface
-//!    reconstruction from unorganized points", SIGGRAPH 1992.
-//! 2. **Consistent orientation.** PCA gives each normal up to sign. Following Hoppe et al.,
-//!    the signs are propagated along a minimum spanning tree of the symmetrised kNN graph with
-//!    edge cost `1 − |n_i·n_j|`, so that propagation crosses nearly parallel planes first and
-//!    postpones the ambiguous places (thin parts, sharp edges) to the end, where a wrong flip
-//!    affects few points. A child is flipped when `n_child·n_parent < 0`.
-//! 3. **Outward.** Each connected component of the graph is oriented as a whole: at the six
-//!    points extreme along ±x, ±y, ±z the outward normal points away from the rest of the
-//!    component (at a point of largest `x`, an outward normal has `n_x ≥ 0`). Hoppe uses the
-//!    single point of largest `z`; summing the six votes `±n_axis` makes one noisy extreme
-//!    point unable to flip a component.
-//!
-//! Points whose neighbourhood spans no plane (duplicates, collinear sets, fewer than 3
-//! points) get a zero normal, are left out of the orientation, and are counted; the surface
-//! cover skips zero normals.
-//!
-//! Determinism: estimation runs per point in parallel; the tree is built sequentially with
-//! ties broken by index. The result does not depend on the thread count.
+//! The method is described on [`estimate_normals()`].
 
 use std::time::{Duration, Instant};
 
@@ -87,7 +68,28 @@ pub struct EstimatedNormals {
 }
 
 /// Estimates unit normals of `points` by PCA over `k` nearest neighbours and, with
-/// `params.orient`, orients them consistently and outward (see the module documentation).
+/// `params.orient`, orients them consistently and outward (method below).
+///
+/// 1. **Estimation.** The normal of each point is the direction of least variance of its `k`
+///    nearest neighbours (itself included) — the PCA plane fit of Hoppe et al., "Surface
+///    reconstruction from unorganized points", SIGGRAPH 1992.
+/// 2. **Consistent orientation.** PCA gives each normal up to sign. Following Hoppe et al.,
+///    the signs are propagated along a minimum spanning tree of the symmetrised kNN graph with
+///    edge cost `1 − |n_i·n_j|`, so that propagation crosses nearly parallel planes first and
+///    postpones the ambiguous places (thin parts, sharp edges) to the end, where a wrong flip
+///    affects few points. A child is flipped when `n_child·n_parent < 0`.
+/// 3. **Outward.** Each connected component of the graph is oriented as a whole: at the six
+///    points extreme along ±x, ±y, ±z the outward normal points away from the rest of the
+///    component (at a point of largest `x`, an outward normal has `n_x ≥ 0`). Hoppe uses the
+///    single point of largest `z`; summing the six votes `±n_axis` makes one noisy extreme
+///    point unable to flip a component.
+///
+/// Points whose neighbourhood spans no plane (duplicates, collinear sets, fewer than 3
+/// points) get a zero normal, are left out of the orientation, and are counted; the surface
+/// cover skips zero normals.
+///
+/// Determinism: estimation runs per point in parallel; the tree is built sequentially with
+/// ties broken by index. The result does not depend on the thread count.
 pub fn estimate_normals(
     points: &[DVec3],
     params: &NormalParams,
@@ -356,7 +358,7 @@ mod tests {
     fn thread_count_does_not_change_the_result() {
         let cloud = sphcover_evaluation::torus(0.35, 0.15, 3000);
         let on = |threads| {
-            sphcover_core::threads::on_threads(threads, || {
+            sphcover_core::on_threads(threads, || {
                 estimate_normals(&cloud.positions, &NormalParams::default()).unwrap()
             })
         };

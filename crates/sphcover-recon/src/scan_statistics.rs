@@ -1,24 +1,7 @@
 //! What a scan says about itself before anything is fitted: its sample spacing, its noise
 //! level and the samples that lie far from every other (beyond the thesis).
 //!
-//! The thesis takes the cover tolerance ε as a user choice and leaves outliers to the graph
-//! cut and the confidence of samples (§5.2.4). Both fall short on real scans:
-//!
-//! - With Gaussian noise of standard deviation σ larger than ε no plane fits any support
-//!   within ε, so the octree refines until every support has to grow to reach its `n_min`
-//!   samples: on a 100K-point bunny with noise of 0.5% of the diagonal, the cover has over
-//!   ten times the supports, and the run many times the time and memory, of one with the
-//!   raised tolerance below (`docs/algorithms.md`, *Surface reconstruction*). The tolerance
-//!   a scan supports is about the largest residual of its noise, so the pipeline uses
-//!   `max(ε, 4σ̂)`, with σ̂ the median RMS distance of samples to the plane of their `k`
-//!   nearest neighbours.
-//! - The confidence of samples (eq. 5.39–5.40) rarely falls below its outlier threshold for
-//!   uniform outliers (supports centred on a surface have centroid offsets in random
-//!   directions, so surface samples score about as low as outliers). Uniform outliers are
-//!   instead plain to see by their isolation: in a 100K-point scan of a unit box with 5%
-//!   outliers, an outlier's mean distance to its `k` nearest neighbours is 10–20 times the
-//!   surface samples'. A sample is *isolated* when that distance exceeds `isolation` times
-//!   the median over the scan ("statistical outlier removal").
+//! The method is described on [`scan_statistics()`].
 
 use rayon::prelude::*;
 use sphcover_core::{DVec3, PointIndex};
@@ -90,8 +73,27 @@ pub struct ScanStatistics {
     pub isolated_count: usize,
 }
 
-/// Measures `points` (indexed by `index`, see the module docs). Fewer than `k + 1` points give
+/// Measures `points` (indexed by `index`; method below). Fewer than `k + 1` points give
 /// zero spacing and noise and no isolated sample.
+///
+/// The thesis takes the cover tolerance ε as a user choice and leaves outliers to the graph
+/// cut and the confidence of samples (§5.2.4). Both fall short on real scans:
+///
+/// - With Gaussian noise of standard deviation σ larger than ε no plane fits any support
+///   within ε, so the octree refines until every support has to grow to reach its `n_min`
+///   samples: on a 100K-point bunny with noise of 0.5% of the diagonal, the cover has over
+///   ten times the supports, and the run many times the time and memory, of one with the
+///   raised tolerance below (`docs/algorithms.md`, *Surface reconstruction*). The tolerance
+///   a scan supports is about the largest residual of its noise, so the pipeline uses
+///   `max(ε, 4σ̂)`, with σ̂ the median RMS distance of samples to the plane of their `k`
+///   nearest neighbours.
+/// - The confidence of samples (eq. 5.39–5.40) rarely falls below its outlier threshold for
+///   uniform outliers (supports centred on a surface have centroid offsets in random
+///   directions, so surface samples score about as low as outliers). Uniform outliers are
+///   instead plain to see by their isolation: in a 100K-point scan of a unit box with 5%
+///   outliers, an outlier's mean distance to its `k` nearest neighbours is 10–20 times the
+///   surface samples'. A sample is *isolated* when that distance exceeds `isolation` times
+///   the median over the scan ("statistical outlier removal").
 pub fn scan_statistics(
     points: &[DVec3],
     index: &PointIndex,

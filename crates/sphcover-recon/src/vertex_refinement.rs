@@ -1,37 +1,9 @@
 //! Refinement of the polygonised vertices onto the samples (beyond the thesis).
 //!
-//! The cover's local functions are linear (thesis §3.4.1), each fitted to its samples within
-//! the tolerance ε. A plane fitted to a curved patch lies on the concave side of it, so the
-//! partition-of-unity blend of those planes is offset from the sampled surface by up to ε
-//! wherever the surface curves; the diffusion (§5.2.3) smooths it further. Measured on a
-//! clean 100K-point scan of the bunny: two-sided Chamfer distance 0.0077% of the diagonal
-//! (plain blend 0.0064%), against Screened Poisson's 0.0035%, and halving ε only gives
-//! 0.0060%.
-//!
-//! Each vertex is therefore moved along its normal onto a quadric height field fitted to the
-//! samples within a ball around it, the projection of moving-least-squares point-set
-//! surfaces (Levin 2003; Alexa et al. 2003). The fit weights every sample by its confidence (thesis
-//! eq. 5.39–5.40; outliers weigh nothing) and by a kernel of its distance, and leaves out
-//! samples whose normal faces away from the vertex's (the other side of a thin part). Three
-//! guards keep the step from undoing what the rest of the pipeline achieved:
-//!
-//! - **Noise.** The fitted offset `a` has a variance `se²` (from the fit's residuals); the
-//!   move is shrunk to `a · a² / (a² + g·se²)`, so an offset the samples do not pin down
-//!   beyond their own scatter is not taken. On a scan whose noise raised the cover tolerance
-//!   (by `r = ε_used / ε`) the diffused function averages far more samples than one fit,
-//!   so `g = r⁴`: on the bunny with noise of 0.25% of the diagonal (`r` = 5.9) unshrunk
-//!   fits over the 24 nearest samples drop the normal consistency from 0.996 to 0.89;
-//!   shrunk, every noisy benchmark case scores as without the step.
-//! - **Holes.** A vertex farther than `reach` from every sample, measured in its tangent
-//!   plane, keeps the position the function gave it (a filled hole is the function's, not
-//!   the samples'); the move fades out between half the reach and the reach.
-//! - **Folds.** No move exceeds `max_move` (a fraction of the grid step), so a triangle
-//!   cannot turn over.
-//!
-//! The step moves vertices only: the mesh's topology is exactly the polygonisation's.
+//! The method is described on [`refine_vertices()`].
 
 use rayon::prelude::*;
-use sphcover_core::{DVec3, PointIndex, TriMesh, vertex_normals};
+use sphcover_core::{DVec3, PointIndex, SmallCholesky, TriMesh, vertex_normals};
 
 /// A ball with fewer samples than this is doubled, at most this many times less one (a
 /// sparse region of a scan with uneven density).
@@ -139,7 +111,7 @@ pub enum VertexRefinementError {
 }
 
 /// Moves each vertex of `mesh` along its normal onto a quadric fitted to the samples near
-/// it (module docs). Triangles, normals and values are kept.
+/// it (method below). Triangles, normals and values are kept.
 ///
 /// ```
 /// use sphcover_core::{DVec3, PointIndex, TriMesh};
@@ -171,6 +143,36 @@ pub enum VertexRefinementError {
 /// }
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+///
+/// The cover's local functions are linear (thesis §3.4.1), each fitted to its samples within
+/// the tolerance ε. A plane fitted to a curved patch lies on the concave side of it, so the
+/// partition-of-unity blend of those planes is offset from the sampled surface by up to ε
+/// wherever the surface curves; the diffusion (§5.2.3) smooths it further. Measured on a
+/// clean 100K-point scan of the bunny: two-sided Chamfer distance 0.0077% of the diagonal
+/// (plain blend 0.0064%), against Screened Poisson's 0.0035%, and halving ε only gives
+/// 0.0060%.
+///
+/// Each vertex is therefore moved along its normal onto a quadric height field fitted to the
+/// samples within a ball around it, the projection of moving-least-squares point-set
+/// surfaces (Levin 2003; Alexa et al. 2003). The fit weights every sample by its confidence (thesis
+/// eq. 5.39–5.40; outliers weigh nothing) and by a kernel of its distance, and leaves out
+/// samples whose normal faces away from the vertex's (the other side of a thin part). Three
+/// guards keep the step from undoing what the rest of the pipeline achieved:
+///
+/// - **Noise.** The fitted offset `a` has a variance `se²` (from the fit's residuals); the
+///   move is shrunk to `a · a² / (a² + g·se²)`, so an offset the samples do not pin down
+///   beyond their own scatter is not taken. On a scan whose noise raised the cover tolerance
+///   (by `r = ε_used / ε`) the diffused function averages far more samples than one fit,
+///   so `g = r⁴`: on the bunny with noise of 0.25% of the diagonal (`r` = 5.9) unshrunk
+///   fits over the 24 nearest samples drop the normal consistency from 0.996 to 0.89;
+///   shrunk, every noisy benchmark case scores as without the step.
+/// - **Holes.** A vertex farther than `reach` from every sample, measured in its tangent
+///   plane, keeps the position the function gave it (a filled hole is the function's, not
+///   the samples'); the move fades out between half the reach and the reach.
+/// - **Folds.** No move exceeds `max_move` (a fraction of the grid step), so a triangle
+///   cannot turn over.
+///
+/// The step moves vertices only: the mesh's topology is exactly the polygonisation's.
 pub fn refine_vertices(
     mesh: &mut TriMesh,
     samples: &RefinementSamples<'_>,
@@ -330,7 +332,7 @@ impl Fit<'_> {
 
     /// The fitted offset, shrunk by its variance and faded out towards the reach.
     fn shrunk_move(&self, sums: &Sums, nearest: f64) -> Outcome {
-        let Some(chol) = Cholesky::new(&sums.normal) else {
+        let Some(chol) = SmallCholesky::new(&sums.normal) else {
             return Outcome::Unfitted;
         };
         let coef = chol.solve(sums.rhs);
@@ -468,56 +470,6 @@ impl Sums {
             count: w.len(),
             nearest2: nearest2 * radius * radius,
         }
-    }
-}
-
-/// The Cholesky factor of a small symmetric positive definite matrix (lower triangle given).
-struct Cholesky {
-    l: [[f64; TERMS]; TERMS],
-}
-
-impl Cholesky {
-    /// `None` when the matrix is not numerically positive definite (samples on a line, say).
-    fn new(a: &[[f64; TERMS]; TERMS]) -> Option<Cholesky> {
-        let scale = (0..TERMS).map(|i| a[i][i]).fold(0.0, f64::max);
-        if !(scale > 0.0 && scale.is_finite()) {
-            return None;
-        }
-        let mut l = [[0.0; TERMS]; TERMS];
-        for r in 0..TERMS {
-            for c in 0..=r {
-                let mut s = a[r][c];
-                for k in 0..c {
-                    s -= l[r][k] * l[c][k];
-                }
-                if r == c {
-                    if s.is_nan() || s <= 1e-12 * scale {
-                        return None;
-                    }
-                    l[r][r] = s.sqrt();
-                } else {
-                    l[r][c] = s / l[c][c];
-                }
-            }
-        }
-        Some(Cholesky { l })
-    }
-
-    fn solve(&self, mut b: [f64; TERMS]) -> [f64; TERMS] {
-        let l = &self.l;
-        for r in 0..TERMS {
-            for k in 0..r {
-                b[r] -= l[r][k] * b[k];
-            }
-            b[r] /= l[r][r];
-        }
-        for r in (0..TERMS).rev() {
-            for k in r + 1..TERMS {
-                b[r] -= l[k][r] * b[k];
-            }
-            b[r] /= l[r][r];
-        }
-        b
     }
 }
 

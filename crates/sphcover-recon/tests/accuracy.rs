@@ -13,8 +13,7 @@ use rand_pcg::Pcg64;
 use std::path::PathBuf;
 
 use sphcover_core::io::{ReadOptions, read_mesh};
-use sphcover_core::mesh_topology::MeshTopology;
-use sphcover_core::{DVec3, PointCloud, TriMesh};
+use sphcover_core::{DVec3, MeshTopology, PointCloud, TriMesh};
 use sphcover_evaluation::surface_sampling::SurfaceSampler;
 use sphcover_evaluation::triangle_bvh::TriangleBvh;
 use sphcover_recon::{DiffusionParams, ReconParams, reconstruct};

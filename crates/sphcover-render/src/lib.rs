@@ -781,7 +781,7 @@ mod tests {
             ..options()
         };
         let run = |threads: usize| {
-            sphcover_core::threads::on_threads(threads, || render(&scene, &opts).unwrap().image)
+            sphcover_core::on_threads(threads, || render(&scene, &opts).unwrap().image)
         };
         let one = run(1);
         assert_eq!(one, run(3));
@@ -790,7 +790,7 @@ mod tests {
             ..scene
         };
         let run_points = |threads: usize| {
-            sphcover_core::threads::on_threads(threads, || render(&points, &opts).unwrap().image)
+            sphcover_core::on_threads(threads, || render(&points, &opts).unwrap().image)
         };
         assert_eq!(run_points(1), run_points(4));
     }

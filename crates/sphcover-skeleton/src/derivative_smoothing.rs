@@ -1,29 +1,6 @@
 //! Smoothing `∇f` and `∇²f` over the supports before the ridge test (thesis §6.2.3).
 //!
-//! The thesis names derivative smoothing as the remedy for noise but never formulates it
-//! (it proposes "a linear cover and discrete operators", §6.2.3). Here it is formulated with
-//! the project's own operators on the sphere intersection graph of the supports that are
-//! vertices of the tetrahedral mesh: each of the nine fields — the three components of `∇f`
-//! and the six of the symmetric `∇²f`, one value per vertex — takes one implicit
-//! (backward-Euler) step of the heat equation,
-//!
-//! ```text
-//! (M − t L_W) u = M u₀,    L_W = W − diag(W·1),  W = [φ_ij]   (thesis §4)
-//! ```
-//!
-//! with the moment-matched mass (consistent on regular stencils,
-//! [`sphcover_ops::MassKind::MomentMatched`]), solved by conjugate gradients
-//! ([`sphcover_ops::implicit_smoothing()`]). A step of time `t` damps a Fourier mode of
-//! wavelength `λ` by `1 / (1 + t (2π/λ)²)`, so `t = ℓ² / 2` smooths over a length `ℓ` (the
-//! standard deviation of the heat kernel of time `t`). The ridge test (eq. 6.1, 6.4, 6.5)
-//! then runs on the eigen-decomposition of the smoothed Hessians, with the smoothed
-//! gradients; `f` itself is not smoothed (the strength filter and the patches use it only
-//! through the derivatives).
-//!
-//! Smoothing is linear and leaves fields that are constant over a connected graph unchanged
-//! (`L_W 1 = 0`), so a plate's Hessian, constant across its middle, keeps its eigenvectors;
-//! what it removes is the vertex-to-vertex scatter of the second derivatives that noise
-//! leaves in the local quadratic fits.
+//! The method is described on [`smoothed_vertex_derivatives()`].
 
 use glam::{DMat3, DVec3};
 use sphcover_core::{PuEvaluator, SphereIntersectionGraph};
@@ -39,8 +16,33 @@ const FIELDS: usize = 9;
 
 /// `vertex_derivatives` with `∇f` and `∇²f` smoothed over the sphere
 /// intersection graph of the balls `(positions[i], radii[i])` by one implicit heat step of
-/// time `time` (world units squared; see the module documentation). `time = 0` returns the
+/// time `time` (world units squared; method below). `time = 0` returns the
 /// unsmoothed derivatives. Vertices where `f` is undefined stay `None` and do not take part.
+///
+/// The thesis names derivative smoothing as the remedy for noise but never formulates it
+/// (it proposes "a linear cover and discrete operators", §6.2.3). Here it is formulated with
+/// the project's own operators on the sphere intersection graph of the supports that are
+/// vertices of the tetrahedral mesh: each of the nine fields — the three components of `∇f`
+/// and the six of the symmetric `∇²f`, one value per vertex — takes one implicit
+/// (backward-Euler) step of the heat equation,
+///
+/// ```text
+/// (M − t L_W) u = M u₀,    L_W = W − diag(W·1),  W = [φ_ij]   (thesis §4)
+/// ```
+///
+/// with the moment-matched mass (consistent on regular stencils,
+/// [`sphcover_ops::MassKind::MomentMatched`]), solved by conjugate gradients
+/// ([`sphcover_ops::implicit_smoothing()`]). A step of time `t` damps a Fourier mode of
+/// wavelength `λ` by `1 / (1 + t (2π/λ)²)`, so `t = ℓ² / 2` smooths over a length `ℓ` (the
+/// standard deviation of the heat kernel of time `t`). The ridge test (eq. 6.1, 6.4, 6.5)
+/// then runs on the eigen-decomposition of the smoothed Hessians, with the smoothed
+/// gradients; `f` itself is not smoothed (the strength filter and the patches use it only
+/// through the derivatives).
+///
+/// Smoothing is linear and leaves fields that are constant over a connected graph unchanged
+/// (`L_W 1 = 0`), so a plate's Hessian, constant across its middle, keeps its eigenvectors;
+/// what it removes is the vertex-to-vertex scatter of the second derivatives that noise
+/// leaves in the local quadratic fits.
 pub fn smoothed_vertex_derivatives(
     evaluator: &PuEvaluator<'_>,
     positions: &[DVec3],

@@ -4,10 +4,9 @@
 //! lattice), and every later stage is the volume pipeline's.
 
 use rayon::prelude::*;
-use sphcover_core::stages::{Stage, StageProgress, run_stages};
-use sphcover_core::volume_cover::median_nearest_distance;
 use sphcover_core::{
-    Cover, DVec3, PointIndex, TriMesh, VolumeCoverError, VolumeCoverStats, build_scattered_cover,
+    Cover, DVec3, PointIndex, Stage, StageProgress, TriMesh, VolumeCoverError, VolumeCoverStats,
+    build_scattered_cover, median_nearest_distance, run_stages,
 };
 
 use crate::error::SkeletonError;

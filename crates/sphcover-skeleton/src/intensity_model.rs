@@ -2,23 +2,9 @@
 //! background and object placed from Otsu's split, the two class levels (the contrast), and the noise level
 //! from the background's median absolute deviation.
 //!
-//! The automatic threshold works on the volume smoothed by a Gaussian of `OTSU_SMOOTHING`
-//! voxels: a thin part is a few percent of the voxels, and on a noisy image (30 % of the
-//! contrast) the wide air peak drags Otsu's split deep into its own tail (−460 HU between
-//! air at −1000 and material at +2000 on the phantoms), selecting a fifth of the air.
-//! Smoothing narrows the peaks (Otsu then splits near −30 HU, still low because of the
-//! class imbalance), and `midpoint_threshold` moves the split to half the contrast. The noise is the
-//! median absolute deviation of the air *below* its median, which contains no material and
-//! no partial-volume voxel, so it is not biased by the object or by the threshold.
-//!
-//! The cover's fit tolerance ε (thesis §3.4.2, an RMS residual) must exceed the noise, or
-//! every support shrinks to its smallest ball: the RMS of a least-squares fit to pure noise
-//! of standard deviation `s` is about `s`. So ε is the root sum of squares of the noise and
-//! a model tolerance proportional to the contrast (5 % of it by default, the thesis value on
-//! noise-free data).
+//! The method is described on [`IntensityModel`].
 
-use sphcover_core::ParameterError;
-use sphcover_core::Volume;
+use sphcover_core::{ParameterError, Volume};
 
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
@@ -31,6 +17,21 @@ const OTSU_BINS: usize = 1024;
 const MAD_TO_STD: f64 = 1.482_602_218_505_602;
 
 /// What the intensity histogram says about a CT volume.
+///
+/// The automatic threshold works on the volume smoothed by a Gaussian of `OTSU_SMOOTHING`
+/// voxels: a thin part is a few percent of the voxels, and on a noisy image (30 % of the
+/// contrast) the wide air peak drags Otsu's split deep into its own tail (−460 HU between
+/// air at −1000 and material at +2000 on the phantoms), selecting a fifth of the air.
+/// Smoothing narrows the peaks (Otsu then splits near −30 HU, still low because of the
+/// class imbalance), and `midpoint_threshold` moves the split to half the contrast. The noise is the
+/// median absolute deviation of the air *below* its median, which contains no material and
+/// no partial-volume voxel, so it is not biased by the object or by the threshold.
+///
+/// The cover's fit tolerance ε (thesis §3.4.2, an RMS residual) must exceed the noise, or
+/// every support shrinks to its smallest ball: the RMS of a least-squares fit to pure noise
+/// of standard deviation `s` is about `s`. So ε is the root sum of squares of the noise and
+/// a model tolerance proportional to the contrast (5 % of it by default, the thesis value on
+/// noise-free data).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IntensityModel {
     /// Smallest and largest finite value.

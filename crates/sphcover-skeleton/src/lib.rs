@@ -48,9 +48,9 @@
 //! Departures from the thesis, each measured on the phantoms and documented where it is
 //! made: σ_t = 1 instead of 0.75 ([`SkeletonParams::tet_shrink`]), a consistent eigenvector
 //! sign over the mesh ([`orient_eigenvectors`]), eq. 6.5 relaxed where `f` is concave
-//! ([`ridge_points()`]), and the repairs ([`repair`]), which the thesis left as future work. The
+//! ([`ridge_points()`]), and the repairs ([`SheetRepairs`]), which the thesis left as future work. The
 //! derivative smoothing the thesis names but never formulates (§6.2.3: a linear cover and
-//! discrete operators) is formulated in [`derivative_smoothing`] with the project's own
+//! discrete operators) is formulated in [`smoothed_vertex_derivatives`] with the project's own
 //! operators (an implicit heat step of `∇f` and `∇²f` on the sphere intersection graph).
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
@@ -65,18 +65,18 @@
 //! off by setting its entry of [`SheetRepairs`] to `None`.
 #![deny(missing_docs)]
 
-pub mod derivative_smoothing;
-pub mod error;
-pub mod from_samples;
-pub mod gaussian_filter;
-pub mod intensity_model;
-pub mod nms_baseline;
-pub mod object_mask;
-pub mod patches;
-pub mod pipeline;
-pub mod repair;
-pub mod ridge_points;
-pub mod symmetric_eigen;
+mod derivative_smoothing;
+mod error;
+mod from_samples;
+mod gaussian_filter;
+mod intensity_model;
+mod nms_baseline;
+mod object_mask;
+mod patches;
+mod pipeline;
+mod repair;
+mod ridge_points;
+mod symmetric_eigen;
 
 pub use derivative_smoothing::smoothed_vertex_derivatives;
 pub use error::SkeletonError;

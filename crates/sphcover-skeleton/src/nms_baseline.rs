@@ -1,21 +1,11 @@
 //! The image-based baseline (thesis §6.3, Fig. 6.18): Gaussian smoothing and non-maximum
 //! suppression along the Hessian's smallest eigenvector.
 //!
-//! The volume is smoothed with a separable Gaussian of standard deviation σ voxels along each
-//! grid axis; `∇I` and `∇²I` come from central differences, mapped to world coordinates by
-//! the voxel→world linear map `L` (`∇_w = L⁻ᵀ ∇`, `∇²_w = L⁻ᵀ ∇² L⁻¹`). At a voxel whose
-//! smoothed value exceeds the threshold, with `λ1 < 0` the smallest Hessian eigenvalue and
-//! `e` its eigenvector, the maximum of the quadratic model along `e` lies at
-//! `x + t e`, `t = −⟨∇I, e⟩ / λ1`; the voxel keeps it when that offset stays inside the voxel
-//! (each voxel-frame component within ½). The output is a point set: one sub-voxel ridge
-//! point per kept voxel. Its known failure, which the cover method is meant to fix: one σ
-//! cannot suit thin and thick parts at once (too small leaves double ridges on thick plates,
-//! too large flattens thin ones).
+//! The method is described on [`nms_skeleton()`].
 
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
-use sphcover_core::ParameterError;
-use sphcover_core::Volume;
+use sphcover_core::{ParameterError, Volume};
 
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
@@ -57,6 +47,17 @@ pub struct NmsStats {
 
 /// Ridge points of `volume` by Gaussian smoothing and non-maximum suppression, in world
 /// coordinates.
+///
+/// The volume is smoothed with a separable Gaussian of standard deviation σ voxels along each
+/// grid axis; `∇I` and `∇²I` come from central differences, mapped to world coordinates by
+/// the voxel→world linear map `L` (`∇_w = L⁻ᵀ ∇`, `∇²_w = L⁻ᵀ ∇² L⁻¹`). At a voxel whose
+/// smoothed value exceeds the threshold, with `λ1 < 0` the smallest Hessian eigenvalue and
+/// `e` its eigenvector, the maximum of the quadratic model along `e` lies at
+/// `x + t e`, `t = −⟨∇I, e⟩ / λ1`; the voxel keeps it when that offset stays inside the voxel
+/// (each voxel-frame component within ½). The output is a point set: one sub-voxel ridge
+/// point per kept voxel. Its known failure, which the cover method is meant to fix: one σ
+/// cannot suit thin and thick parts at once (too small leaves double ridges on thick plates,
+/// too large flattens thin ones).
 pub fn nms_skeleton(
     volume: &Volume,
     params: &NmsParams,

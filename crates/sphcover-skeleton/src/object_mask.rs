@@ -1,20 +1,6 @@
 //! Removing noise specks from the object mask before the cover is built.
 //!
-//! At high noise a fraction of the background voxels exceeds the threshold (at 30 % noise
-//! and a mid-contrast threshold, about 5 % of them). Each would become an object point and
-//! then a support centre, and the ridge test would find sheets all over the background. At
-//! such densities the specks form small clusters (below the site-percolation threshold of the
-//! 26-neighbourhood, about 10 %), while the part is one large cluster: connected components
-//! of the mask smaller than a fraction of the largest are dropped by lowering their voxels to
-//! the threshold (they stay samples of the fits, no longer object points).
-//!
-//! Specks touching the part survive that test and grow clumps on its faces, each with ridges
-//! of its own. When the noise is strong (the pipeline's [`crate::SkeletonParams::smooth_mask_noise`]),
-//! the mask is therefore also intersected with the mask of the volume smoothed by a Gaussian
-//! of one voxel: a speck is one voxel, and smoothing takes it far below the threshold, while
-//! a plate keeps most of its contrast. Below that noise level the smoothed mask is not used,
-//! since it would also erode the thinnest plates (a 2-voxel plate blurred by the scanner
-//! barely reaches half the contrast).
+//! The method is described on [`drop_small_object_components()`].
 
 use sphcover_core::{Volume, VoxelValues};
 
@@ -36,6 +22,22 @@ pub struct ObjectMaskStats {
 /// With `smooth` (the volume's values smoothed), voxels where the smoothed value is at or
 /// below the threshold are lowered first. Returns the new volume (`None` when nothing was
 /// dropped) and the counts.
+///
+/// At high noise a fraction of the background voxels exceeds the threshold (at 30 % noise
+/// and a mid-contrast threshold, about 5 % of them). Each would become an object point and
+/// then a support centre, and the ridge test would find sheets all over the background. At
+/// such densities the specks form small clusters (below the site-percolation threshold of the
+/// 26-neighbourhood, about 10 %), while the part is one large cluster: connected components
+/// of the mask smaller than a fraction of the largest are dropped by lowering their voxels to
+/// the threshold (they stay samples of the fits, no longer object points).
+///
+/// Specks touching the part survive that test and grow clumps on its faces, each with ridges
+/// of its own. When the noise is strong (the pipeline's [`crate::SkeletonParams::smooth_mask_noise`]),
+/// the mask is therefore also intersected with the mask of the volume smoothed by a Gaussian
+/// of one voxel: a speck is one voxel, and smoothing takes it far below the threshold, while
+/// a plate keeps most of its contrast. Below that noise level the smoothed mask is not used,
+/// since it would also erode the thinnest plates (a 2-voxel plate blurred by the scanner
+/// barely reaches half the contrast).
 pub fn drop_small_object_components(
     volume: &Volume,
     threshold: f64,

@@ -1,13 +1,6 @@
 //! Patches of the skeletal sheet around ridge edges (thesis §6.2.2, Fig. 6.11).
 //!
-//! Every tetrahedron with a ridge point on one of its edges gets one vertex `q_t`, the
-//! centroid of those points. For each edge with a ridge point `c`, the walk around the edge's
-//! ordered ring of tetrahedra emits a triangle `(q_t, q_t', c)` for every consecutive pair
-//! (closing the fan for an interior edge, leaving it open for an edge on the mesh boundary).
-//! Each tetrahedron of the ring contains the edge, so each has a `q_t`. The result is one
-//! mesh with shared vertices: the ridge points (in edge order) and then the tetrahedron
-//! vertices (in tetrahedron order). The per-vertex value is the ridge strength `−λ1`, the
-//! per-vertex normal the ridge's across direction `e` (unoriented: its sign is arbitrary).
+//! The method is described on [`ridge_patches()`].
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -17,6 +10,15 @@ use sphcover_tetra::TetMesh;
 use crate::ridge_points::RidgePoint;
 
 /// Builds the patch mesh of the ridge points (`ridge` is indexed like `mesh.edges`).
+///
+/// Every tetrahedron with a ridge point on one of its edges gets one vertex `q_t`, the
+/// centroid of those points. For each edge with a ridge point `c`, the walk around the edge's
+/// ordered ring of tetrahedra emits a triangle `(q_t, q_t', c)` for every consecutive pair
+/// (closing the fan for an interior edge, leaving it open for an edge on the mesh boundary).
+/// Each tetrahedron of the ring contains the edge, so each has a `q_t`. The result is one
+/// mesh with shared vertices: the ridge points (in edge order) and then the tetrahedron
+/// vertices (in tetrahedron order). The per-vertex value is the ridge strength `−λ1`, the
+/// per-vertex normal the ridge's across direction `e` (unoriented: its sign is arbitrary).
 pub fn ridge_patches(mesh: &TetMesh, ridge: &[Option<RidgePoint>]) -> TriMesh {
     let mut vertices = Vec::new();
     let mut strengths = Vec::new();

@@ -1,27 +1,6 @@
 //! Ridge points on the edges of the tetrahedral mesh (thesis §6.2.1, eq. 6.1, 6.4, 6.5).
 //!
-//! A point of a skeletal sheet is a ridge of the intensity `f`: with `λ1` the smallest
-//! eigenvalue of the Hessian `∇²f` and `e` its unit eigenvector, `⟨e, ∇f⟩ = 0` and `λ1 < 0`
-//! (eq. 6.1): `f` has a maximum along `e`. On an edge `(x1, x2)` the eigenvectors at both
-//! ends are first aligned (`e2 ← −e2` when `⟨e1, e2⟩ < 0`: an eigenvector has no sign).
-//! With `s_k = ⟨e_k, ∇f(x_k)⟩`, the edge crosses the zero set of `s` when `s1 s2 < 0`
-//! (eq. 6.4); the crossing is a maximum, not a minimum, when `s_i ⟨x_j − x_i, e_i⟩ > 0` for
-//! `(i, j) = (1, 2)` or `(2, 1)` (eq. 6.5: the slope at one end points towards the other).
-//! The point is placed by linear interpolation of `s`, and its eigenvalues likewise.
-//!
-//! Eq. 6.5 decides by the sign of `⟨x_j − x_i, e_i⟩`, which is noise for an edge running
-//! nearly along the sheet (perpendicular to `e`). When `λ1 < 0` at both ends, `f` is concave
-//! along `e` over the edge, so any zero of `s` on it is a maximum: the crossing is accepted
-//! without eq. 6.5. On the phantoms this removes most tetrahedra crossed on exactly two
-//! edges (an impossible pattern for a surface, which leaves a hole in the patches).
-//!
-//! Two filters go beyond the thesis, both on the interpolated eigenvalues:
-//! * strength: `−λ1` must exceed a fraction of the largest strength found at any vertex,
-//!   which drops the faint ridges of noise;
-//! * sheetness: `λ2 / λ1` (both negative near a rim) must stay below a limit. Inside a plate
-//!   `f` is flat along the sheet (`λ2 ≈ 0`); at a plate's rounded rim it falls off in the
-//!   in-plane direction too (`λ2 → λ1`), and the rim's ridge points would stick out beyond
-//!   the true sheet's boundary.
+//! The method is described on [`ridge_points()`].
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -222,6 +201,29 @@ pub fn orient_eigenvectors(mesh: &TetMesh, derivatives: &mut [Option<VertexDeriv
 /// The ridge point of every edge of `mesh` that has one and passes `filter`, indexed like
 /// `mesh.edges`. `derivatives` is indexed by mesh vertex, best with eigenvectors oriented
 /// by [`orient_eigenvectors`].
+///
+/// A point of a skeletal sheet is a ridge of the intensity `f`: with `λ1` the smallest
+/// eigenvalue of the Hessian `∇²f` and `e` its unit eigenvector, `⟨e, ∇f⟩ = 0` and `λ1 < 0`
+/// (eq. 6.1): `f` has a maximum along `e`. On an edge `(x1, x2)` the eigenvectors at both
+/// ends are first aligned (`e2 ← −e2` when `⟨e1, e2⟩ < 0`: an eigenvector has no sign).
+/// With `s_k = ⟨e_k, ∇f(x_k)⟩`, the edge crosses the zero set of `s` when `s1 s2 < 0`
+/// (eq. 6.4); the crossing is a maximum, not a minimum, when `s_i ⟨x_j − x_i, e_i⟩ > 0` for
+/// `(i, j) = (1, 2)` or `(2, 1)` (eq. 6.5: the slope at one end points towards the other).
+/// The point is placed by linear interpolation of `s`, and its eigenvalues likewise.
+///
+/// Eq. 6.5 decides by the sign of `⟨x_j − x_i, e_i⟩`, which is noise for an edge running
+/// nearly along the sheet (perpendicular to `e`). When `λ1 < 0` at both ends, `f` is concave
+/// along `e` over the edge, so any zero of `s` on it is a maximum: the crossing is accepted
+/// without eq. 6.5. On the phantoms this removes most tetrahedra crossed on exactly two
+/// edges (an impossible pattern for a surface, which leaves a hole in the patches).
+///
+/// Two filters go beyond the thesis, both on the interpolated eigenvalues:
+/// * strength: `−λ1` must exceed a fraction of the largest strength found at any vertex,
+///   which drops the faint ridges of noise;
+/// * sheetness: `λ2 / λ1` (both negative near a rim) must stay below a limit. Inside a plate
+///   `f` is flat along the sheet (`λ2 ≈ 0`); at a plate's rounded rim it falls off in the
+///   in-plane direction too (`λ2 → λ1`), and the rim's ridge points would stick out beyond
+///   the true sheet's boundary.
 pub fn ridge_points(
     mesh: &TetMesh,
     derivatives: &[Option<VertexDerivatives>],

@@ -76,7 +76,7 @@ fn the_sheet_of_samples_does_not_depend_on_the_thread_count() {
     let phantom = phantom(ThinShape::PlateWithHole, 0.1);
     let (positions, values) = irregular_samples(&phantom, 0.7, 5);
     let run = |threads| {
-        sphcover_core::threads::on_threads(threads, || {
+        sphcover_core::on_threads(threads, || {
             extract_skeleton_from_samples(&positions, &values, &SkeletonParams::default(), &|_| {})
                 .unwrap()
                 .0

@@ -3,7 +3,7 @@
 //! the pipeline meets as measured; where it falls short of the goal, the bound
 //! asserted is the measured one and the comment says so.
 
-use sphcover_core::mesh_topology::MeshTopology;
+use sphcover_core::MeshTopology;
 use sphcover_evaluation::sheet_metrics::{SheetMetrics, score_mesh};
 use sphcover_evaluation::thin_phantoms::{Phantom, PhantomParams, ThinShape, thin_phantom};
 use sphcover_skeleton::{SkeletonParams, extract_skeleton};
@@ -101,7 +101,7 @@ fn output_does_not_depend_on_the_thread_count() {
         },
     );
     let run = |threads| {
-        sphcover_core::threads::on_threads(threads, || {
+        sphcover_core::on_threads(threads, || {
             extract_skeleton(&phantom.volume, &SkeletonParams::default(), &|_| {})
                 .unwrap()
                 .0

@@ -1,19 +1,7 @@
 //! The dual complex of a cover: the tetrahedra of the regular triangulation of the support
 //! centres (weights `r²`) whose orthocentre has non-positive power (thesis §3.5).
 //!
-//! Thesis definition: lift each ball to a 4D ball of the same centre and radius; four
-//! supports form a tetrahedron when their 4D spheres share a point inside no other 4D sphere.
-//! The shared points are `(x*, ±u)` with `x*` the orthocentre and `u² = −power(x*)`, and
-//! "inside no other sphere" is the emptiness of the regular triangulation. So the
-//! tetrahedra are the finite cells of the regular triangulation with `power(x*) ≤ 0`.
-//!
-//! Boundary case: we keep `power(x*) = 0` (the four balls meet in a single point), as the
-//! reference construction does (CGAL's regular triangulation filtered by `power ≤ 0`); the
-//! sign is decided exactly.
-//!
-//! The radius shrink `σ_t` (thesis §3.5.2, default 0.75) triangulates with radii `σ_t·r`:
-//! fewer supports are hidden and tetrahedra near the boundary are less skinny; vertices stay
-//! at the true centres.
+//! The method is described on [`dual_complex()`].
 
 use rayon::prelude::*;
 use sphcover_core::DVec3;
@@ -72,6 +60,20 @@ impl DualComplex {
 
 /// Builds the dual complex of the cover `(centres, radii)` with the radius shrink and seed of
 /// `params`.
+///
+/// Thesis definition: lift each ball to a 4D ball of the same centre and radius; four
+/// supports form a tetrahedron when their 4D spheres share a point inside no other 4D sphere.
+/// The shared points are `(x*, ±u)` with `x*` the orthocentre and `u² = −power(x*)`, and
+/// "inside no other sphere" is the emptiness of the regular triangulation. So the
+/// tetrahedra are the finite cells of the regular triangulation with `power(x*) ≤ 0`.
+///
+/// Boundary case: we keep `power(x*) = 0` (the four balls meet in a single point), as the
+/// reference construction does (CGAL's regular triangulation filtered by `power ≤ 0`); the
+/// sign is decided exactly.
+///
+/// The radius shrink `σ_t` (thesis §3.5.2, default 0.75) triangulates with radii `σ_t·r`:
+/// fewer supports are hidden and tetrahedra near the boundary are less skinny; vertices stay
+/// at the true centres.
 pub fn dual_complex(
     centres: &[DVec3],
     radii: &[f64],

@@ -36,7 +36,7 @@
 //!             (exact signs)  spatial_sort (BRIO + Hilbert order, seeded RNG)
 //! ```
 //!
-//! * [`expansion`]: Shewchuk's exact floating-point expansions, and a [`expansion::Ring`]
+//! * `expansion` (private): Shewchuk's exact floating-point expansions, and a `Ring`
 //!   trait so a predicate polynomial is written once and evaluated with a running error bound
 //!   or exactly.
 //! * [`predicates`]: `orient3d`, the lifted power test, the coplanar power-circle test and the
@@ -44,13 +44,13 @@
 //!   stage for dyadic inputs such as grids and octrees, then expansions), with CGAL's
 //!   lexicographic symbolic perturbation for ties.
 //! * `spatial_sort` (private): the insertion order.
-//! * [`regular`]: [`RegularTriangulation`], incremental Bowyer–Watson with a remembering
+//! * [`RegularTriangulation`]: incremental Bowyer–Watson with a remembering
 //!   stochastic walk, an infinite vertex, hidden (redundant) points; `u32` handles, per
 //!   tetrahedron one 32-byte block of its 4 vertices and 4 neighbours, a free list.
-//! * [`dual_complex`](mod@dual_complex): the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
+//! * [`dual_complex()`]: the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
 //!   `σ_t` of thesis §3.5.2.
-//! * [`tet_mesh`]: [`TetMesh`], plain arrays and CSR offsets.
-//! * [`marching`]: marching tetrahedra on a [`TetMesh`].
+//! * [`TetMesh`]: plain arrays and CSR offsets.
+//! * [`marching_tetrahedra`]: marching tetrahedra on a [`TetMesh`].
 //!
 //! Determinism: the same input and seed give the same output, whatever the thread count
 //! (insertion is sequential; the sorts of distinct keys, the renumbering and the
@@ -60,19 +60,21 @@
 //! take the rest with `..Default::default()`, as the example does.
 #![deny(missing_docs)]
 
-pub mod dual_complex;
-pub mod error;
-pub mod expansion;
-pub mod marching;
-pub mod mesh_file;
+mod dual_complex;
+mod error;
+mod expansion;
+mod marching;
+mod mesh_file;
 pub mod predicates;
-pub mod regular;
+mod regular;
 mod spatial_sort;
-pub mod tet_mesh;
+mod tet_mesh;
 
 pub use dual_complex::{DualComplex, DualComplexParams, dual_complex, dual_complex_of};
 pub use error::TetraError;
 pub use marching::{IsoSurface, marching_tetrahedra, marching_tetrahedra_scalar};
 pub use mesh_file::{TetMeshFormat, write_tet_mesh};
-pub use regular::{RegularTriangulation, TriangulationParams, VertexStatus};
+pub use regular::{
+    INFINITE_VERTEX, NO_TET, RegularTriangulation, TriangulationParams, VertexStatus,
+};
 pub use tet_mesh::TetMesh;

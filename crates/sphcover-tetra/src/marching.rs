@@ -1,16 +1,6 @@
 //! Marching tetrahedra on a [`TetMesh`]: the surface separating inside from outside vertices.
 //!
-//! An edge is *cut* when its two ends are on different sides. Each cut edge gets exactly one
-//! output vertex (shared by every triangle through it), placed by a caller-given rule; each
-//! tetrahedron with a cut contributes one triangle (one vertex on one side) or two (two and
-//! two, split along the shorter diagonal). Triangles are oriented with their normal from the
-//! inside towards the outside, consistently over the whole surface, because every tetrahedron
-//! is positively oriented and the winding is chosen from the parity of its vertex order.
-//!
-//! Thesis §5.2.2: with a label per vertex (e.g. inside/outside from a graph cut) the cut edges are
-//! those whose labels differ, and the vertex goes to the zero of the scalar when its signs
-//! differ along the edge, otherwise to the end with the smaller `|value|`
-//! ([`marching_tetrahedra_scalar`]).
+//! The method is described on [`marching_tetrahedra()`].
 
 use sphcover_core::DVec3;
 
@@ -33,6 +23,18 @@ pub struct IsoSurface {
 /// `place(edge, inside_end, outside_end)` gives the position of the vertex on a cut edge
 /// (mesh-vertex indices of its two ends); it is called once per cut edge, in edge order.
 /// Quadrilaterals are split along their shorter diagonal between the placed vertices.
+///
+/// An edge is *cut* when its two ends are on different sides. Each cut edge gets exactly one
+/// output vertex (shared by every triangle through it), placed by a caller-given rule; each
+/// tetrahedron with a cut contributes one triangle (one vertex on one side) or two (two and
+/// two, split along the shorter diagonal). Triangles are oriented with their normal from the
+/// inside towards the outside, consistently over the whole surface, because every tetrahedron
+/// is positively oriented and the winding is chosen from the parity of its vertex order.
+///
+/// Thesis §5.2.2: with a label per vertex (e.g. inside/outside from a graph cut) the cut edges are
+/// those whose labels differ, and the vertex goes to the zero of the scalar when its signs
+/// differ along the edge, otherwise to the end with the smaller `|value|`
+/// ([`marching_tetrahedra_scalar`]).
 pub fn marching_tetrahedra<F>(
     mesh: &TetMesh,
     inside: &[bool],

@@ -1,15 +1,6 @@
 //! Writing a tetrahedral mesh to files other tools open.
 //!
-//! Two layouts, chosen by the output's extension:
-//! - `.vtk`: a VTK legacy unstructured grid in binary (big-endian, as the legacy format
-//!   requires), which ParaView and VisIt open. Points are the centres of the supports that are
-//!   mesh vertices; point data carries each vertex's support index and radius.
-//! - `.txt`/`.tets`: one tetrahedron per line as four 0-based **support** indices in
-//!   ascending order, rows sorted — the layout of the CGAL reference files the tests compare
-//!   against, so the output can be diffed with any independent implementation.
-//!
-//! Output goes through [`sphcover_core::io::write_atomic`]: a temporary file renamed on
-//! success, never an input overwritten.
+//! The method is described on [`write_tet_mesh()`].
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -42,6 +33,17 @@ impl TetMeshFormat {
 
 /// Writes `mesh` (whose vertices index `centres` and `radii`) to `path` in the layout its
 /// extension names, refusing to overwrite any of `inputs`.
+///
+/// Two layouts, chosen by the output's extension:
+/// - `.vtk`: a VTK legacy unstructured grid in binary (big-endian, as the legacy format
+///   requires), which ParaView and VisIt open. Points are the centres of the supports that are
+///   mesh vertices; point data carries each vertex's support index and radius.
+/// - `.txt`/`.tets`: one tetrahedron per line as four 0-based **support** indices in
+///   ascending order, rows sorted — the layout of the CGAL reference files the tests compare
+///   against, so the output can be diffed with any independent implementation.
+///
+/// Output goes through [`sphcover_core::io::write_atomic`]: a temporary file renamed on
+/// success, never an input overwritten.
 pub fn write_tet_mesh(
     path: &Path,
     mesh: &TetMesh,

@@ -4,7 +4,7 @@
 //! is staged: a floating-point evaluation with a static error bound (Shewchuk-style, from the
 //! permanent of the polynomial), then, for inputs whose coordinate differences are exact small
 //! multiples of a common power of two (grids, octrees: where exact ties live), an `i128`
-//! evaluation, then expansion arithmetic ([`crate::expansion`]). The triangulation adds an
+//! evaluation, then expansion arithmetic (module `expansion`). The triangulation adds an
 //! exact plain-`f64` stage for power tests on a grid of small extent (`grid_lifted_sign`):
 //! before the filter for equal weights, where most tests are exact ties, after it otherwise.
 //!

@@ -1,8 +1,7 @@
 //! `TetMesh`: a tetrahedral complex with unique edges, the ordered ring of tetrahedra around
 //! each edge, and vertex → edge incidence, as plain arrays and CSR offsets.
 //!
-//! Topology only: positions stay with the caller (the support centres), indexed through
-//! [`TetMesh::vertices`].
+//! The method is described on [`TetMesh`].
 
 use crate::dual_complex::DualComplex;
 use crate::regular::NO_TET;
@@ -14,6 +13,9 @@ use crate::regular::NO_TET;
 /// ring (the last tetrahedron is adjacent to the first; it starts at the smallest tetrahedron
 /// index); an edge on the boundary of the complex has an open ring, starting and ending at the
 /// two tetrahedra with a boundary face through the edge.
+///
+/// Topology only: positions stay with the caller (the support centres), indexed through
+/// [`TetMesh::vertices`].
 #[derive(Clone, Debug, Default)]
 pub struct TetMesh {
     /// Support (input sphere) index of each mesh vertex, ascending.

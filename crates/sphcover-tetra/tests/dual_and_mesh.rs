@@ -4,8 +4,8 @@ mod common;
 use common::*;
 use proptest::prelude::*;
 use sphcover_core::DVec3;
+use sphcover_tetra::NO_TET;
 use sphcover_tetra::predicates::{orient3d, orthocentre, orthocentre_power_sign};
-use sphcover_tetra::regular::NO_TET;
 use sphcover_tetra::{
     DualComplexParams, TetMesh, dual_complex, marching_tetrahedra, marching_tetrahedra_scalar,
 };

@@ -101,7 +101,7 @@ fn output_does_not_depend_on_the_thread_count() {
         .map(|_| [0.0, 0.0625, 0.3][rng.below(3) as usize])
         .collect();
     let run = |threads: usize| {
-        sphcover_core::threads::on_threads(threads, || {
+        sphcover_core::on_threads(threads, || {
             let t = RegularTriangulation::new(&p, &w, &TriangulationParams::default()).unwrap();
             let dc = dual_complex_of(&t);
             (

@@ -1,53 +1,6 @@
 //! Building a cover from oriented surface points (thesis §3.4.1).
 //!
-//! Input: points in the unit frame (bounding box centred at the origin, longest edge 1; see
-//! [`Normalisation`]) with outward normals and optionally a confidence per point. Output: a
-//! [`Cover`] with linear local functions `g_i(x) = n̄_i·(p̄_i − x)` (positive inside) whose
-//! partition-of-unity blend approximates the signed distance to the sampled surface.
-//!
-//! Two stages:
-//!
-//! 1. **Initial cover** (`octree.rs`): an adaptive, 2:1-balanced octree over the root cube
-//!    (the unit cube around the origin enlarged by [`SurfaceCoverParams::box_margin`] on every
-//!    side); each leaf carries a support at its centre with radius `0.75 ×` its diagonal,
-//!    grown to reach `n_min` points when it holds fewer; octants are subdivided while the fit
-//!    error `E_i = max_j |g_i(p_j)|` exceeds ε, up to the maximum depth.
-//! 2. **Expansion** (`expansion.rs`, optional): supports in seeded random order grow as far
-//!    as `E_i ≤ ε` allows, and supports lying entirely inside a grown ball are deleted.
-//!
-//! The local fit (`fit.rs`) is thesis eq. 3.2 with the kernel's weights. Every stage runs in
-//! parallel with rayon, and the cover is bit-identical for the same input, parameters and
-//! seed whatever the thread count.
-//!
-//! # Example
-//!
-//! ```
-//! use sphcover_core::{DVec3, PuEvaluator, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
-//!
-//! // 2000 points on a sphere of radius 0.4 with outward normals (a Fibonacci lattice).
-//! let n = 2000;
-//! let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-//! let normals: Vec<DVec3> = (0..n)
-//!     .map(|i| {
-//!         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-//!         let s = (1.0 - z * z).sqrt();
-//!         let a = golden * i as f64;
-//!         DVec3::new(s * a.cos(), s * a.sin(), z)
-//!     })
-//!     .collect();
-//! let points: Vec<DVec3> = normals.iter().map(|&u| 0.4 * u).collect();
-//!
-//! let params = SurfaceCoverParams { eps: 1e-2, ..SurfaceCoverParams::default() };
-//! let (cover, stats) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params)?;
-//! assert_eq!(stats.supports_after_expansion, cover.len());
-//!
-//! // Positive inside, negative outside, near zero on the surface.
-//! let f = PuEvaluator::new(&cover, 1.0)?;
-//! assert!(f.value(DVec3::ZERO).unwrap() > 0.2);
-//! assert!(f.value(DVec3::new(0.45, 0.0, 0.0)).unwrap() < 0.0);
-//! assert!(f.value(points[0]).unwrap().abs() <= 2.0 * params.eps);
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
+//! The method is described on [`build_surface_cover()`].
 
 mod expansion;
 mod fit;
@@ -67,7 +20,7 @@ use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::{Duration, Instant};
 
-pub use octree::MAX_DEPTH;
+pub use octree::MAX_OCTREE_DEPTH;
 
 /// Parameters of [`build_surface_cover`]. Lengths are in the unit frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -76,7 +29,7 @@ pub struct SurfaceCoverParams {
     pub eps: f64,
     /// Fewest points a support's ball must hold; smaller balls grow to reach them (MPU: 15).
     pub n_min: usize,
-    /// Deepest octree level (the root is level 0), at most [`MAX_DEPTH`].
+    /// Deepest octree level (the root is level 0), at most [`MAX_OCTREE_DEPTH`].
     pub max_depth: u32,
     /// Stop refining where the sampling density cannot support ε: a subdivision whose
     /// non-empty children all hold fewer than `n_min` points in their own balls and still
@@ -301,6 +254,55 @@ impl<'a> SurfaceSamples<'a> {
 ///
 /// Points whose normal is zero or not finite are skipped and counted in
 /// [`SurfaceCoverStats::skipped_normals`].
+///
+/// Input: points in the unit frame (bounding box centred at the origin, longest edge 1; see
+/// [`Normalisation`]) with outward normals and optionally a confidence per point. Output: a
+/// [`Cover`] with linear local functions `g_i(x) = n̄_i·(p̄_i − x)` (positive inside) whose
+/// partition-of-unity blend approximates the signed distance to the sampled surface.
+///
+/// Two stages:
+///
+/// 1. **Initial cover** (`octree.rs`): an adaptive, 2:1-balanced octree over the root cube
+///    (the unit cube around the origin enlarged by [`SurfaceCoverParams::box_margin`] on every
+///    side); each leaf carries a support at its centre with radius `0.75 ×` its diagonal,
+///    grown to reach `n_min` points when it holds fewer; octants are subdivided while the fit
+///    error `E_i = max_j |g_i(p_j)|` exceeds ε, up to the maximum depth.
+/// 2. **Expansion** (`expansion.rs`, optional): supports in seeded random order grow as far
+///    as `E_i ≤ ε` allows, and supports lying entirely inside a grown ball are deleted.
+///
+/// The local fit (`fit.rs`) is thesis eq. 3.2 with the kernel's weights. Every stage runs in
+/// parallel with rayon, and the cover is bit-identical for the same input, parameters and
+/// seed whatever the thread count.
+///
+/// # Example
+///
+/// ```
+/// use sphcover_core::{DVec3, PuEvaluator, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
+///
+/// // 2000 points on a sphere of radius 0.4 with outward normals (a Fibonacci lattice).
+/// let n = 2000;
+/// let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+/// let normals: Vec<DVec3> = (0..n)
+///     .map(|i| {
+///         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+///         let s = (1.0 - z * z).sqrt();
+///         let a = golden * i as f64;
+///         DVec3::new(s * a.cos(), s * a.sin(), z)
+///     })
+///     .collect();
+/// let points: Vec<DVec3> = normals.iter().map(|&u| 0.4 * u).collect();
+///
+/// let params = SurfaceCoverParams { eps: 1e-2, ..SurfaceCoverParams::default() };
+/// let (cover, stats) = build_surface_cover(&SurfaceSamples::new(&points, &normals), &params)?;
+/// assert_eq!(stats.supports_after_expansion, cover.len());
+///
+/// // Positive inside, negative outside, near zero on the surface.
+/// let f = PuEvaluator::new(&cover, 1.0)?;
+/// assert!(f.value(DVec3::ZERO).unwrap() > 0.2);
+/// assert!(f.value(DVec3::new(0.45, 0.0, 0.0)).unwrap() < 0.0);
+/// assert!(f.value(points[0]).unwrap().abs() <= 2.0 * params.eps);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn build_surface_cover(
     samples: &SurfaceSamples<'_>,
     params: &SurfaceCoverParams,
@@ -522,7 +524,7 @@ fn check_params(p: &SurfaceCoverParams) -> Result<(), SurfaceCoverError> {
     if p.n_min == 0 {
         return invalid("n_min", 0.0, "at least 1");
     }
-    if p.max_depth > MAX_DEPTH {
+    if p.max_depth > MAX_OCTREE_DEPTH {
         return invalid("max_depth", f64::from(p.max_depth), "at most 20");
     }
     if !(p.box_margin.is_finite() && p.box_margin >= 0.0) {

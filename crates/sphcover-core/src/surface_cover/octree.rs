@@ -67,7 +67,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 /// Deepest octree level [`super::SurfaceCoverParams::max_depth`] may ask for (the cell keys
 /// hold 21 bits per axis).
-pub const MAX_DEPTH: u32 = 20;
+pub const MAX_OCTREE_DEPTH: u32 = 20;
 
 /// A grown support reaches this factor past its `n_min`-th nearest point, so that point has
 /// a small positive weight (the kernels vanish on the sphere).
@@ -167,7 +167,7 @@ fn children(key: u64) -> impl Iterator<Item = u64> {
 /// Interleaves the bits of a cell's minimum corner at the finest level: sorting leaves by it
 /// puts neighbouring supports next to each other in memory.
 fn morton(level: u8, key: u64) -> u64 {
-    let shift = MAX_DEPTH - u32::from(level);
+    let shift = MAX_OCTREE_DEPTH - u32::from(level);
     let (x, y, z) = unpack(key);
     spread(x << shift) | spread(y << shift) << 1 | spread(z << shift) << 2
 }

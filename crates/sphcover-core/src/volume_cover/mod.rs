@@ -1,122 +1,7 @@
 //! Building a cover from volume data (thesis §3.4.2; the linear bounding-box variant of
 //! §6.2.3).
 //!
-//! # Algorithm
-//!
-//! Samples are the voxel centres in world coordinates with their values normalised to
-//! `[0, 1]` over the volume's finite value range; non-finite voxels are no samples. *Object
-//! points* are the voxels with value above the threshold.
-//!
-//! 1. Candidates ← object points (all voxels for [`VolumeCoverVariant::BoundingBoxLinear`]),
-//!    all uncovered, in a random order drawn from the seed.
-//! 2. The first uncovered candidate in that order becomes a centre `c` (this picks uniformly
-//!    among the uncovered, as the thesis asks). Its radius is the largest `r ∈ [r_min, r_max]`
-//!    with `E(r) ≤ ε`, where `E(r)` is the RMS residual of the least-squares local function
-//!    (quadratic: 10 coefficients; linear: 4) over all samples within `r`, solved in the
-//!    centred, scaled coordinates `(x − c)/r`. The sample set only changes where `r` crosses
-//!    a shell of voxel centres at equal distance, so the search runs over shells: it grows
-//!    the radius by factors of 1.5 until `E > ε` (or `r_max`), then bisects between the
-//!    last good and the first bad shell (the thesis' bisection, assuming like it that `E`
-//!    grows with `r`). The final radius lies halfway between the accepted shell and the next
-//!    one, so no sample sits on a support's sphere. When even `r_min` misses `ε` (steep
-//!    edges), the search bisects below `r_min`, down to the smallest ball holding
-//!    `min_samples` samples (default 15, MPU's `N_min`; an isotropic grid then keeps the
-//!    19-voxel neighbourhood of radius √2 voxels for the 10 quadratic coefficients). A
-//!    centre whose smallest ball still misses `ε` keeps that ball and is counted in
-//!    [`VolumeCoverStats::above_tolerance`].
-//! 3. Covering check (thesis Fig. 3.12): with `S` the object points (all grid points for the
-//!    linear variant) inside the new ball, a point of `S` is marked covered when it is not a
-//!    vertex of the convex hull of `S`. Computing a 3D hull per support is replaced by an
-//!    exact-where-it-answers test: `p` is not a hull vertex when `p − e` and `p + e` both lie
-//!    in `S` for some lattice step `e` (then `p` is their midpoint). The steps tried are the
-//!    49 primitive integer directions with coordinates in `{−2, …, 2}`. Points the test
-//!    cannot decide stay uncovered, as true hull vertices do, so the test only ever leaves
-//!    *more* candidates, never a gap. The centre itself is always marked covered, which
-//!    guarantees progress (a centre on a corner of the object is a hull vertex).
-//! 4. Repeat until no candidate is uncovered.
-//! 5. Elimination (default, object variant only; [`VolumeCoverParams::elimination`],
-//!    a departure from the thesis, after its surface builder §3.4.1). A support's *members*
-//!    are the object points strictly inside its ball and, for [`Elimination::CellCorners`]
-//!    (the default), the corners of object voxels' cells strictly inside it that lie in
-//!    some ball of the loop's cover. Supports over ε
-//!    first, then by increasing member count (ties by position), a support is removed when
-//!    every member lies in at least one other remaining support. With elimination on, a
-//!    centre whose fit misses ε in step 2 is set aside (nothing is marked covered) and is
-//!    only taken after step 4 if it holds a member that no accepted ball holds by then.
-//!
-//! # No object point is left outside the cover
-//!
-//! Every object point ends covered, and is covered only in two ways: as a centre (distance 0
-//! from its own centre), or as the midpoint of two points `p ± e` of the ball's closed
-//! sample set. In the latter case, with `L` the voxel→world linear map,
-//! `‖p − c‖² = (‖p + e − c‖² + ‖p − e − c‖²)/2 − ‖Le‖² ≤ s² − ‖Le‖² < r²` (parallelogram law,
-//! `s ≤ r` the accepted shell): the point lies strictly inside the open ball, where every
-//! kernel weight is positive. Radii are at least `r_min` (by default the voxel diagonal, so
-//! that a ball holds the whole 3×3×3 neighbourhood of its centre) except at steep edges
-//! where that ball misses `ε`; the argument above does not depend on the radius.
-//!
-//! Elimination keeps this: each object point starts in at least one member set (a centre,
-//! or a hull-interior point at `‖p − c‖ < s`), and a support goes only when all its members
-//! have another one. Every kept support holds a member no other kept ball holds. With
-//! [`Elimination::CellCorners`] no cell corner leaves the union of the balls either, so the
-//! elimination opens no gap at those points between the voxel centres
-//! ([`Elimination::VoxelCentres`] leaves 1–4 % of them in no ball on the phantoms).
-//!
-//! # Compactness
-//!
-//! With the thesis' `ε = 5 %`, a quadratic follows the intensity profile across a plate of
-//! 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, and the hull rule
-//! marks only a ball's hull interior, so the thesis' loop gives such plates about one
-//! support per 8 object voxels, most balls overlapping their neighbours far more than
-//! needed. Elimination removes that redundancy: 20.7 object voxels per support on the
-//! tests' 4-voxel plate, 41.9 on the 6-voxel one (cell corners kept; 34.1 and 69.5 with
-//! voxel centres only; measurements in `docs/algorithms.md` and `docs/benchmarks.md`).
-//!
-//! # Centre order (a departure from the thesis, optional)
-//!
-//! The thesis picks a random uncovered candidate. A random candidate near a plate's face
-//! gets a small ball (a quadratic follows the face's ramp only so far); one on the plate's
-//! mid-surface gets a larger one and its ball is symmetric about the profile.
-//! [`CentreOrder::DeepestFirst`] takes candidates by decreasing distance to the background
-//! (the distance transform of `r_max`), ties in the seeded order. Measured at ε = 0.05 with
-//! the tests' tilted plate phantom (40 × 40 × 24 voxels, PSF 0.8 voxel), object voxels per
-//! support, random → deepest first: 4-voxel plate 7.7 → 11.3, 6-voxel 14.9 → 21.7, 8-voxel
-//! 14.5 → 15.6; the T-junction phantom 6.4 → 8.4; every RMS ≤ ε, no object voxel uncovered.
-//! It stays opt-in (the default keeps the thesis' random order, which the skeleton
-//! pipeline's figures were measured with). With the default elimination the orders give
-//! 20.7 / 29.7 / 42.4 object voxels per support on the 4-voxel plate (random / deepest
-//! first / [`CentreOrder::MostUncovered`]), and 41.9 / 62.3 / 105.3 on the 6-voxel one.
-//!
-//! [`CentreOrder::MostUncovered`] is a greedy set cover: every candidate's support is fitted
-//! (one fit per object point, against about one per eight in the thesis' loop), then the
-//! support with the most uncovered members is taken next, supports within ε before those
-//! over it. Only it reaches every support within ε where some points' smallest ball misses
-//! ε but a neighbour's ball around them does not (sharp edges).
-//!
-//! # Radii
-//!
-//! `r_max` defaults to the object's maximum thickness, twice the largest distance from an
-//! object voxel to a background voxel centre (exact Euclidean distance transform with the
-//! voxel edge lengths as spacing; exact for orthogonal voxel axes), capped at
-//! [`VolumeCoverParams::max_radius_voxels`] voxel diagonals to bound the work per support.
-//! A volume with no background voxel uses half its diagonal before the cap.
-//!
-//! # Determinism
-//!
-//! A support's radius and function depend on its centre only, so the fits of the next few
-//! uncovered candidates run in parallel ahead of time; the covering check then runs in
-//! candidate order and drops the speculative fits whose centre got covered meanwhile. The
-//! result is that of the sequential algorithm, bit for bit, whatever the thread count. The
-//! greedy order fits every candidate in parallel, then selects sequentially; elimination
-//! counts members in parallel (integer sums) and decides sequentially.
-//!
-//! # Layout
-//!
-//! One file per phase: `radii` (the radius range, by the distance transform of
-//! `distance_transform`), `grid` (the lattice of offsets and shells), `radius_search` (one
-//! support's fit, on the normal equations of `fit`), `covering` (the loop and the centre
-//! orders), `elimination`, and `support` (the accepted supports as a [`Cover`]). `scattered`
-//! runs the same algorithm on samples off any grid.
+//! The method is described on [`build_volume_cover()`].
 
 mod covering;
 mod distance_transform;
@@ -179,7 +64,7 @@ pub enum CentreOrder {
     Random,
     /// Deepest first: by decreasing distance to the nearest background sample (the distance
     /// transform that gives `r_max`), ties in the seeded random order. Object variant only
-    /// (the linear variant has no background); see the module docs for the measurements.
+    /// (the linear variant has no background); see [`build_volume_cover`] for the measurements.
     DeepestFirst,
     /// Greedy set cover: every candidate's support is fitted, then the support holding the
     /// most still-uncovered members (object points strictly inside it, and cell corners
@@ -199,7 +84,7 @@ pub struct VolumeCoverParams {
     /// Smallest radius in world units; `None`: the voxel diagonal.
     pub r_min: Option<f64>,
     /// Largest radius in world units; `None`: the object's maximum thickness from a distance
-    /// transform (see the module documentation).
+    /// transform (see [`build_volume_cover`]).
     pub r_max: Option<f64>,
     /// Cap on the default `r_max`, in voxel diagonals (bounds the work per support on thick
     /// objects; an explicit `r_max` is not capped).
@@ -220,7 +105,7 @@ pub struct VolumeCoverParams {
     pub elimination: Elimination,
 }
 
-/// The elimination pass after covering (a departure from the thesis; module docs, step 5).
+/// The elimination pass after covering (a departure from the thesis; [`build_volume_cover`], step 5).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Elimination {
     /// Keep every support of the covering loop (the thesis' cover).
@@ -363,6 +248,123 @@ pub enum VolumeCoverError {
 /// Builds a cover of the object in `volume` (or of the whole grid, for the linear variant)
 /// by balls carrying local least-squares fits of the normalised intensities. See the module
 /// documentation for the algorithm and its guarantees.
+///
+/// # Algorithm
+///
+/// Samples are the voxel centres in world coordinates with their values normalised to
+/// `[0, 1]` over the volume's finite value range; non-finite voxels are no samples. *Object
+/// points* are the voxels with value above the threshold.
+///
+/// 1. Candidates ← object points (all voxels for [`VolumeCoverVariant::BoundingBoxLinear`]),
+///    all uncovered, in a random order drawn from the seed.
+/// 2. The first uncovered candidate in that order becomes a centre `c` (this picks uniformly
+///    among the uncovered, as the thesis asks). Its radius is the largest `r ∈ [r_min, r_max]`
+///    with `E(r) ≤ ε`, where `E(r)` is the RMS residual of the least-squares local function
+///    (quadratic: 10 coefficients; linear: 4) over all samples within `r`, solved in the
+///    centred, scaled coordinates `(x − c)/r`. The sample set only changes where `r` crosses
+///    a shell of voxel centres at equal distance, so the search runs over shells: it grows
+///    the radius by factors of 1.5 until `E > ε` (or `r_max`), then bisects between the
+///    last good and the first bad shell (the thesis' bisection, assuming like it that `E`
+///    grows with `r`). The final radius lies halfway between the accepted shell and the next
+///    one, so no sample sits on a support's sphere. When even `r_min` misses `ε` (steep
+///    edges), the search bisects below `r_min`, down to the smallest ball holding
+///    `min_samples` samples (default 15, MPU's `N_min`; an isotropic grid then keeps the
+///    19-voxel neighbourhood of radius √2 voxels for the 10 quadratic coefficients). A
+///    centre whose smallest ball still misses `ε` keeps that ball and is counted in
+///    [`VolumeCoverStats::above_tolerance`].
+/// 3. Covering check (thesis Fig. 3.12): with `S` the object points (all grid points for the
+///    linear variant) inside the new ball, a point of `S` is marked covered when it is not a
+///    vertex of the convex hull of `S`. Computing a 3D hull per support is replaced by an
+///    exact-where-it-answers test: `p` is not a hull vertex when `p − e` and `p + e` both lie
+///    in `S` for some lattice step `e` (then `p` is their midpoint). The steps tried are the
+///    49 primitive integer directions with coordinates in `{−2, …, 2}`. Points the test
+///    cannot decide stay uncovered, as true hull vertices do, so the test only ever leaves
+///    *more* candidates, never a gap. The centre itself is always marked covered, which
+///    guarantees progress (a centre on a corner of the object is a hull vertex).
+/// 4. Repeat until no candidate is uncovered.
+/// 5. Elimination (default, object variant only; [`VolumeCoverParams::elimination`],
+///    a departure from the thesis, after its surface builder §3.4.1). A support's *members*
+///    are the object points strictly inside its ball and, for [`Elimination::CellCorners`]
+///    (the default), the corners of object voxels' cells strictly inside it that lie in
+///    some ball of the loop's cover. Supports over ε
+///    first, then by increasing member count (ties by position), a support is removed when
+///    every member lies in at least one other remaining support. With elimination on, a
+///    centre whose fit misses ε in step 2 is set aside (nothing is marked covered) and is
+///    only taken after step 4 if it holds a member that no accepted ball holds by then.
+///
+/// # No object point is left outside the cover
+///
+/// Every object point ends covered, and is covered only in two ways: as a centre (distance 0
+/// from its own centre), or as the midpoint of two points `p ± e` of the ball's closed
+/// sample set. In the latter case, with `L` the voxel→world linear map,
+/// `‖p − c‖² = (‖p + e − c‖² + ‖p − e − c‖²)/2 − ‖Le‖² ≤ s² − ‖Le‖² < r²` (parallelogram law,
+/// `s ≤ r` the accepted shell): the point lies strictly inside the open ball, where every
+/// kernel weight is positive. Radii are at least `r_min` (by default the voxel diagonal, so
+/// that a ball holds the whole 3×3×3 neighbourhood of its centre) except at steep edges
+/// where that ball misses `ε`; the argument above does not depend on the radius.
+///
+/// Elimination keeps this: each object point starts in at least one member set (a centre,
+/// or a hull-interior point at `‖p − c‖ < s`), and a support goes only when all its members
+/// have another one. Every kept support holds a member no other kept ball holds. With
+/// [`Elimination::CellCorners`] no cell corner leaves the union of the balls either, so the
+/// elimination opens no gap at those points between the voxel centres
+/// ([`Elimination::VoxelCentres`] leaves 1–4 % of them in no ball on the phantoms).
+///
+/// # Compactness
+///
+/// With the thesis' `ε = 5 %`, a quadratic follows the intensity profile across a plate of
+/// 4 voxels (blurred by a 0.8-voxel PSF) only within radius ≈ 2 voxels, and the hull rule
+/// marks only a ball's hull interior, so the thesis' loop gives such plates about one
+/// support per 8 object voxels, most balls overlapping their neighbours far more than
+/// needed. Elimination removes that redundancy: 20.7 object voxels per support on the
+/// tests' 4-voxel plate, 41.9 on the 6-voxel one (cell corners kept; 34.1 and 69.5 with
+/// voxel centres only; measurements in `docs/algorithms.md` and `docs/benchmarks.md`).
+///
+/// # Centre order (a departure from the thesis, optional)
+///
+/// The thesis picks a random uncovered candidate. A random candidate near a plate's face
+/// gets a small ball (a quadratic follows the face's ramp only so far); one on the plate's
+/// mid-surface gets a larger one and its ball is symmetric about the profile.
+/// [`CentreOrder::DeepestFirst`] takes candidates by decreasing distance to the background
+/// (the distance transform of `r_max`), ties in the seeded order. Measured at ε = 0.05 with
+/// the tests' tilted plate phantom (40 × 40 × 24 voxels, PSF 0.8 voxel), object voxels per
+/// support, random → deepest first: 4-voxel plate 7.7 → 11.3, 6-voxel 14.9 → 21.7, 8-voxel
+/// 14.5 → 15.6; the T-junction phantom 6.4 → 8.4; every RMS ≤ ε, no object voxel uncovered.
+/// It stays opt-in (the default keeps the thesis' random order, which the skeleton
+/// pipeline's figures were measured with). With the default elimination the orders give
+/// 20.7 / 29.7 / 42.4 object voxels per support on the 4-voxel plate (random / deepest
+/// first / [`CentreOrder::MostUncovered`]), and 41.9 / 62.3 / 105.3 on the 6-voxel one.
+///
+/// [`CentreOrder::MostUncovered`] is a greedy set cover: every candidate's support is fitted
+/// (one fit per object point, against about one per eight in the thesis' loop), then the
+/// support with the most uncovered members is taken next, supports within ε before those
+/// over it. Only it reaches every support within ε where some points' smallest ball misses
+/// ε but a neighbour's ball around them does not (sharp edges).
+///
+/// # Radii
+///
+/// `r_max` defaults to the object's maximum thickness, twice the largest distance from an
+/// object voxel to a background voxel centre (exact Euclidean distance transform with the
+/// voxel edge lengths as spacing; exact for orthogonal voxel axes), capped at
+/// [`VolumeCoverParams::max_radius_voxels`] voxel diagonals to bound the work per support.
+/// A volume with no background voxel uses half its diagonal before the cap.
+///
+/// # Determinism
+///
+/// A support's radius and function depend on its centre only, so the fits of the next few
+/// uncovered candidates run in parallel ahead of time; the covering check then runs in
+/// candidate order and drops the speculative fits whose centre got covered meanwhile. The
+/// result is that of the sequential algorithm, bit for bit, whatever the thread count. The
+/// greedy order fits every candidate in parallel, then selects sequentially; elimination
+/// counts members in parallel (integer sums) and decides sequentially.
+///
+/// # Layout
+///
+/// One file per phase: `radii` (the radius range, by the distance transform of
+/// `distance_transform`), `grid` (the lattice of offsets and shells), `radius_search` (one
+/// support's fit, on the normal equations of `fit`), `covering` (the loop and the centre
+/// orders), `elimination`, and `support` (the accepted supports as a [`Cover`]). `scattered`
+/// runs the same algorithm on samples off any grid.
 pub fn build_volume_cover(
     volume: &Volume,
     params: &VolumeCoverParams,

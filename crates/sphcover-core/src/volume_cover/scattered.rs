@@ -1,32 +1,7 @@
 //! The volume cover of scattered samples with values (beyond thesis §3.4.2: samples off any
 //! grid, which the thesis names as an advantage over image methods).
 //!
-//! The algorithm is the one of the grid builder ([`super::build_volume_cover`]): the same
-//! quadratic (or linear) least-squares fits in centred, scaled coordinates, the same RMS
-//! error, the same shell-wise gallop and bisection of the radius in `[r_min, r_max]`, the
-//! same seeded candidate order and speculative parallel fits. What changes is how samples
-//! are found and three quantities the grid gives for free:
-//!
-//! * **Neighbours** come from a k-d tree ([`PointIndex`]) instead of lattice offsets. A fit
-//!   gathers the samples around its centre lazily, sorted by `(distance², index)`, growing
-//!   the query radius by factors of 2 up to `r_max` only when the radius search needs more;
-//!   shells are runs of samples at equal distance (within a relative 1e-9), as on the grid.
-//! * **Spacing `h`** (the grid's voxel diagonal): `√3 ×` the median nearest-neighbour
-//!   distance, which is the voxel diagonal for the centres of a cubic grid. It is the
-//!   default `r_min` and the unit of [`VolumeCoverParams::max_radius_voxels`].
-//! * **`r_max`** (the grid's distance transform): twice the largest distance from an object
-//!   sample to its nearest background sample (exact, by a k-d tree over the background
-//!   samples); for the centres of a grid this is the grid builder's figure.
-//! * **Covering rule** (thesis Fig. 3.12): with `S` the object samples in the new ball (all
-//!   samples for the linear variant), an uncovered point `p` of `S` stays a candidate when
-//!   no point of `S` lies farther than `p` along the ray from the centre through `p`
-//!   (`max_{q∈S} u·(q − c) ≤ ‖p − c‖`, `u` the ray's direction): such a `p` is on the
-//!   boundary of the hull of `S`, extreme in its own direction. Every other point of `S` is
-//!   marked covered. This replaces the grid's midpoint test, which needs a lattice; it keeps
-//!   the thesis' intent (the outermost points of the ball stay candidates, so the next balls
-//!   overlap it) at `O(|S|)` expected work per point. Every point of `S` lies strictly
-//!   inside the ball (its distance is at most the accepted shell's, below the radius), so
-//!   marking a point covered never leaves a gap, whatever the test decides.
+//! The method is described on [`build_scattered_cover()`].
 
 use std::time::Instant;
 
@@ -80,6 +55,33 @@ use crate::point_index::PointIndex;
 /// let (cover, stats) = build_scattered_cover(&positions, &values, &params).unwrap();
 /// assert!(cover.len() > 0 && cover.len() < stats.object_points);
 /// ```
+///
+/// The algorithm is the one of the grid builder ([`super::build_volume_cover`]): the same
+/// quadratic (or linear) least-squares fits in centred, scaled coordinates, the same RMS
+/// error, the same shell-wise gallop and bisection of the radius in `[r_min, r_max]`, the
+/// same seeded candidate order and speculative parallel fits. What changes is how samples
+/// are found and three quantities the grid gives for free:
+///
+/// * **Neighbours** come from a k-d tree ([`PointIndex`]) instead of lattice offsets. A fit
+///   gathers the samples around its centre lazily, sorted by `(distance², index)`, growing
+///   the query radius by factors of 2 up to `r_max` only when the radius search needs more;
+///   shells are runs of samples at equal distance (within a relative 1e-9), as on the grid.
+/// * **Spacing `h`** (the grid's voxel diagonal): `√3 ×` the median nearest-neighbour
+///   distance, which is the voxel diagonal for the centres of a cubic grid. It is the
+///   default `r_min` and the unit of [`VolumeCoverParams::max_radius_voxels`].
+/// * **`r_max`** (the grid's distance transform): twice the largest distance from an object
+///   sample to its nearest background sample (exact, by a k-d tree over the background
+///   samples); for the centres of a grid this is the grid builder's figure.
+/// * **Covering rule** (thesis Fig. 3.12): with `S` the object samples in the new ball (all
+///   samples for the linear variant), an uncovered point `p` of `S` stays a candidate when
+///   no point of `S` lies farther than `p` along the ray from the centre through `p`
+///   (`max_{q∈S} u·(q − c) ≤ ‖p − c‖`, `u` the ray's direction): such a `p` is on the
+///   boundary of the hull of `S`, extreme in its own direction. Every other point of `S` is
+///   marked covered. This replaces the grid's midpoint test, which needs a lattice; it keeps
+///   the thesis' intent (the outermost points of the ball stay candidates, so the next balls
+///   overlap it) at `O(|S|)` expected work per point. Every point of `S` lies strictly
+///   inside the ball (its distance is at most the accepted shell's, below the radius), so
+///   marking a point covered never leaves a gap, whatever the test decides.
 pub fn build_scattered_cover(
     positions: &[DVec3],
     values: &[f64],

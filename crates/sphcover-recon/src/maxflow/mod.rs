@@ -1,30 +1,6 @@
 //! Maximum flow / minimum cut by the Boykov–Kolmogorov algorithm.
 //!
-//! Written from the paper (Y. Boykov, V. Kolmogorov, "An Experimental Comparison of
-//! Min-Cut/Max-Flow Algorithms for Energy Minimization in Vision", IEEE TPAMI 26(9), 2004),
-//! not from any existing implementation. Two search trees grow from the terminals: `S` from the
-//! source and `T` from the sink, over arcs with residual capacity. When they touch, the path
-//! through the touching arc is augmented by its bottleneck; the arcs it saturates cut subtrees
-//! loose ("orphans"), which look for a new parent in their own tree (adoption, preferring the
-//! shortest distance to the terminal, kept valid by time stamps as in §3.2.3 of the paper) or
-//! are freed. Searching never restarts from scratch, which is why the method is fast on the
-//! sparse, short-path graphs of geometry (meshes, sphere intersection graphs).
-//!
-//! Usage follows the faer pattern: build a [`FlowGraph`] once from terminal capacities and an
-//! edge list, [`FlowGraph::solve`] it, then query which nodes are on the source side of the
-//! minimum cut. Nodes reachable from the source in the final residual graph are on the source
-//! side; every other node (including nodes reachable from neither terminal) is on the sink
-//! side.
-//!
-//! Terminal capacities follow the paper's reduction: a node with capacity `a` from the source
-//! and `b` to the sink carries `min(a, b)` of flow straight through, and only the difference
-//! stays as a residual terminal capacity.
-//!
-//! Determinism: the algorithm is sequential; the result (flow value bit for bit, and the cut)
-//! depends only on the input, in its order.
-//!
-//! Layout: the types and the graph's queries are here; `build` lays out and checks the
-//! network (from an edge list or a borrowed symmetric CSR), `solve` runs the search.
+//! The method is described on [`FlowGraph`].
 
 mod build;
 mod solve;
@@ -131,10 +107,10 @@ pub struct MaxFlowInfo {
 }
 
 /// A flow network in compressed sparse rows with terminal capacities, solved in place by the
-/// Boykov–Kolmogorov algorithm (see the module documentation).
+/// Boykov–Kolmogorov algorithm (see [`FlowGraph`]).
 ///
 /// ```
-/// use sphcover_recon::maxflow::{FlowEdge, FlowGraph};
+/// use sphcover_recon::{FlowEdge, FlowGraph};
 ///
 /// // source → 0 (3), 0 → 1 (2), 1 → sink (4): the edge 0–1 is the bottleneck.
 /// let mut g = FlowGraph::new(
@@ -146,8 +122,34 @@ pub struct MaxFlowInfo {
 /// let info = g.solve();
 /// assert_eq!(info.flow, 2.0);
 /// assert!(g.is_source_side(0) && !g.is_source_side(1));
-/// # Ok::<(), sphcover_recon::maxflow::MaxFlowError>(())
+/// # Ok::<(), sphcover_recon::MaxFlowError>(())
 /// ```
+///
+/// Written from the paper (Y. Boykov, V. Kolmogorov, "An Experimental Comparison of
+/// Min-Cut/Max-Flow Algorithms for Energy Minimization in Vision", IEEE TPAMI 26(9), 2004),
+/// not from any existing implementation. Two search trees grow from the terminals: `S` from the
+/// source and `T` from the sink, over arcs with residual capacity. When they touch, the path
+/// through the touching arc is augmented by its bottleneck; the arcs it saturates cut subtrees
+/// loose ("orphans"), which look for a new parent in their own tree (adoption, preferring the
+/// shortest distance to the terminal, kept valid by time stamps as in §3.2.3 of the paper) or
+/// are freed. Searching never restarts from scratch, which is why the method is fast on the
+/// sparse, short-path graphs of geometry (meshes, sphere intersection graphs).
+///
+/// Usage follows the faer pattern: build a [`FlowGraph`] once from terminal capacities and an
+/// edge list, [`FlowGraph::solve`] it, then query which nodes are on the source side of the
+/// minimum cut. Nodes reachable from the source in the final residual graph are on the source
+/// side; every other node (including nodes reachable from neither terminal) is on the sink
+/// side.
+///
+/// Terminal capacities follow the paper's reduction: a node with capacity `a` from the source
+/// and `b` to the sink carries `min(a, b)` of flow straight through, and only the difference
+/// stays as a residual terminal capacity.
+///
+/// Determinism: the algorithm is sequential; the result (flow value bit for bit, and the cut)
+/// depends only on the input, in its order.
+///
+/// Layout: the types and the graph's queries are here; `build` lays out and checks the
+/// network (from an edge list or a borrowed symmetric CSR), `solve` runs the search.
 #[derive(Clone, Debug)]
 pub struct FlowGraph<'a> {
     /// Arcs of node `v` are `first[v]..first[v + 1]`.

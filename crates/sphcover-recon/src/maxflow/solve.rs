@@ -1,6 +1,6 @@
 //! The Boykov–Kolmogorov search on a built [`FlowGraph`]: the warm start over two-arc paths,
-//! then growth of the two trees, augmentation and adoption of orphans (see the module
-//! documentation of `maxflow`).
+//! then growth of the two trees, augmentation and adoption of orphans (method on
+//! [`FlowGraph`]).
 //!
 //! It only moves flow over the arrays the builders laid out, so it stays apart from their
 //! checks and from the graph's public queries.

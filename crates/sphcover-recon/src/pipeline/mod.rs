@@ -1,35 +1,16 @@
 //! The reconstruction pipeline (thesis §5.2.4): from a scanned point cloud to a triangle mesh.
 //!
-//! [`Method::Integrated`] (the default) runs, in the unit frame of the points' bounding box:
-//!
-//! 1. normals by PCA and consistent orientation when the input has none (beyond the thesis);
-//! 2. the surface cover (thesis §3.4.1), weighted by a scanner-given confidence if any;
-//! 3. the graph cut on the sphere intersection graph (thesis §5.2.4): supports whose label
-//!    disagrees with the sign of `f` at their centre are *inconsistent* (outliers and wrong
-//!    normals make them) and get a zero local function and confidence 0;
-//! 4. the confidence of every sample (eq. 5.39–5.40) and the outlier labels;
-//! 5. diffusion of the local functions with confidence-weighted fitting (§5.2.3);
-//! 6. polygonisation by surface nets from the confident samples, so a sheet that no
-//!    confident sample touches (floating outlier surfaces) is never meshed; components far
-//!    smaller than the largest are dropped;
-//!
-//! and maps the mesh back to input coordinates. [`Method::Diffusion`] skips the cut,
-//! [`Method::PartitionOfUnity`] polygonises the cover as built, and [`Method::GraphCut`] is
-//! the graph-cut-only path of §5.2.2 (marching tetrahedra on the labels of the dual complex).
-//!
-//! Lengths in [`ReconParams`] are relative to the longest edge of the input's bounding box
-//! (the unit frame), so one parameter set suits any scan's units.
+//! The method is described on [`reconstruct()`].
 
 mod stages;
 
-use sphcover_core::ParameterError;
+use sphcover_core::{
+    Cover, CoverError, Normalisation, ParameterError, PointCloud, PointIndexError, SigError,
+    SmallComponentsError, StageProgress, SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats,
+    TriMesh, run_stages,
+};
 use std::time::Duration;
 
-use sphcover_core::stages::{StageProgress, run_stages};
-use sphcover_core::{
-    Cover, CoverError, Normalisation, PointCloud, PointIndexError, SigError, SmallComponentsError,
-    SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats, TriMesh,
-};
 use sphcover_ops::OpsError;
 use thiserror::Error;
 
@@ -95,7 +76,7 @@ pub struct ReconParams {
     /// Normal estimation, used when the input has no normals.
     pub normals: NormalParams,
     /// Octree depth of the polygonisation grid (step = longest edge / 2^depth); `None`
-    /// chooses it from the number of points (module docs of [`default_depth`]).
+    /// chooses it from the number of points (see [`default_depth`]).
     pub depth: Option<u32>,
     /// Drop surface far from every sample (users of Poisson tools ask for this on open
     /// scans).
@@ -104,17 +85,17 @@ pub struct ReconParams {
     pub min_component_fraction: f64,
     /// Samples at least this confident seed the polygonisation (and count for trimming).
     /// 0: every sample not labelled an outlier, because the thesis confidence separates
-    /// surface samples from outliers poorly (module docs of [`mod@crate::scan_statistics`]).
+    /// surface samples from outliers poorly (see [`scan_statistics()`](crate::scan_statistics())).
     pub seed_confidence: f64,
     /// Spacing, noise and isolated samples of the scan (beyond the thesis).
     pub scan: ScanStatisticsParams,
-    /// The cover tolerance is at least this multiple of the measured noise σ̂ (module docs
-    /// of [`mod@crate::scan_statistics`]); `None` keeps ε as given.
+    /// The cover tolerance is at least this multiple of the measured noise σ̂ (see
+    /// [`scan_statistics()`](crate::scan_statistics())); `None` keeps ε as given.
     pub noise_tolerance: Option<f64>,
     /// Leave isolated samples out of the cover and label them outliers.
     pub drop_isolated: bool,
-    /// Move the vertices onto quadrics fitted to the samples near them (module docs of
-    /// [`mod@crate::vertex_refinement`]); `None` keeps the function's zero set.
+    /// Move the vertices onto quadrics fitted to the samples near them (see
+    /// [`refine_vertices`](crate::refine_vertices)); `None` keeps the function's zero set.
     pub refine: Option<VertexRefinementParams>,
 }
 
@@ -310,8 +291,28 @@ pub struct Reconstruction {
     pub stats: ReconStats,
 }
 
-/// Reconstructs the surface sampled by `cloud` (module docs). `progress` is told of each
+/// Reconstructs the surface sampled by `cloud` (method below). `progress` is told of each
 /// stage as it starts (for progress display); the stages are those of [`stage_names`].
+///
+/// [`Method::Integrated`] (the default) runs, in the unit frame of the points' bounding box:
+///
+/// 1. normals by PCA and consistent orientation when the input has none (beyond the thesis);
+/// 2. the surface cover (thesis §3.4.1), weighted by a scanner-given confidence if any;
+/// 3. the graph cut on the sphere intersection graph (thesis §5.2.4): supports whose label
+///    disagrees with the sign of `f` at their centre are *inconsistent* (outliers and wrong
+///    normals make them) and get a zero local function and confidence 0;
+/// 4. the confidence of every sample (eq. 5.39–5.40) and the outlier labels;
+/// 5. diffusion of the local functions with confidence-weighted fitting (§5.2.3);
+/// 6. polygonisation by surface nets from the confident samples, so a sheet that no
+///    confident sample touches (floating outlier surfaces) is never meshed; components far
+///    smaller than the largest are dropped;
+///
+/// and maps the mesh back to input coordinates. [`Method::Diffusion`] skips the cut,
+/// [`Method::PartitionOfUnity`] polygonises the cover as built, and [`Method::GraphCut`] is
+/// the graph-cut-only path of §5.2.2 (marching tetrahedra on the labels of the dual complex).
+///
+/// Lengths in [`ReconParams`] are relative to the longest edge of the input's bounding box
+/// (the unit frame), so one parameter set suits any scan's units.
 pub fn reconstruct(
     cloud: &PointCloud,
     params: &ReconParams,

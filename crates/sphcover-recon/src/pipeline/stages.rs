@@ -7,10 +7,9 @@
 //! as soon as it is no longer needed, and peak memory stays that of the largest stage.
 
 use rayon::prelude::*;
-use sphcover_core::stages::Stage;
 use sphcover_core::{
     Cover, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex, PuEvaluator,
-    SphereIntersectionGraph, SupportLists, SupportSamples, SurfaceSamples, TriMesh,
+    SphereIntersectionGraph, Stage, SupportLists, SupportSamples, SurfaceSamples, TriMesh,
     build_surface_cover,
 };
 use sphcover_ops::{OpsError, PairGeometry};

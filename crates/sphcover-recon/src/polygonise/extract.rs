@@ -249,7 +249,7 @@ pub(super) fn split_quad(tris: &mut Vec<[u32; 3]>, q: [u32; 4], vertices: &[DVec
 mod tests {
     use super::*;
     use crate::polygonise::{GridStep, polygonise};
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
     use sphcover_core::{PuEvaluator, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
 
     #[test]

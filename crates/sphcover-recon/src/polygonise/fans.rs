@@ -162,7 +162,7 @@ mod tests {
     use super::*;
     use glam::DVec3;
     use proptest::prelude::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
 
     /// Two closed tetrahedra glued at a vertex (a bow tie) or along an edge (four triangles
     /// on it) come apart into two closed oriented manifolds.

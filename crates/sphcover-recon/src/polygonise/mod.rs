@@ -1,58 +1,7 @@
 //! Polygonisation of the zero set of a cover's function by surface nets visited only near the
 //! surface (thesis §5.2.3, Appendix C).
 //!
-//! The grid is uniform with step `h`; `f` is sampled at grid vertices. A cell is *active* when
-//! `f` is defined at its 8 corners (some support covers each of them) and the corners do not
-//! all lie on one side (inside is `f > 0`, the sign convention of the cover). Surface nets put
-//! one vertex per surface sheet in every active cell and, for every grid edge whose ends lie
-//! on opposite sides, one quad joining the vertices of the four cells around that edge.
-//!
-//! # Continuation from seeds
-//!
-//! Only active cells are ever visited: from the cells holding the seed points (samples the
-//! caller trusts) and, for seeds not next to the surface (noise), from where Newton steps
-//! pull them onto `f = 0`, a breadth-first search crosses
-//! from an active cell to the three other cells around each of its crossing edges. So the
-//! cost follows the area of the surface, not the volume of the box, and a spurious sheet far
-//! from every seed is never meshed. Each round of the search evaluates the new grid vertices
-//! of its frontier in one parallel batch ([`PuEvaluator::values`]).
-//!
-//! # A 2-manifold
-//!
-//! Plain surface nets give one vertex per cell, which pinches two sheets passing through one
-//! cell into a non-manifold vertex. Here the crossing edges of a cell are grouped into the
-//! closed polygons marching cubes would build in that cell (on each face the crossings are
-//! paired; a face with four crossings is resolved by the asymptotic decider, the sign of the
-//! bilinear interpolant at its saddle, which both cells sharing the face compute from the
-//! same four values, so they agree), and each polygon gets its own vertex, as in manifold
-//! dual contouring. The star of such a vertex is the ring of quads around the polygon's
-//! edges, a disc. Where the meshed region ends (undefined `f`, trimming) a vertex can keep
-//! two separate fans; it is then split into one vertex per fan. One saddle configuration
-//! needs more: when the polygons of both cells sharing a face each use both segments of that
-//! face, the surface runs through the face as a tube, and the edge between the two cells'
-//! vertices would carry four quads. Such a *tube face* gets one vertex per segment (the mean
-//! of its two crossings), inserted between the two cells' vertices in the quads of that
-//! segment's edges, so each of those edges is shared by two polygons. It is rare (no real
-//! scan measured has one) and leaves every other quad as it was.
-//!
-//! # Orientation and placement
-//!
-//! Triangles are wound counter-clockwise seen from outside (from `f < 0`). A vertex sits at
-//! the mean of its polygon's edge crossings (linear interpolation of `f` along each edge),
-//! optionally moved by one Newton step `x − f ∇f / ‖∇f‖²` onto `f = 0`, kept inside its cell.
-//!
-//! # Determinism
-//!
-//! The set of active cells is the union of the surface components reached from the seeds in
-//! their given order; values are pure functions of grid positions; the mesh is written in
-//! ascending cell order. So the output is bit-identical whatever the thread count.
-//!
-//! # Layout
-//!
-//! One file per phase, in the order they run: `grid` (the grid and its keys), `search` (the
-//! cells visited from the seeds) over `bricks` (the values of `f`, evaluated in batches) and
-//! `cell` (one cube's sheets), `extract` (vertices and quads) with `tubes` (tube faces), then
-//! `trim` and `fans` on the finished mesh.
+//! The method is described on [`polygonise()`].
 
 mod bricks;
 mod cell;
@@ -63,12 +12,11 @@ mod search;
 mod trim;
 mod tubes;
 
-use sphcover_core::ParameterError;
+use sphcover_core::{ParameterError, PointIndexError, PuEvaluator, TriMesh};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::{PointIndexError, PuEvaluator, TriMesh};
 
 use bricks::brick_of;
 use extract::extract;
@@ -216,7 +164,7 @@ pub struct PolygoniseStats {
     pub total_time: Duration,
 }
 
-/// Polygonises the zero set of `eval`'s function near `seeds` (see the module notes).
+/// Polygonises the zero set of `eval`'s function near `seeds` (method below).
 ///
 /// Returns a mesh in the cover's units, wound counter-clockwise seen from outside, closed
 /// wherever the surface is closed and `f` defined around it.
@@ -226,6 +174,59 @@ pub struct PolygoniseStats {
 /// [`PolygoniseParams::seed_reach`], is meshed, including a small piece of `f = 0` around
 /// an outlier that was given as a seed. [`sphcover_core::remove_small_components`] removes such
 /// pieces afterwards if needed.
+///
+/// The grid is uniform with step `h`; `f` is sampled at grid vertices. A cell is *active* when
+/// `f` is defined at its 8 corners (some support covers each of them) and the corners do not
+/// all lie on one side (inside is `f > 0`, the sign convention of the cover). Surface nets put
+/// one vertex per surface sheet in every active cell and, for every grid edge whose ends lie
+/// on opposite sides, one quad joining the vertices of the four cells around that edge.
+///
+/// # Continuation from seeds
+///
+/// Only active cells are ever visited: from the cells holding the seed points (samples the
+/// caller trusts) and, for seeds not next to the surface (noise), from where Newton steps
+/// pull them onto `f = 0`, a breadth-first search crosses
+/// from an active cell to the three other cells around each of its crossing edges. So the
+/// cost follows the area of the surface, not the volume of the box, and a spurious sheet far
+/// from every seed is never meshed. Each round of the search evaluates the new grid vertices
+/// of its frontier in one parallel batch ([`PuEvaluator::values`]).
+///
+/// # A 2-manifold
+///
+/// Plain surface nets give one vertex per cell, which pinches two sheets passing through one
+/// cell into a non-manifold vertex. Here the crossing edges of a cell are grouped into the
+/// closed polygons marching cubes would build in that cell (on each face the crossings are
+/// paired; a face with four crossings is resolved by the asymptotic decider, the sign of the
+/// bilinear interpolant at its saddle, which both cells sharing the face compute from the
+/// same four values, so they agree), and each polygon gets its own vertex, as in manifold
+/// dual contouring. The star of such a vertex is the ring of quads around the polygon's
+/// edges, a disc. Where the meshed region ends (undefined `f`, trimming) a vertex can keep
+/// two separate fans; it is then split into one vertex per fan. One saddle configuration
+/// needs more: when the polygons of both cells sharing a face each use both segments of that
+/// face, the surface runs through the face as a tube, and the edge between the two cells'
+/// vertices would carry four quads. Such a *tube face* gets one vertex per segment (the mean
+/// of its two crossings), inserted between the two cells' vertices in the quads of that
+/// segment's edges, so each of those edges is shared by two polygons. It is rare (no real
+/// scan measured has one) and leaves every other quad as it was.
+///
+/// # Orientation and placement
+///
+/// Triangles are wound counter-clockwise seen from outside (from `f < 0`). A vertex sits at
+/// the mean of its polygon's edge crossings (linear interpolation of `f` along each edge),
+/// optionally moved by one Newton step `x − f ∇f / ‖∇f‖²` onto `f = 0`, kept inside its cell.
+///
+/// # Determinism
+///
+/// The set of active cells is the union of the surface components reached from the seeds in
+/// their given order; values are pure functions of grid positions; the mesh is written in
+/// ascending cell order. So the output is bit-identical whatever the thread count.
+///
+/// # Layout
+///
+/// One file per phase, in the order they run: `grid` (the grid and its keys), `search` (the
+/// cells visited from the seeds) over `bricks` (the values of `f`, evaluated in batches) and
+/// `cell` (one cube's sheets), `extract` (vertices and quads) with `tubes` (tube faces), then
+/// `trim` and `fans` on the finished mesh.
 pub fn polygonise(
     eval: &PuEvaluator<'_>,
     seeds: &[DVec3],
@@ -372,7 +373,7 @@ fn check_params(params: &PolygoniseParams) -> Result<(), PolygoniseError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
     use sphcover_core::{Aabb, Cover, SurfaceCoverParams, SurfaceSamples, build_surface_cover};
     use sphcover_evaluation::{sphere, sphere_signed_distance, torus, torus_signed_distance};
 

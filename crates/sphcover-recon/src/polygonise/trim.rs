@@ -6,10 +6,9 @@
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::{PointIndex, TriMesh};
+use sphcover_core::{PointIndex, TriMesh, remove_unused_vertices};
 
 use super::PolygoniseError;
-use sphcover_core::remove_unused_vertices;
 
 /// Drops triangles whose centroid is farther than `limit` from every seed; returns how many.
 pub(super) fn trim(
@@ -39,8 +38,8 @@ mod tests {
     use crate::polygonise::tests::{cover_of, params};
     use crate::polygonise::{PolygoniseParams, polygonise};
     use glam::DVec3;
+    use sphcover_core::MeshTopology;
     use sphcover_core::PuEvaluator;
-    use sphcover_core::mesh_topology::MeshTopology;
     use sphcover_evaluation::sphere;
 
     #[test]

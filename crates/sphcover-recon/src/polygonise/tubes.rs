@@ -181,7 +181,7 @@ mod tests {
         GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise,
     };
     use proptest::prelude::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
     use sphcover_core::{Cover, Kernel, LinearFunction, LocalFunctions, PuEvaluator};
 
     /// A cover of `[-1, 1]³` by a 5×5×5 lattice of supports carrying the given linear

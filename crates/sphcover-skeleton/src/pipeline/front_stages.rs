@@ -2,8 +2,7 @@
 //! Scattered samples have their own ([`crate::from_samples`]); both end in a
 //! [`CoverStage`].
 
-use sphcover_core::stages::Stage;
-use sphcover_core::{Cover, Threshold, Volume, VolumeCoverParams, VolumeCoverStats};
+use sphcover_core::{Cover, Stage, Threshold, Volume, VolumeCoverParams, VolumeCoverStats};
 
 use super::{SkeletonParams, voxel_length};
 use crate::error::SkeletonError;

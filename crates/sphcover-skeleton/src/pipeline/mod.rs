@@ -9,9 +9,10 @@
 mod front_stages;
 mod sheet_stages;
 
-use sphcover_core::ParameterError;
-use sphcover_core::stages::{StageProgress, StageTimes, run_stages};
-use sphcover_core::{Kernel, TriMesh, Volume, VolumeCoverStats};
+use sphcover_core::{
+    Kernel, ParameterError, StageProgress, StageTimes, TriMesh, Volume, VolumeCoverStats,
+    run_stages,
+};
 
 use crate::error::SkeletonError;
 use crate::intensity_model::IntensityModel;
@@ -42,7 +43,7 @@ pub struct SkeletonParams {
     pub min_object_fraction: f64,
     /// Above this noise level (standard deviation over contrast), object voxels must also
     /// exceed the threshold in the volume smoothed by one voxel (see
-    /// [`crate::object_mask`]).
+    /// [`drop_small_object_components`](crate::drop_small_object_components)).
     pub smooth_mask_noise: f64,
     /// Smallest support radius (world units); `None`: the voxel diagonal.
     pub r_min: Option<f64>,
@@ -50,7 +51,8 @@ pub struct SkeletonParams {
     pub r_max: Option<f64>,
     /// Support expansion σ for the derivatives (thesis §6.2.2: 4).
     pub sigma: f64,
-    /// Derivative smoothing (thesis §6.2.3, formulated in [`crate::derivative_smoothing`]):
+    /// Derivative smoothing (thesis §6.2.3, formulated in
+    /// [`smoothed_vertex_derivatives`](crate::smoothed_vertex_derivatives)):
     /// `∇f` and `∇²f` take one implicit heat step over the supports' sphere intersection
     /// graph that smooths over this length (voxels) before the ridge test; `None` takes the
     /// derivatives as they are.
@@ -66,7 +68,7 @@ pub struct SkeletonParams {
     pub kernel: Kernel,
     /// Filters on the ridge points.
     pub ridge: RidgeFilter,
-    /// The repairs of the raw patches, each its own stage (module [`crate::repair`]).
+    /// The repairs of the raw patches, each its own stage (see [`SheetRepairs`](crate::SheetRepairs)).
     pub repairs: SheetRepairs,
     /// Seed of the cover's centre order and the triangulation.
     pub seed: u64,

@@ -2,9 +2,7 @@
 //! tetrahedral mesh, derivatives, ridge points, patches and the repairs of
 //! [`crate::repair`], over one [`SheetContext`].
 
-use sphcover_core::mesh_topology::MeshTopology;
-use sphcover_core::stages::Stage;
-use sphcover_core::{Cover, DVec3, PuEvaluator, TriMesh};
+use sphcover_core::{Cover, DVec3, MeshTopology, PuEvaluator, Stage, TriMesh};
 use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
 
 use super::SkeletonParams;

@@ -1,24 +1,13 @@
 //! Cleaning of the raw patch mesh (future work in thesis §6.4): weld coincident vertices,
 //! drop degenerate triangles, drop fragments, fill tiny holes.
 //!
-//! * Welding: a tetrahedron crossed by a single ridge point puts its vertex `q_t` on that
-//!   point; welding makes the fans meeting there share it instead of leaving a crack.
-//! * Fragments: noise and spurious ridges make small separate pieces. A component is kept
-//!   when its area weighted by the ridge strength `|λ1|` reaches a fraction of the largest
-//!   component's (faint ridges weigh little, whatever their size) and its plain area reaches
-//!   a minimum.
-//! * Spurious holes: a boundary loop whose vertices all have exactly two boundary edges, with
-//!   a bounded number of edges and perimeter, and with material at its centroid, is a hole
-//!   left by tetrahedra where the ridge test failed (eigenvectors turning near rims and
-//!   junctions), not a hole of the part (which has air in its middle); it is closed by a fan
-//!   around its centroid.
+//! The method is described on [`clean_sheet()`].
 
 use std::collections::HashMap;
 
 use glam::DVec3;
-use sphcover_core::mesh_topology::MeshTopology;
 use sphcover_core::{
-    DisjointSets, TriMesh, VertexTriangles, remove_unused_vertices, triangle_area,
+    DisjointSets, MeshTopology, TriMesh, VertexTriangles, remove_unused_vertices, triangle_area,
 };
 
 /// Parameters of [`clean_sheet`]; lengths in voxels.
@@ -105,6 +94,18 @@ impl CleaningStats {
 /// `is_material(x)` says whether there is material at `x`: a hole is filled only when there
 /// is material at its centroid, so holes of the part itself (air in the middle) stay open
 /// whatever their size.
+///
+/// * Welding: a tetrahedron crossed by a single ridge point puts its vertex `q_t` on that
+///   point; welding makes the fans meeting there share it instead of leaving a crack.
+/// * Fragments: noise and spurious ridges make small separate pieces. A component is kept
+///   when its area weighted by the ridge strength `|λ1|` reaches a fraction of the largest
+///   component's (faint ridges weigh little, whatever their size) and its plain area reaches
+///   a minimum.
+/// * Spurious holes: a boundary loop whose vertices all have exactly two boundary edges, with
+///   a bounded number of edges and perimeter, and with material at its centroid, is a hole
+///   left by tetrahedra where the ridge test failed (eigenvectors turning near rims and
+///   junctions), not a hole of the part (which has air in its middle); it is closed by a fan
+///   around its centroid.
 pub fn clean_sheet(
     mesh: &TriMesh,
     params: &CleaningParams,

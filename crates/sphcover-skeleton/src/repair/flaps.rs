@@ -1,14 +1,6 @@
 //! Collapsing flaps that stand across the sheet.
 //!
-//! On a thick plate the blurred intensity has a flat top, the Hessian's smallest eigenvalues
-//! are close there, and the ridge test of eq. 6.5 also fires along in-plane directions: the
-//! sheet grows fins standing across it (on the reference wedge at 10 % noise, 2–3 voxels
-//! off the true sheet, 7 voxels from its boundary), whose triangles' normals are nearly
-//! perpendicular to the across direction `e` of their corners. A fin has a free edge on
-//! top; it is eaten from there by elementary collapses (a triangle through its only free
-//! edge, or a tip with the edges and corners only it uses), which keep the sheet's topology (components, Euler characteristic) whatever is
-//! removed. Only triangles lying across the ridge by less than a bound are collapsed, so the
-//! collapse stops where the fin meets the sheet.
+//! The method is described on [`collapse_misaligned_flaps()`].
 
 use std::collections::HashMap;
 
@@ -56,8 +48,18 @@ impl Default for FlapParams {
 }
 
 /// Collapses, from the free edges, the triangles whose alignment ([`triangle_alignment`]) is
-/// below [`FlapParams::min_alignment`], as described in the [module documentation](self).
+/// below [`FlapParams::min_alignment`], as described below.
 /// Returns the triangles removed.
+///
+/// On a thick plate the blurred intensity has a flat top, the Hessian's smallest eigenvalues
+/// are close there, and the ridge test of eq. 6.5 also fires along in-plane directions: the
+/// sheet grows fins standing across it (on the reference wedge at 10 % noise, 2–3 voxels
+/// off the true sheet, 7 voxels from its boundary), whose triangles' normals are nearly
+/// perpendicular to the across direction `e` of their corners. A fin has a free edge on
+/// top; it is eaten from there by elementary collapses (a triangle through its only free
+/// edge, or a tip with the edges and corners only it uses), which keep the sheet's topology (components, Euler characteristic) whatever is
+/// removed. Only triangles lying across the ridge by less than a bound are collapsed, so the
+/// collapse stops where the fin meets the sheet.
 pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usize {
     let min_alignment = params.min_alignment;
     let alignment = triangle_alignment(mesh);
@@ -134,7 +136,7 @@ pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usi
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
 
     /// An `n × n` grid in z = 0 and a fin of `height` rows standing on the base edges of
     /// x = `fx`, y ∈ [fy, fy + width]; every across direction is `Z`.

@@ -1,28 +1,7 @@
 //! Filling holes of the sheets that meet at a junction (T-junctions, where the thesis's
 //! extractor failed, §6.3).
 //!
-//! Where a web stands on a base plate the intensity ridge is ill-defined (both across
-//! directions are ridges, the Hessian's two smallest eigenvalues are close), the eigenvector
-//! test of eq. 6.5 fails in places along the junction, and the base sheet is left with small
-//! holes there. Web triangles stand on the rims of those holes, so their edges are shared by
-//! two triangles and the holes are not boundary loops of the mesh: the hole filling of
-//! [`super::cleaning`] cannot see them.
-//!
-//! Here the mesh is split into smooth sheets first: triangles sharing an edge belong to the
-//! same sheet when their planes meet at less than `min_angle` (a web meets its base at about
-//! 90°). A hole is a boundary loop of one sheet (counting only that sheet's triangles) other
-//! than its longest, which is the sheet's outline, with a perimeter of at most
-//! `max_perimeter` and material at its centroid, so that holes of the part itself (air in
-//! the middle) stay open. Sheets whose boundary branches are left alone, since their outline
-//! cannot be told from their holes.
-//!
-//! Measured on the generated T-junction (`phantom_table`): χ −8 → −5 at 0 % noise and −9 →
-//! −7 at 10 % (true 1), with every other phantom unchanged. The rest of the defect is a
-//! tangle of small tunnels where the web's stubs reach the base, which this step does not
-//! touch: bridging the web's boundary to the base (tried: fans from boundary edges to the
-//! nearest differently oriented vertices; closing boundary chains between attachments by the
-//! shortest interior path) moved χ at the junction but also changed it on plates at 30 %
-//! noise, where noise folds look like junctions.
+//! The method is described on [`fill_holes_within_sheets()`].
 
 use std::collections::{HashMap, HashSet};
 
@@ -49,10 +28,33 @@ impl Default for SheetHoleParams {
     }
 }
 
-/// Fills the holes of the smooth sheets `mesh` is made of, as described in the
-/// [module documentation](self): each by a fan around its centroid (one new vertex, with
+/// Fills the holes of the smooth sheets `mesh` is made of, as described
+/// below: each by a fan around its centroid (one new vertex, with
 /// the normal of a rim vertex and the mean value of the rim); `voxel` is the length unit of
 /// `params` (world units). Returns the holes filled.
+///
+/// Where a web stands on a base plate the intensity ridge is ill-defined (both across
+/// directions are ridges, the Hessian's two smallest eigenvalues are close), the eigenvector
+/// test of eq. 6.5 fails in places along the junction, and the base sheet is left with small
+/// holes there. Web triangles stand on the rims of those holes, so their edges are shared by
+/// two triangles and the holes are not boundary loops of the mesh: the hole filling of
+/// [`clean_sheet`](crate::clean_sheet) cannot see them.
+///
+/// Here the mesh is split into smooth sheets first: triangles sharing an edge belong to the
+/// same sheet when their planes meet at less than `min_angle` (a web meets its base at about
+/// 90°). A hole is a boundary loop of one sheet (counting only that sheet's triangles) other
+/// than its longest, which is the sheet's outline, with a perimeter of at most
+/// `max_perimeter` and material at its centroid, so that holes of the part itself (air in
+/// the middle) stay open. Sheets whose boundary branches are left alone, since their outline
+/// cannot be told from their holes.
+///
+/// Measured on the generated T-junction (`phantom_table`): χ −8 → −5 at 0 % noise and −9 →
+/// −7 at 10 % (true 1), with every other phantom unchanged. The rest of the defect is a
+/// tangle of small tunnels where the web's stubs reach the base, which this step does not
+/// touch: bridging the web's boundary to the base (tried: fans from boundary edges to the
+/// nearest differently oriented vertices; closing boundary chains between attachments by the
+/// shortest interior path) moved χ at the junction but also changed it on plates at 30 %
+/// noise, where noise folds look like junctions.
 pub fn fill_holes_within_sheets(
     mesh: &mut TriMesh,
     params: &SheetHoleParams,
@@ -196,7 +198,7 @@ pub fn fill_holes_within_sheets(
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
 
     /// An `n × n` grid of unit squares in z = 0 without the square at `hole` (when given),
     /// and a web of `web_height` squares standing on the edge `x = hx, y ∈ [hy, hy + 1]`.

@@ -1,38 +1,6 @@
 //! Snapping the junction band of the sheet onto the planes of the sheets meeting there.
 //!
-//! Where two plates meet (a T-junction), the intensity ridge does not turn a sharp corner:
-//! it is a fillet that bends from one plate into the other, up to two voxels off both true
-//! sheets (on the generated T-junction, nearly all output farther than 0.3 voxel from the
-//! true sheet lies less than 3 voxels above the base and 2 voxels from the web's plane).
-//! Deleting the fillet and rebuilding the corner breaks the topology; moving its vertices
-//! does not: connectivity, and so the components and the Euler characteristic, stay exactly
-//! as they are.
-//!
-//! Each plate is known away from the junction. A *plate vertex* is one whose across direction
-//! `e` agrees, within [`JunctionPlaneParams::max_ring_angle_degrees`], with those of all its
-//! neighbours in the mesh (the fillet, where `e` turns, fails this test). Its *support* is
-//! the number of plate vertices within `reach` whose directions lie within `max_fit_angle`
-//! of its own, up to sign: a plate's own direction is well supported, the fillet's, turning
-//! from one plate to the other, is not. Around each vertex `p`, the plate vertices within
-//! `reach` are examined. When all their directions are within `min_angle / 2` of the nearest
-//! vertex's, only one sheet is there and `p` stays. Otherwise they are ranked
-//! by support, and each direction with support at least [`JunctionPlaneParams::min_group`]
-//! that is at least `min_angle` from every direction taken so far seeds a sheet; ranking by
-//! support means the directions between the plates (the fillet's) never win against the
-//! plates' own. With at least two seeds, `p` lies in a junction band: each plate vertex near
-//! `p` joins the seed closest to its direction (if within `min_angle / 2` of it), and each
-//! group gives a plane: normal the sign-aligned mean of its `e`, refined over the members
-//! whose directions lie near it; offset the median of the offsets of the members within
-//! `max_fit_angle` of that normal (robust to the fillet's own plate-like pieces). `p` is
-//! projected onto the nearest of these planes, if it is at most `max_shift` away, and its
-//! normal becomes that plane's normal. A flat or gently curved plate (normals turning less
-//! than `min_angle` within `reach`) never has two seeds, so nothing moves there. Only
-//! vertices within `reach` of an edge with three or more triangles (where sheets actually
-//! meet) are candidates: a curved sheet without a junction, such as a skull's vault, whose
-//! normals turn by `min_angle` within `reach`, would otherwise be faceted onto its tangent
-//! planes (measured on CGAL's 64³ skull CT: mean dihedral angle between neighbouring
-//! triangles 0.197 rad without the step, 0.234 with it unrestricted, 0.195 restricted; the
-//! T-junction phantoms' figures are unchanged).
+//! The method is described on [`snap_to_junction_planes()`].
 
 use std::collections::HashMap;
 
@@ -58,7 +26,7 @@ pub struct JunctionPlaneParams {
     /// (degrees) of the plane's normal; a plate vertex's support counts the plate vertices
     /// within reach whose directions are within this angle of its own.
     pub max_fit_angle_degrees: f64,
-    /// Smallest support (module docs) of a plate vertex whose direction seeds a sheet's
+    /// Smallest support (see [`snap_to_junction_planes`]) of a plate vertex whose direction seeds a sheet's
     /// plane.
     pub min_group: usize,
 }
@@ -100,9 +68,43 @@ impl JunctionPlaneParams {
 }
 
 /// Snaps the vertices of `mesh` (normals = across directions) in junction bands onto the
-/// nearest plane of the sheets meeting there (see the module documentation); `voxel` is the
+/// nearest plane of the sheets meeting there (method below); `voxel` is the
 /// length unit of `params` (world units). Triangles are unchanged. Returns the number of
 /// vertices moved.
+///
+/// Where two plates meet (a T-junction), the intensity ridge does not turn a sharp corner:
+/// it is a fillet that bends from one plate into the other, up to two voxels off both true
+/// sheets (on the generated T-junction, nearly all output farther than 0.3 voxel from the
+/// true sheet lies less than 3 voxels above the base and 2 voxels from the web's plane).
+/// Deleting the fillet and rebuilding the corner breaks the topology; moving its vertices
+/// does not: connectivity, and so the components and the Euler characteristic, stay exactly
+/// as they are.
+///
+/// Each plate is known away from the junction. A *plate vertex* is one whose across direction
+/// `e` agrees, within [`JunctionPlaneParams::max_ring_angle_degrees`], with those of all its
+/// neighbours in the mesh (the fillet, where `e` turns, fails this test). Its *support* is
+/// the number of plate vertices within `reach` whose directions lie within `max_fit_angle`
+/// of its own, up to sign: a plate's own direction is well supported, the fillet's, turning
+/// from one plate to the other, is not. Around each vertex `p`, the plate vertices within
+/// `reach` are examined. When all their directions are within `min_angle / 2` of the nearest
+/// vertex's, only one sheet is there and `p` stays. Otherwise they are ranked
+/// by support, and each direction with support at least [`JunctionPlaneParams::min_group`]
+/// that is at least `min_angle` from every direction taken so far seeds a sheet; ranking by
+/// support means the directions between the plates (the fillet's) never win against the
+/// plates' own. With at least two seeds, `p` lies in a junction band: each plate vertex near
+/// `p` joins the seed closest to its direction (if within `min_angle / 2` of it), and each
+/// group gives a plane: normal the sign-aligned mean of its `e`, refined over the members
+/// whose directions lie near it; offset the median of the offsets of the members within
+/// `max_fit_angle` of that normal (robust to the fillet's own plate-like pieces). `p` is
+/// projected onto the nearest of these planes, if it is at most `max_shift` away, and its
+/// normal becomes that plane's normal. A flat or gently curved plate (normals turning less
+/// than `min_angle` within `reach`) never has two seeds, so nothing moves there. Only
+/// vertices within `reach` of an edge with three or more triangles (where sheets actually
+/// meet) are candidates: a curved sheet without a junction, such as a skull's vault, whose
+/// normals turn by `min_angle` within `reach`, would otherwise be faceted onto its tangent
+/// planes (measured on CGAL's 64³ skull CT: mean dihedral angle between neighbouring
+/// triangles 0.197 rad without the step, 0.234 with it unrestricted, 0.195 restricted; the
+/// T-junction phantoms' figures are unchanged).
 pub fn snap_to_junction_planes(
     mesh: &mut TriMesh,
     params: &JunctionPlaneParams,

@@ -1,32 +1,17 @@
 //! Repairs of the raw ridge patches (future work in thesis §6.4): what turns the fans of
 //! thesis Fig. 6.11 into one clean sheet.
 //!
-//! Each repair is a stage of the pipeline with its own parameters, all lengths in voxels
-//! (the geometric mean of the voxel edges, or the sample spacing of scattered samples), and
-//! each but the cleaning can be switched off by leaving its entry of [`SheetRepairs`] `None`.
-//! They run in this order:
-//!
-//! | stage | module | what it does |
-//! |---|---|---|
-//! | cleaning | [`cleaning`] | weld, undo pinches, fill small holes over material, drop fragments |
-//! | rim trimming | [`rim_trimming`] | trim the sheet back from the part's rounded rims (medial-axis test), then clean again |
-//! | junction holes | [`junction_holes`] | fill holes of the sheets meeting at a junction |
-//! | tunnels | [`tunnels`] | open closed pockets, close loops that go around material only |
-//! | flaps | [`flaps`] | collapse fins standing across the sheet |
-//! | centring | [`medial_correction`] | re-centre vertices between the part's two faces |
-//! | junction fold | [`medial_correction`] | fold junction fillets onto the plates (needs centring) |
-//! | junction planes | [`junction_planes`] | snap the band where sheets meet onto their planes |
-//! | smoothing | [`sheet_smoothing`] | smooth across the sheet (off by default) |
+//! The method is described on [`SheetRepairs`].
 
-pub mod cleaning;
-pub mod flaps;
-pub mod junction_holes;
-pub mod junction_planes;
-pub mod medial_correction;
-pub mod part_surface;
-pub mod rim_trimming;
-pub mod sheet_smoothing;
-pub mod tunnels;
+pub(crate) mod cleaning;
+pub(crate) mod flaps;
+pub(crate) mod junction_holes;
+pub(crate) mod junction_planes;
+pub(crate) mod medial_correction;
+pub(crate) mod part_surface;
+pub(crate) mod rim_trimming;
+pub(crate) mod sheet_smoothing;
+pub(crate) mod tunnels;
 
 use cleaning::CleaningParams;
 use flaps::FlapParams;
@@ -37,8 +22,25 @@ use rim_trimming::RimTrimParams;
 use sheet_smoothing::SmoothingParams;
 use tunnels::TunnelParams;
 
-/// Which repairs run on the raw ridge patches, and their parameters (module docs). `Default`
+/// Which repairs run on the raw ridge patches, and their parameters (method below). `Default`
 /// is the set the phantom tests use: every repair but the smoothing.
+///
+/// Each repair is a stage of the pipeline with its own parameters, all lengths in voxels
+/// (the geometric mean of the voxel edges, or the sample spacing of scattered samples), and
+/// each but the cleaning can be switched off by leaving its entry of [`SheetRepairs`] `None`.
+/// They run in this order:
+///
+/// | stage | function | what it does |
+/// |---|---|---|
+/// | cleaning | [`clean_sheet`](crate::clean_sheet) | weld, undo pinches, fill small holes over material, drop fragments |
+/// | rim trimming | [`trim_rims`](crate::trim_rims) | trim the sheet back from the part's rounded rims (medial-axis test), then clean again |
+/// | junction holes | [`fill_holes_within_sheets`](crate::fill_holes_within_sheets) | fill holes of the sheets meeting at a junction |
+/// | tunnels | [`close_material_tunnels`](crate::close_material_tunnels) | open closed pockets, close loops that go around material only |
+/// | flaps | [`collapse_misaligned_flaps`](crate::collapse_misaligned_flaps) | collapse fins standing across the sheet |
+/// | centring | [`centre_between_faces`](crate::centre_between_faces) | re-centre vertices between the part's two faces |
+/// | junction fold | [`fold_junction_vertices`](crate::fold_junction_vertices) | fold junction fillets onto the plates (needs centring) |
+/// | junction planes | [`snap_to_junction_planes`](crate::snap_to_junction_planes) | snap the band where sheets meet onto their planes |
+/// | smoothing | [`smooth_across`](crate::smooth_across) | smooth across the sheet (off by default) |
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct SheetRepairs {

@@ -1,22 +1,6 @@
 //! Trimming the sheet back from the rounded rims of the part (future work in thesis §6.4).
 //!
-//! A plate of thickness `t` ends in a rounded rim that sticks out `t/2` beyond the true
-//! sheet's boundary, and the intensity ridge runs on to the rim's tip: left alone, the
-//! extracted sheet is `t/2` too wide all around (on the phantoms: 5–25 % of the output lies
-//! farther than one voxel from the true sheet, all of it at the rims).
-//!
-//! The medial-axis property tells the rim apart, locally. At a sheet point `p` with across
-//! direction `e`, let `h(p)` be the half-thickness along `e` (the distance from `p` to the
-//! object surface `f = T` along `±e`, averaged over both sides). Inside the true sheet the
-//! object extends farther than `h` in every direction along the sheet. In the rim, at
-//! distance `δ` beyond the true boundary, the surface lies `t/2 − δ` away along the sheet
-//! (outwards) while `h = √(t²/4 − δ²)`. So a vertex is in the rim when, in one of
-//! `DIRECTIONS` directions perpendicular to `e`, the surface is closer than `κ·h`
-//! (`κ` = [`RimTrimParams::factor`]; with `κ = 0.9` this trims what lies more than about
-//! `0.05 t` beyond the true boundary), and triangles with two rim corners are removed. At a
-//! T-junction the other sheet's material continues along the sheet, so nothing is trimmed
-//! there. Only vertices within the object's thickness of the sheet's boundary (geodesic
-//! distance) are tested.
+//! The method is described on [`trim_rims()`].
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -64,6 +48,24 @@ pub(crate) const DIRECTIONS: usize = 12;
 /// So every piece of at least [`RimTrimParams::keep_pieces_voxels`] that trimming separates
 /// from the largest piece of its component keeps the fewest removed triangles that connect
 /// it back across edges (a breadth-first path through the removed triangles).
+///
+/// A plate of thickness `t` ends in a rounded rim that sticks out `t/2` beyond the true
+/// sheet's boundary, and the intensity ridge runs on to the rim's tip: left alone, the
+/// extracted sheet is `t/2` too wide all around (on the phantoms: 5–25 % of the output lies
+/// farther than one voxel from the true sheet, all of it at the rims).
+///
+/// The medial-axis property tells the rim apart, locally. At a sheet point `p` with across
+/// direction `e`, let `h(p)` be the half-thickness along `e` (the distance from `p` to the
+/// object surface `f = T` along `±e`, averaged over both sides). Inside the true sheet the
+/// object extends farther than `h` in every direction along the sheet. In the rim, at
+/// distance `δ` beyond the true boundary, the surface lies `t/2 − δ` away along the sheet
+/// (outwards) while `h = √(t²/4 − δ²)`. So a vertex is in the rim when, in one of
+/// `DIRECTIONS` directions perpendicular to `e`, the surface is closer than `κ·h`
+/// (`κ` = [`RimTrimParams::factor`]; with `κ = 0.9` this trims what lies more than about
+/// `0.05 t` beyond the true boundary), and triangles with two rim corners are removed. At a
+/// T-junction the other sheet's material continues along the sheet, so nothing is trimmed
+/// there. Only vertices within the object's thickness of the sheet's boundary (geodesic
+/// distance) are tested.
 pub fn trim_rims(
     mesh: &TriMesh,
     surface: &PartSurface<'_>,
@@ -237,7 +239,7 @@ pub(crate) fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area
 }
 
 /// True when the part's surface is closer than `factor · h(p)` along some direction
-/// perpendicular to `e` (see the module documentation), marching in steps of `step` (world
+/// perpendicular to `e` (see [`trim_rims`]), marching in steps of `step` (world
 /// units).
 pub(crate) fn is_rim(
     surface: &PartSurface<'_>,
@@ -388,7 +390,7 @@ mod tests {
                     mesh.vertices.clone(),
                     mesh.triangles.iter().zip(&keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect(),
                 );
-                let topology = sphcover_core::mesh_topology::MeshTopology::of(&kept);
+                let topology = sphcover_core::MeshTopology::of(&kept);
                 prop_assert_eq!(topology.components, 1);
             } else {
                 prop_assert_eq!(restored, 0);

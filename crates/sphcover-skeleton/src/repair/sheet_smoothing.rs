@@ -1,11 +1,7 @@
 //! Smoothing of the sheet across itself: Jacobi rounds of the umbrella (1-ring mean) step,
 //! restricted to each vertex's across direction `e`.
 //!
-//! The patch vertices carry the noise of the ridge points and of the tetrahedron centroids
-//! between them, which zig-zag across the sheet by a fraction of a voxel. Moving each
-//! vertex only along its across direction `e`, towards the plane through the mean of its
-//! neighbours, removes that zig-zag without shrinking the sheet along itself or pulling its
-//! boundary inwards (the tangential part of the umbrella step is dropped).
+//! The method is described on [`smooth_across()`].
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -33,6 +29,12 @@ impl Default for SmoothingParams {
 /// Runs [`SmoothingParams::rounds`] Jacobi rounds of `v ← v + λ ⟨m − v, e⟩ e` with `m` the
 /// mean of the 1-ring neighbours of `v` and `e` its normal. Needs per-vertex normals (does
 /// nothing without them); vertices without a neighbour stay.
+///
+/// The patch vertices carry the noise of the ridge points and of the tetrahedron centroids
+/// between them, which zig-zag across the sheet by a fraction of a voxel. Moving each
+/// vertex only along its across direction `e`, towards the plane through the mean of its
+/// neighbours, removes that zig-zag without shrinking the sheet along itself or pulling its
+/// boundary inwards (the tangential part of the umbrella step is dropped).
 pub fn smooth_across(mesh: &mut TriMesh, params: &SmoothingParams) {
     let SmoothingParams { rounds, lambda } = *params;
     let Some(normals) = mesh.normals.clone() else {

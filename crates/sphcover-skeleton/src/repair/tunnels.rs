@@ -1,21 +1,6 @@
 //! Closing the small tunnels of the sheet that run through material (T-junctions).
 //!
-//! A thin part retracts onto its mid-surface, so the sheet has the part's topology: a loop
-//! of the sheet that bounds no triangles of the sheet (a generator of its first homology)
-//! must go around air. Where a web stands on a base plate the ridge is ill-defined; the web
-//! reaches the base in several stubs and the fillets between them leave small loops that go
-//! around nothing but material. Each such loop lowers the Euler characteristic by one
-//! (without this repair the generated T-junction has χ −5 … −7, the reference one −12, for a
-//! true 1).
-//!
-//! Here the short loops of the sheet are enumerated (for every vertex, the loops closed by a
-//! non-tree edge of its shortest-path tree within a radius, whose two tree paths leave the
-//! vertex by different edges), sorted by length, and tested for homology over Z2 against the
-//! triangles' boundaries and the loops already accepted (column reduction, as in persistent
-//! homology). A loop independent of those is a generator; it is closed by a fan around its
-//! centroid when it is short and the part's material fills the disk it spans (the centroid
-//! and the midpoints between the centroid and the loop's vertices), so holes of the part
-//! (air in the middle) stay open. Each fan raises χ by exactly one.
+//! The method is described on [`close_material_tunnels()`].
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
@@ -116,8 +101,25 @@ impl Ord for Entry {
 }
 
 /// Closes the short loops of `mesh` that bound no triangles and go around material only, as
-/// described in the [module documentation](self). New vertices get the normal of a loop
+/// described below. New vertices get the normal of a loop
 /// vertex and the mean value of the loop. Returns the number of loops closed.
+///
+/// A thin part retracts onto its mid-surface, so the sheet has the part's topology: a loop
+/// of the sheet that bounds no triangles of the sheet (a generator of its first homology)
+/// must go around air. Where a web stands on a base plate the ridge is ill-defined; the web
+/// reaches the base in several stubs and the fillets between them leave small loops that go
+/// around nothing but material. Each such loop lowers the Euler characteristic by one
+/// (without this repair the generated T-junction has χ −5 … −7, the reference one −12, for a
+/// true 1).
+///
+/// Here the short loops of the sheet are enumerated (for every vertex, the loops closed by a
+/// non-tree edge of its shortest-path tree within a radius, whose two tree paths leave the
+/// vertex by different edges), sorted by length, and tested for homology over Z2 against the
+/// triangles' boundaries and the loops already accepted (column reduction, as in persistent
+/// homology). A loop independent of those is a generator; it is closed by a fan around its
+/// centroid when it is short and the part's material fills the disk it spans (the centroid
+/// and the midpoints between the centroid and the loop's vertices), so holes of the part
+/// (air in the middle) stay open. Each fan raises χ by exactly one.
 pub fn close_material_tunnels(
     mesh: &mut TriMesh,
     params: &TunnelParams,
@@ -473,7 +475,7 @@ fn short_loops(
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use sphcover_core::mesh_topology::MeshTopology;
+    use sphcover_core::MeshTopology;
 
     /// An `n × n` grid of unit squares in z = 0 (vertex `(i, j)` at index `i (n + 1) + j`).
     fn grid(n: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {

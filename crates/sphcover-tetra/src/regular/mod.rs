@@ -1,52 +1,6 @@
 //! Incremental 3D regular (weighted Delaunay) triangulation.
 //!
-//! Design (after geogram's `Delaunay_3d`, BSD-3): points are inserted one at a time in BRIO +
-//! Hilbert order (module `spatial_sort`); each is located by a remembering stochastic walk
-//! from the previous insertion; the *conflict zone* (tetrahedra whose orthosphere the new
-//! weighted point has negative power against) is grown by a depth-first search from the
-//! located tetrahedron and replaced by the cone from the new point to its boundary
-//! (Bowyer–Watson). The convex hull is closed by tetrahedra through one *infinite vertex*.
-//!
-//! Redundant (hidden) points. A weighted point whose lifted image lies above the lower
-//! convex hull of the lifted points has no power cell and is not a vertex:
-//! * if the tetrahedron containing the new point is not in conflict with it, the point is
-//!   redundant when it arrives and is not inserted;
-//! * a heavier point can make an existing vertex redundant. Then every tetrahedron around
-//!   that vertex is in conflict (its lifted image is above the new lower hull), so the vertex
-//!   lies inside the conflict zone and disappears with it: after building the cone we mark
-//!   as hidden every vertex of the zone that no new tetrahedron uses. A hidden point stays
-//!   hidden (inserting points only lowers the lower hull), so no vertex ever reappears.
-//!
-//! Ties (co-spherical, co-planar configurations) are broken by the symbolic perturbation of
-//! [`crate::predicates`], which is a genuine perturbation of the lifted coordinates: the
-//! result is the regular triangulation of a generic point set infinitesimally close to the
-//! input, every tetrahedron has positive volume, and no random perturbation is needed.
-//! Points with identical centres are resolved before insertion: the heaviest (then the
-//! first) stays, the others are hidden.
-//!
-//! Storage uses `u32` handles: per tetrahedron slot one 32-byte aligned block holding its
-//! four vertices and the neighbour opposite each (the walk and the conflict search read both
-//! for every cell they visit: one cache line instead of two), and a free list of slots. The
-//! input-sized arrays (points, ranks, marks) stay separate. While building, vertices are numbered in
-//! insertion order (cells near the new point then touch nearby memory) and mapped back to
-//! input indices at the end. The cone over the conflict zone is stitched in two passes: each new
-//! cell takes its outside neighbour from the old cell it replaces, and the new cells are
-//! paired with each other through a small per-insertion table keyed by their boundary edge
-//! (open addressing, stamped instead of cleared; no allocation in the steady state). On inputs whose centres lie on
-//! one dyadic grid (voxel grids, octrees), integer coordinates are precomputed so that exact
-//! tie-breaking, frequent there, skips the per-call bit analysis, and power tests whose five
-//! weights are equal go straight to an exact small-integer evaluation (on the octree
-//! benchmark cover, counted at 50K spheres, 30% of the power tests are exact ties, nine in
-//! ten of them between equal weights).
-//!
-//! Parallelism: the sorts (duplicate detection, the Hilbert rounds) and the final renumbering
-//! run on rayon; the insertions are sequential. Sorted keys are distinct pairs, so every order
-//! is the same whatever the thread count.
-//!
-//! Layout: the types, the constructor and the queries are here; `prepare` (duplicates,
-//! ranks, the dyadic grid), `insert` (the first cell, the walk, the conflict zone, the
-//! cone), `conflict` (the exact predicates on vertex handles) and `check` (validity checks
-//! for tests) hold the phases.
+//! The method is described on [`RegularTriangulation`].
 
 mod check;
 mod conflict;
@@ -121,6 +75,54 @@ pub struct TriangulationStats {
 }
 
 /// A 3D regular triangulation of weighted points (weights are squared radii).
+///
+/// Design (after geogram's `Delaunay_3d`, BSD-3): points are inserted one at a time in BRIO +
+/// Hilbert order (module `spatial_sort`); each is located by a remembering stochastic walk
+/// from the previous insertion; the *conflict zone* (tetrahedra whose orthosphere the new
+/// weighted point has negative power against) is grown by a depth-first search from the
+/// located tetrahedron and replaced by the cone from the new point to its boundary
+/// (Bowyer–Watson). The convex hull is closed by tetrahedra through one *infinite vertex*.
+///
+/// Redundant (hidden) points. A weighted point whose lifted image lies above the lower
+/// convex hull of the lifted points has no power cell and is not a vertex:
+/// * if the tetrahedron containing the new point is not in conflict with it, the point is
+///   redundant when it arrives and is not inserted;
+/// * a heavier point can make an existing vertex redundant. Then every tetrahedron around
+///   that vertex is in conflict (its lifted image is above the new lower hull), so the vertex
+///   lies inside the conflict zone and disappears with it: after building the cone we mark
+///   as hidden every vertex of the zone that no new tetrahedron uses. A hidden point stays
+///   hidden (inserting points only lowers the lower hull), so no vertex ever reappears.
+///
+/// Ties (co-spherical, co-planar configurations) are broken by the symbolic perturbation of
+/// [`crate::predicates`], which is a genuine perturbation of the lifted coordinates: the
+/// result is the regular triangulation of a generic point set infinitesimally close to the
+/// input, every tetrahedron has positive volume, and no random perturbation is needed.
+/// Points with identical centres are resolved before insertion: the heaviest (then the
+/// first) stays, the others are hidden.
+///
+/// Storage uses `u32` handles: per tetrahedron slot one 32-byte aligned block holding its
+/// four vertices and the neighbour opposite each (the walk and the conflict search read both
+/// for every cell they visit: one cache line instead of two), and a free list of slots. The
+/// input-sized arrays (points, ranks, marks) stay separate. While building, vertices are numbered in
+/// insertion order (cells near the new point then touch nearby memory) and mapped back to
+/// input indices at the end. The cone over the conflict zone is stitched in two passes: each new
+/// cell takes its outside neighbour from the old cell it replaces, and the new cells are
+/// paired with each other through a small per-insertion table keyed by their boundary edge
+/// (open addressing, stamped instead of cleared; no allocation in the steady state). On inputs whose centres lie on
+/// one dyadic grid (voxel grids, octrees), integer coordinates are precomputed so that exact
+/// tie-breaking, frequent there, skips the per-call bit analysis, and power tests whose five
+/// weights are equal go straight to an exact small-integer evaluation (on the octree
+/// benchmark cover, counted at 50K spheres, 30% of the power tests are exact ties, nine in
+/// ten of them between equal weights).
+///
+/// Parallelism: the sorts (duplicate detection, the Hilbert rounds) and the final renumbering
+/// run on rayon; the insertions are sequential. Sorted keys are distinct pairs, so every order
+/// is the same whatever the thread count.
+///
+/// Layout: the types, the constructor and the queries are here; `prepare` (duplicates,
+/// ranks, the dyadic grid), `insert` (the first cell, the walk, the conflict zone, the
+/// cone), `conflict` (the exact predicates on vertex handles) and `check` (validity checks
+/// for tests) hold the phases.
 #[derive(Clone, Debug)]
 pub struct RegularTriangulation {
     /// `[x, y, z, w]` per point (one cache line holds two). While building, indexed by
