@@ -126,8 +126,13 @@ pub struct ReconArgs {
     #[arg(long, value_name = "MU")]
     pub position_fit: Option<f64>,
     /// Neighbours for normal estimation of unoriented input.
-    #[arg(long, default_value_t = 12, value_name = "N")]
-    pub normal_neighbors: usize,
+    #[arg(
+        long,
+        visible_alias = "normal-neighbors",
+        default_value_t = 12,
+        value_name = "N"
+    )]
+    pub normal_neighbours: usize,
     /// Estimate normals even when the input has them (for unreliable normals).
     #[arg(long)]
     pub estimate_normals: bool,
@@ -315,12 +320,12 @@ pub struct RenderArgs {
     pub size: String,
     /// Colour by a per-vertex scalar (viridis): any scalar PLY vertex property (confidence,
     /// quality, an outlier label…), or value, radius, x, y, z for any format.
-    #[arg(long, visible_alias = "colour-by", value_name = "PROPERTY")]
-    pub color_by: Option<String>,
-    /// Values at the ends of the colormap [default: the range of the values].
+    #[arg(long, visible_alias = "color-by", value_name = "PROPERTY")]
+    pub colour_by: Option<String>,
+    /// Values at the ends of the colour map [default: the range of the values].
     #[arg(long, value_name = "LO,HI", allow_hyphen_values = true)]
     pub range: Option<String>,
-    /// Leave out the colour bar drawn with --color-by.
+    /// Leave out the colour bar drawn with --colour-by.
     #[arg(long, visible_alias = "no-color-bar")]
     pub no_colour_bar: bool,
     /// Splat diameter of points, in pixels [default: from the point density].

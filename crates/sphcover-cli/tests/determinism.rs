@@ -198,7 +198,7 @@ fn render_is_thread_independent() {
             "view.png",
             "--size",
             "160x120",
-            "--color-by",
+            "--colour-by",
             "y",
         ],
         &["view.png"],

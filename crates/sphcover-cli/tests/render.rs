@@ -158,7 +158,7 @@ fn output_is_byte_identical_whatever_the_thread_count() {
                 "300x200",
                 "--view",
                 "30,20",
-                "--color-by",
+                "--colour-by",
                 "y",
             ]);
             assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
@@ -183,9 +183,9 @@ fn colour_by_a_ply_property_follows_its_values() {
         "front",
         "--size",
         "400x300",
-        "--color-by",
+        "--color-by", // the American spelling is an alias
         "quality",
-        "--no-colour-bar",
+        "--no-color-bar",
     ]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     let stderr = text(&out.stderr);
@@ -215,7 +215,7 @@ fn colour_by_a_ply_property_follows_its_values() {
         "front",
         "--size",
         "400x300",
-        "--color-by",
+        "--colour-by",
         "label",
         "--range",
         "0,2",
@@ -340,17 +340,17 @@ fn bad_input_exits_2_with_a_message() {
             "point size",
         ),
         (
-            vec![s(&kitten).into(), "--color-by".into(), "nope".into()],
+            vec![s(&kitten).into(), "--colour-by".into(), "nope".into()],
             "the file has: x, y, z, nx, ny, nz",
         ),
         (
             vec![s(&kitten).into(), "--range".into(), "0,1".into()],
-            "--range needs --color-by",
+            "--range needs --colour-by",
         ),
         (
             vec![
                 s(&kitten).into(),
-                "--color-by".into(),
+                "--colour-by".into(),
                 "x".into(),
                 "--range".into(),
                 "1,0".into(),

@@ -280,8 +280,8 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
     {
         return Err(BadInput(format!("--depth {d} must be in 1..=14")).into());
     }
-    if args.normal_neighbors < 3 {
-        return Err(BadInput("--normal-neighbors must be at least 3".to_owned()).into());
+    if args.normal_neighbours < 3 {
+        return Err(BadInput("--normal-neighbours must be at least 3".to_owned()).into());
     }
     let mut params = ReconParams {
         method,
@@ -294,7 +294,7 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
         trim,
         ..defaults
     };
-    params.normals.k = args.normal_neighbors;
+    params.normals.k = args.normal_neighbours;
     if args.no_refine {
         params.refine = None;
     }

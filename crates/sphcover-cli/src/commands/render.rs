@@ -80,7 +80,7 @@ pub fn run(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<()> {
         options.height,
         args.output.display()
     );
-    if let (Some(name), Some((lo, hi))) = (&args.color_by, rendered.colour_range) {
+    if let (Some(name), Some((lo, hi))) = (&args.colour_by, rendered.colour_range) {
         summary.push_str(&format!(
             "\ncolour by {name}: {} (dark purple) to {} (yellow), viridis{}",
             colour_bar_label(lo),
@@ -121,8 +121,8 @@ fn parse_options(args: &RenderArgs) -> anyhow::Result<RenderOptions> {
         None => None,
         Some(text) => Some(parse_range(text).map_err(bad)?),
     };
-    if args.range.is_some() && args.color_by.is_none() {
-        return Err(bad("--range needs --color-by".into()));
+    if args.range.is_some() && args.colour_by.is_none() {
+        return Err(bad("--range needs --colour-by".into()));
     }
     Ok(RenderOptions {
         width,
@@ -193,7 +193,7 @@ fn parse_background(text: &str) -> Result<Background, String> {
 /// Reads the input and the values to colour by.
 fn read(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<(Geometry, Option<Vec<f64>>)> {
     let options = args.read.read_options();
-    let (geometry, scalars) = match &args.color_by {
+    let (geometry, scalars) = match &args.colour_by {
         None => (io::read_geometry(&args.input, &options)?, None),
         Some(name) => {
             let (geometry, column) =
