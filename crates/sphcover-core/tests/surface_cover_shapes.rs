@@ -2,6 +2,7 @@
 //! distance near the surface, has the right sign away from it, and stays within 2ε on every
 //! sample; the same seed gives a bit-identical cover on 1 and 2 threads.
 
+use sphcover_core::synthetic::Surface;
 use sphcover_core::{
     Cover, DVec3, PointCloud, PointIndex, PuEvaluator, SurfaceCoverParams, SurfaceSamples,
     build_surface_cover, build_surface_cover_from_cloud,
@@ -30,8 +31,13 @@ fn sphere(n: usize) -> (Vec<DVec3>, Vec<DVec3>) {
     (normals.iter().map(|&u| SPHERE_R * u).collect(), normals)
 }
 
+/// Signed distance to the sphere, positive inside (the cover's sign convention).
 fn sphere_distance(x: DVec3) -> f64 {
-    SPHERE_R - x.length()
+    -Surface::Sphere {
+        centre: DVec3::ZERO,
+        radius: SPHERE_R,
+    }
+    .signed_distance(x)
 }
 
 /// Points on a torus around the z axis, on a lattice uniform by area (the tube angle follows
@@ -58,9 +64,14 @@ fn torus(n_u: usize, n_v: usize) -> (Vec<DVec3>, Vec<DVec3>) {
     (points, normals)
 }
 
+/// Signed distance to the torus, positive inside (the cover's sign convention).
 fn torus_distance(x: DVec3) -> f64 {
-    let rho = (x.x * x.x + x.y * x.y).sqrt();
-    MINOR - ((rho - MAJOR).powi(2) + x.z * x.z).sqrt()
+    -Surface::Torus {
+        centre: DVec3::ZERO,
+        major_radius: MAJOR,
+        minor_radius: MINOR,
+    }
+    .signed_distance(x)
 }
 
 /// A deterministic point sequence filling the cube of side `side` around the origin.

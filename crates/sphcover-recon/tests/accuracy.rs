@@ -15,6 +15,7 @@ use std::path::PathBuf;
 use sphcover_core::io::{ReadOptions, read_mesh};
 use sphcover_core::{DVec3, MeshTopology, PointCloud, TriMesh};
 use sphcover_evaluation::surface_sampling::SurfaceSampler;
+use sphcover_evaluation::torus_signed_distance;
 use sphcover_evaluation::triangle_bvh::TriangleBvh;
 use sphcover_recon::{DiffusionParams, ReconParams, reconstruct};
 
@@ -63,12 +64,6 @@ fn mesh_score(cloud: &PointCloud, params: &ReconParams, truth: &TriMesh) -> (f64
     (mean, max, rec.stats.components)
 }
 
-/// Signed distance to the torus around the z axis.
-fn torus_distance(p: DVec3) -> f64 {
-    let ring = (p.x * p.x + p.y * p.y).sqrt() - MAJOR;
-    (ring * ring + p.z * p.z).sqrt() - MINOR
-}
-
 /// `n` area-uniform samples of the torus with outward unit normals.
 fn torus_scan(n: usize, seed: u64) -> (Vec<DVec3>, Vec<DVec3>) {
     let mut rng = Pcg64::seed_from_u64(seed);
@@ -107,7 +102,7 @@ fn score(mesh: &TriMesh) -> (f64, f64, usize) {
     let d: Vec<f64> = mesh
         .vertices
         .iter()
-        .map(|&v| torus_distance(v).abs() / extent)
+        .map(|&v| torus_signed_distance(MAJOR, MINOR, v).abs() / extent)
         .collect();
     let mean = d.iter().sum::<f64>() / d.len() as f64;
     let max = d.iter().copied().fold(0.0, f64::max);

@@ -6,13 +6,13 @@
 //! co-spherical, so the set is full of ties.
 
 use sphcover_core::DVec3;
+use sphcover_core::synthetic::Surface;
 
-/// Distance from `p` to the torus surface.
-fn torus_distance(p: DVec3) -> f64 {
-    let q = p - DVec3::splat(0.5);
-    let ring = (q.x * q.x + q.y * q.y).sqrt() - 0.3;
-    (ring * ring + q.z * q.z).sqrt() - 0.1
-}
+const TORUS: Surface = Surface::Torus {
+    centre: DVec3::splat(0.5),
+    major_radius: 0.3,
+    minor_radius: 0.1,
+};
 
 /// Leaves of the octree refined to `max_depth` where the surface is closer than `band` times
 /// the cell diagonal (`band ≥ 0.5` refines every cell the surface may cross; larger values
@@ -23,7 +23,7 @@ pub fn octree_torus_cover(max_depth: u32, band: f64) -> (Vec<DVec3>, Vec<f64>) {
     let mut stack = vec![(DVec3::splat(0.5), 0.5f64, 0u32)];
     while let Some((c, half, depth)) = stack.pop() {
         let diag = 2.0 * half * 3f64.sqrt();
-        if depth < max_depth && torus_distance(c).abs() < band * diag {
+        if depth < max_depth && TORUS.signed_distance(c).abs() < band * diag {
             let h = half / 2.0;
             for i in 0..8 {
                 let o = DVec3::new(
