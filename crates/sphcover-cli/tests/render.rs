@@ -63,31 +63,12 @@ impl Png {
 /// A UV sphere of radius 1 as OFF text, poles on ±y and equator vertices on ±x and ±z, so
 /// that its front-view extent is exactly the diameter.
 fn sphere_off(stacks: usize, slices: usize) -> String {
-    let mut vertices = vec![[0.0, 1.0, 0.0]];
-    for s in 1..stacks {
-        let phi = std::f64::consts::PI * s as f64 / stacks as f64;
-        for k in 0..slices {
-            let theta = std::f64::consts::TAU * k as f64 / slices as f64;
-            vertices.push([phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()]);
-        }
+    let mesh = sphcover_core::synthetic::uv_sphere(1.0, stacks, slices);
+    let mut out = format!("OFF\n{} {} 0\n", mesh.vertices.len(), mesh.triangles.len());
+    for v in &mesh.vertices {
+        writeln!(out, "{} {} {}", v.x, v.y, v.z).unwrap();
     }
-    vertices.push([0.0, -1.0, 0.0]);
-    let ring = |s: usize, k: usize| 1 + (s - 1) * slices + k % slices;
-    let south = vertices.len() - 1;
-    let mut faces = Vec::new();
-    for k in 0..slices {
-        faces.push([0, ring(1, k + 1), ring(1, k)]);
-        faces.push([south, ring(stacks - 1, k), ring(stacks - 1, k + 1)]);
-        for s in 1..stacks - 1 {
-            faces.push([ring(s, k), ring(s, k + 1), ring(s + 1, k + 1)]);
-            faces.push([ring(s, k), ring(s + 1, k + 1), ring(s + 1, k)]);
-        }
-    }
-    let mut out = format!("OFF\n{} {} 0\n", vertices.len(), faces.len());
-    for v in &vertices {
-        writeln!(out, "{} {} {}", v[0], v[1], v[2]).unwrap();
-    }
-    for f in &faces {
+    for f in &mesh.triangles {
         writeln!(out, "3 {} {} {}", f[0], f[1], f[2]).unwrap();
     }
     out

@@ -10,6 +10,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use rayon::prelude::*;
+use sphcover_core::synthetic::fibonacci_sphere;
 use sphcover_core::{DVec3, PointIndex};
 
 const POINTS: usize = 362_000;
@@ -19,15 +20,9 @@ const RADIUS: f64 = 0.0078;
 
 /// `n` Fibonacci points on a sphere of radius 0.4 with a bump, offset by `lift`.
 fn bumpy_sphere(n: usize, lift: f64) -> Vec<DVec3> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let s = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
-            let u = DVec3::new(s * a.cos(), s * a.sin(), z);
-            (0.4 + 0.02 * (7.0 * u.x).sin() * (5.0 * u.y).cos() + lift) * u
-        })
+    fibonacci_sphere(n)
+        .into_iter()
+        .map(|u| (0.4 + 0.02 * (7.0 * u.x).sin() * (5.0 * u.y).cos() + lift) * u)
         .collect()
 }
 

@@ -13,18 +13,14 @@ use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use sphcover_core::io::{
     PlyEncoding, Precision, ReadOptions, WriteOptions, read_point_cloud, write_point_cloud,
 };
+use sphcover_core::synthetic::fibonacci_sphere;
 use sphcover_core::{DVec3, PointCloud};
 
 /// A deterministic cloud on a wavy sphere, with unit normals.
 fn cloud(n: usize) -> PointCloud {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let positions: Vec<DVec3> = (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let r = (1.0 - z * z).sqrt();
-            let phi = golden * i as f64;
-            DVec3::new(r * phi.cos(), r * phi.sin(), z) * (1.0 + 0.05 * (7.0 * phi).sin())
-        })
+    let positions: Vec<DVec3> = fibonacci_sphere(n)
+        .into_iter()
+        .map(|u| u * (1.0 + 0.05 * (7.0 * u.y.atan2(u.x)).sin()))
         .collect();
     let normals = positions.iter().map(|p| p.normalize()).collect();
     PointCloud {

@@ -12,6 +12,10 @@
 //!
 //! Randomness comes from `rand_pcg::Pcg64` seeded by the caller, so the same parameters give
 //! the same cover on every platform and for any thread count.
+//!
+//! Beside the covers, the plain shapes that tests, examples and benchmarks sample:
+//! [`fibonacci_sphere`] (evenly spread directions), [`uv_sphere`] (a closed triangle mesh) and
+//! [`voxel_subsamples`] (the points at which a voxel's partial volume is measured).
 
 use crate::ParameterError;
 use glam::DVec3;
@@ -173,6 +177,77 @@ pub fn jittered_grid(
         *r *= 1.0 + jitter * rng.random_range(-1.0..=1.0);
     }
     Ok(cover)
+}
+
+/// `n` directions of a Fibonacci lattice, spread evenly over the unit sphere: point `i` has
+/// `z = 1 − (2i + 1)/n` and longitude `i` times the golden angle. On a sphere they are the
+/// points and their outward normals at once.
+///
+/// ```
+/// let u = sphcover_core::synthetic::fibonacci_sphere(100);
+/// assert_eq!(u.len(), 100);
+/// assert!(u.iter().all(|d| (d.length() - 1.0).abs() < 1e-12));
+/// ```
+pub fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let s = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            DVec3::new(s * a.cos(), s * a.sin(), z)
+        })
+        .collect()
+}
+
+/// A closed, outward-wound UV sphere of radius `radius` about the origin with poles on ±y:
+/// `stacks` bands of latitude (`≥ 2`) and `slices` vertices per ring (`≥ 3`), equator vertices
+/// on ±x and ±z when `stacks` is even and `slices` a multiple of 4.
+///
+/// ```
+/// use sphcover_core::{MeshTopology, synthetic::uv_sphere};
+///
+/// let mesh = uv_sphere(2.0, 8, 12);
+/// assert_eq!(mesh.vertices.len(), 2 + 7 * 12);
+/// assert!(MeshTopology::of(&mesh).is_closed_oriented_manifold());
+/// ```
+pub fn uv_sphere(radius: f64, stacks: usize, slices: usize) -> crate::TriMesh {
+    let mut vertices = vec![DVec3::new(0.0, radius, 0.0)];
+    for s in 1..stacks {
+        let phi = std::f64::consts::PI * s as f64 / stacks as f64;
+        for k in 0..slices {
+            let theta = std::f64::consts::TAU * k as f64 / slices as f64;
+            vertices.push(
+                radius * DVec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()),
+            );
+        }
+    }
+    vertices.push(DVec3::new(0.0, -radius, 0.0));
+    let ring = |s: usize, k: usize| (1 + (s - 1) * slices + k % slices) as u32;
+    let south = (vertices.len() - 1) as u32;
+    let mut triangles = Vec::new();
+    for k in 0..slices {
+        triangles.push([0, ring(1, k + 1), ring(1, k)]);
+        triangles.push([south, ring(stacks - 1, k), ring(stacks - 1, k + 1)]);
+        for s in 1..stacks - 1 {
+            triangles.push([ring(s, k), ring(s, k + 1), ring(s + 1, k + 1)]);
+            triangles.push([ring(s, k), ring(s + 1, k + 1), ring(s + 1, k)]);
+        }
+    }
+    crate::TriMesh::new(vertices, triangles)
+}
+
+/// The 64 points of a 4 × 4 × 4 supersampling of a voxel, as offsets from its centre in voxel
+/// units (x fastest): the fraction of them inside a solid is the voxel's partial volume.
+pub fn voxel_subsamples() -> impl Iterator<Item = DVec3> {
+    (0..64usize).map(|s| {
+        DVec3::new(
+            (s % 4) as f64 + 0.5,
+            ((s / 4) % 4) as f64 + 0.5,
+            (s / 16) as f64 + 0.5,
+        ) / 4.0
+            - 0.5
+    })
 }
 
 /// An analytic closed surface, given by its signed distance (negative inside).

@@ -2,7 +2,7 @@
 //! distance near the surface, has the right sign away from it, and stays within 2ε on every
 //! sample; the same seed gives a bit-identical cover on 1 and 2 threads.
 
-use sphcover_core::synthetic::Surface;
+use sphcover_core::synthetic::{Surface, fibonacci_sphere};
 use sphcover_core::{
     Cover, DVec3, PointCloud, PointIndex, PuEvaluator, SurfaceCoverParams, SurfaceSamples,
     build_surface_cover, build_surface_cover_from_cloud,
@@ -12,22 +12,9 @@ const SPHERE_R: f64 = 0.5;
 const MAJOR: f64 = 0.36;
 const MINOR: f64 = 0.12;
 
-/// `n` directions of a Fibonacci lattice: near-uniform on the unit sphere.
-fn fibonacci(n: usize) -> Vec<DVec3> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let s = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
-            DVec3::new(s * a.cos(), s * a.sin(), z)
-        })
-        .collect()
-}
-
 /// Points on the sphere of radius `SPHERE_R` (the unit frame's sphere) with outward normals.
 fn sphere(n: usize) -> (Vec<DVec3>, Vec<DVec3>) {
-    let normals = fibonacci(n);
+    let normals = fibonacci_sphere(n);
     (normals.iter().map(|&u| SPHERE_R * u).collect(), normals)
 }
 
@@ -272,15 +259,7 @@ fn without_expansion_the_cover_is_the_octree() {
 
 /// `n` points of a Fibonacci lattice on the sphere of radius 0.45, with outward normals.
 fn fibonacci_sphere_of(n: usize) -> (Vec<DVec3>, Vec<DVec3>) {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let normals: Vec<DVec3> = (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let s = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
-            DVec3::new(s * a.cos(), s * a.sin(), z)
-        })
-        .collect();
+    let normals = fibonacci_sphere(n);
     (normals.iter().map(|&u| 0.45 * u).collect(), normals)
 }
 

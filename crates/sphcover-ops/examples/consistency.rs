@@ -279,16 +279,7 @@ fn adaptive_levels() -> Vec<Level> {
 
 fn surface_cover_levels() -> Vec<Level> {
     // Points on a sphere of radius 0.35 (Fibonacci lattice) with outward normals.
-    let count = 40_000;
-    let golden = PI * (3.0 - 5f64.sqrt());
-    let normals: Vec<DVec3> = (0..count)
-        .map(|k| {
-            let z = 1.0 - 2.0 * (k as f64 + 0.5) / count as f64;
-            let rho = (1.0 - z * z).sqrt();
-            let t = golden * k as f64;
-            DVec3::new(rho * t.cos(), rho * t.sin(), z)
-        })
-        .collect();
+    let normals = synthetic::fibonacci_sphere(40_000);
     let points: Vec<DVec3> = normals.iter().map(|&n| 0.35 * n).collect();
     [5u32, 6, 7]
         .iter()

@@ -703,29 +703,8 @@ mod tests {
 
     /// A UV sphere of radius `r` with poles on ±y and equator vertices on ±x and ±z.
     fn uv_sphere(r: f64, stacks: usize, slices: usize) -> (Vec<DVec3>, Vec<[u32; 3]>) {
-        let mut positions = vec![DVec3::new(0.0, r, 0.0)];
-        for s in 1..stacks {
-            let phi = std::f64::consts::PI * s as f64 / stacks as f64;
-            for k in 0..slices {
-                let theta = std::f64::consts::TAU * k as f64 / slices as f64;
-                positions.push(
-                    r * DVec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()),
-                );
-            }
-        }
-        positions.push(DVec3::new(0.0, -r, 0.0));
-        let ring = |s: usize, k: usize| (1 + (s - 1) * slices + k % slices) as u32;
-        let south = (positions.len() - 1) as u32;
-        let mut triangles = Vec::new();
-        for k in 0..slices {
-            triangles.push([0, ring(1, k + 1), ring(1, k)]);
-            triangles.push([south, ring(stacks - 1, k), ring(stacks - 1, k + 1)]);
-            for s in 1..stacks - 1 {
-                triangles.push([ring(s, k), ring(s, k + 1), ring(s + 1, k + 1)]);
-                triangles.push([ring(s, k), ring(s + 1, k + 1), ring(s + 1, k)]);
-            }
-        }
-        (positions, triangles)
+        let mesh = sphcover_core::synthetic::uv_sphere(r, stacks, slices);
+        (mesh.vertices, mesh.triangles)
     }
 
     fn coverage(image: &Image) -> f64 {

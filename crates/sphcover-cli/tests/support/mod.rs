@@ -111,14 +111,10 @@ pub fn write_points_ply(path: &Path, points: &[DVec3], normals: Option<&[DVec3]>
 /// `n` points spread evenly over the unit sphere (Fibonacci lattice) with their outward
 /// normals, which are the points themselves.
 pub fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let r = (1.0 - y * y).sqrt();
-            let phi = golden * i as f64;
-            DVec3::new(r * phi.cos(), y, r * phi.sin())
-        })
+    // The core's lattice has its poles on ±z; these tests want them on ±y.
+    sphcover_core::synthetic::fibonacci_sphere(n)
+        .into_iter()
+        .map(|u| DVec3::new(u.x, u.z, u.y))
         .collect()
 }
 

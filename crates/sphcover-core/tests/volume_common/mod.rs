@@ -1,6 +1,7 @@
 //! Synthetic CT phantoms shared by the volume tests and the volume-cover benchmark.
 #![allow(dead_code)]
 
+use sphcover_core::synthetic::voxel_subsamples;
 use sphcover_core::{DVec3, Volume, VoxelValues};
 
 /// Hounsfield value of air.
@@ -28,19 +29,10 @@ pub fn thin_plate(dims: [usize; 3], thickness: f64, tilt_degrees: f64, blur: f64
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
-                let mut inside = 0;
-                for s in 0..64 {
-                    let sub = DVec3::new(
-                        (s % 4) as f64 + 0.5,
-                        ((s / 4) % 4) as f64 + 0.5,
-                        (s / 16) as f64 + 0.5,
-                    ) / 4.0
-                        - 0.5;
-                    let x = DVec3::new(i as f64, j as f64, k as f64) + sub - mid;
-                    if x.dot(normal).abs() <= 0.5 * thickness {
-                        inside += 1;
-                    }
-                }
+                let voxel = DVec3::new(i as f64, j as f64, k as f64);
+                let inside = voxel_subsamples()
+                    .filter(|&sub| (voxel + sub - mid).dot(normal).abs() <= 0.5 * thickness)
+                    .count();
                 let frac = inside as f64 / 64.0;
                 values[i + nx * (j + ny * k)] = AIR + frac * (MATERIAL - AIR);
             }

@@ -459,15 +459,7 @@ mod tests {
     fn every_method_runs_to_a_mesh_reporting_each_stage() {
         // Points on a sphere of radius 1.5 with outward normals.
         let n = 1500;
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        let positions: Vec<DVec3> = (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let s = (1.0 - z * z).sqrt();
-                let a = golden * i as f64;
-                DVec3::new(s * a.cos(), s * a.sin(), z)
-            })
-            .collect();
+        let positions = sphcover_core::synthetic::fibonacci_sphere(n);
         let mut cloud = PointCloud::from_positions(positions.iter().map(|p| 1.5 * *p).collect());
         cloud.normals = Some(positions);
         for method in [
