@@ -261,7 +261,9 @@ fn to_fixed(vals: &[f64], bits: i32, out: &mut [i64]) -> Option<i32> {
     Some(low)
 }
 
-/// `v · 2^e`, exact when the result is a normal number.
+/// `v · 2^e`, exact when the result is a normal number, or when `v` and the exact result
+/// are representable (a scaling that undoes an exact one): a large `e` is applied in two
+/// halves, and the intermediate value lies between `v` and the result.
 #[inline]
 pub(crate) fn scale_pow2(v: f64, e: i32) -> f64 {
     if (-1022..=1023).contains(&e) {

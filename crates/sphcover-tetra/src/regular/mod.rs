@@ -237,8 +237,7 @@ impl RegularTriangulation {
             return Self::from_scaled(points, weights, 0, params);
         }
         // Exact: `domain` keeps every scaled value normal and finite.
-        let unit = scale_pow2(1.0, k);
-        let scaled: Vec<Point> = points.iter().map(|p| p.map(|c| c * unit)).collect();
+        let scaled: Vec<Point> = points.iter().map(|p| p.map(|c| scale_pow2(c, k))).collect();
         let scaled_weights: Vec<f64> = weights.iter().map(|&w| scale_pow2(w, 2 * k)).collect();
         Self::from_scaled(&scaled, &scaled_weights, k, params)
     }
@@ -257,16 +256,15 @@ impl RegularTriangulation {
         check_count(points.len())?;
         let k = domain::scale_for_radii(points, radii, shrink)?;
         // Exact: `domain` keeps every scaled value, and `shrink·r·2^k`, normal and finite.
-        let unit = scale_pow2(1.0, k);
         let weight = |r: f64| {
-            let s = r * unit * shrink;
+            let s = scale_pow2(r, k) * shrink;
             s * s
         };
         let weights: Vec<f64> = radii.iter().map(|&r| weight(r)).collect();
         if k == 0 {
             return Self::from_scaled(points, &weights, 0, params);
         }
-        let scaled: Vec<Point> = points.iter().map(|p| p.map(|c| c * unit)).collect();
+        let scaled: Vec<Point> = points.iter().map(|p| p.map(|c| scale_pow2(c, k))).collect();
         Self::from_scaled(&scaled, &weights, k, params)
     }
 
@@ -399,8 +397,7 @@ impl RegularTriangulation {
     /// Centre of input point `v`, in the caller's units (exactly as given).
     pub fn point_of(&self, v: u32) -> Point {
         // Exact: undoes an exact scaling.
-        let unit = scale_pow2(1.0, -self.scale_log2);
-        self.point(v).map(|c| c * unit)
+        self.point(v).map(|c| scale_pow2(c, -self.scale_log2))
     }
 
     /// Weight of input point `v`, in the caller's units: as given to [`Self::new`]; for a
