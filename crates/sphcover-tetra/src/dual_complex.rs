@@ -74,6 +74,11 @@ impl DualComplex {
 /// The radius shrink `σ_t` (thesis §3.5.2, default 0.75) triangulates with radii `σ_t·r`:
 /// fewer supports are hidden and tetrahedra near the boundary are less skinny; vertices stay
 /// at the true centres.
+///
+/// Errors: an invalid shrink, mismatched lengths, a negative or non-finite radius, and those
+/// of [`RegularTriangulation::new`] (non-finite centres, magnitudes spanning more than the
+/// exact predicates support, centres that do not span 3D). Scaling the centres and radii by a
+/// power of two changes nothing in the result.
 pub fn dual_complex(
     centres: &[DVec3],
     radii: &[f64],
@@ -92,16 +97,12 @@ pub fn dual_complex(
         return Err(TetraError::InvalidWeight { index: i });
     }
     let points: Vec<Point> = centres.iter().map(|c| c.to_array()).collect();
-    let weights: Vec<f64> = radii
-        .iter()
-        .map(|r| {
-            let s = r * params.shrink;
-            s * s
-        })
-        .collect();
-    let tri = RegularTriangulation::new(
+    // From the radii rather than from weights: the weights are formed after the scaling into
+    // the exact range, so radii whose squares under- or overflow in these units still work.
+    let tri = RegularTriangulation::from_spheres(
         &points,
-        &weights,
+        radii,
+        params.shrink,
         &TriangulationParams { seed: params.seed },
     )?;
     Ok(dual_complex_of(&tri))
@@ -109,6 +110,10 @@ pub fn dual_complex(
 
 /// The dual complex of an existing triangulation: its finite tetrahedra whose orthocentre has
 /// non-positive power with respect to the triangulation's own weights.
+///
+/// The sign is decided on the triangulation's scaled copy of its input, where the degree-8
+/// orthocentre polynomial is exact (module `regular::domain`); in the caller's units it could
+/// underflow for tiny inputs.
 pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
     let slots = tri.num_slots();
 
@@ -121,9 +126,9 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
             if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
                 return false;
             }
-            let p = cell.map(|v| tri.point_of(v));
-            let w = cell.map(|v| tri.weight(v));
-            orthocentre_power_sign([&p[0], &p[1], &p[2], &p[3]], w) <= 0
+            let p = cell.map(|v| tri.point(v));
+            let w = cell.map(|v| tri.scaled_weight(v));
+            orthocentre_power_sign(p, w) <= 0
         })
         .collect();
     let mut index = vec![NO_TET; slots];

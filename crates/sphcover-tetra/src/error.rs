@@ -11,19 +11,57 @@ pub enum TetraError {
         /// Number of weights.
         weights: usize,
     },
-    /// A coordinate is not finite or exceeds the proven range of the exact predicates.
-    #[error(
-        "point {index} has a non-finite coordinate or one beyond ±1e20 (the exact predicates' range)"
-    )]
+    /// A coordinate is not finite.
+    #[error("point {index} has a non-finite coordinate")]
     InvalidPoint {
         /// Index of the offending point.
         index: usize,
     },
-    /// A weight (or radius) is not finite or exceeds the proven range.
-    #[error("weight or radius {index} is not finite, negative, or too large")]
+    /// A weight is not finite, or a radius is not finite or negative.
+    #[error("weight or radius {index} is not finite, or is a negative radius")]
     InvalidWeight {
         /// Index of the offending weight.
         index: usize,
+    },
+    /// The coordinates span more orders of magnitude, from the largest magnitude down to the
+    /// finest binary digit any coordinate carries, than the exact predicates support after
+    /// any power-of-two scaling: products of up to eight coordinate differences would
+    /// underflow or overflow `f64` (the domain is derived in `src/regular/domain.rs`).
+    #[error(
+        "coordinates span {orders} orders of magnitude, from {largest:.3e} (point {largest_point}) down to the finest binary digit {finest_digit:.1e} (point {finest_point}); the exact predicates support at most {max_orders}"
+    )]
+    CoordinateSpan {
+        /// Orders of magnitude spanned (rounded).
+        orders: u32,
+        /// The most the exact predicates support.
+        max_orders: u32,
+        /// The largest coordinate magnitude.
+        largest: f64,
+        /// The point holding it.
+        largest_point: usize,
+        /// The finest binary digit set in any coordinate (a power of two).
+        finest_digit: f64,
+        /// The point holding it.
+        finest_point: usize,
+    },
+    /// The coordinates fit the exact predicates, but a weight (a squared radius, which the
+    /// predicates multiply with products of coordinate differences) is too large or too
+    /// small for them: no power-of-two scaling keeps those products within the `f64` range.
+    #[error(
+        "radius {index} ({radius:.3e}; weights are squared radii) is too {} for coordinates from {largest_coordinate:.3e} down to the finest binary digit {finest_coordinate_digit:.1e}: the exact predicates multiply squared radii with products of coordinate differences, and no power-of-two scaling keeps those products within the f64 range",
+        if *too_large { "large" } else { "small" }
+    )]
+    RadiusScale {
+        /// Index of the radius (or weight).
+        index: usize,
+        /// That radius (for a weight `w`: `√|w|`).
+        radius: f64,
+        /// Whether it is too large; otherwise too small (its finest digit too fine).
+        too_large: bool,
+        /// The largest coordinate magnitude.
+        largest_coordinate: f64,
+        /// The finest binary digit set in any coordinate (a power of two).
+        finest_coordinate_digit: f64,
     },
     /// More points than `u32` handles can address.
     #[error("{count} points exceed the u32 index range")]

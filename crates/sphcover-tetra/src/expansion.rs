@@ -4,8 +4,10 @@
 //! An expansion is a sum of `f64` components, nonoverlapping and sorted by increasing
 //! magnitude, with zeros removed; its sign is the sign of its largest component. Sums,
 //! differences and products of `f64` inputs are represented exactly, provided no intermediate
-//! value overflows or underflows (inputs with magnitudes within about `1e-60..1e60`, which the
-//! triangulation checks).
+//! value overflows or underflows (Shewchuk's error-free transformations assume both). For
+//! the predicates' polynomials, the triangulation guarantees this by scaling its input by a
+//! power of two into the range derived in `src/regular/domain.rs` (every nonzero component
+//! then stays a multiple of a normal power of two, and below `2^1016`).
 //!
 //! This is the slow, always-correct path of the predicates: the fast path is a floating-point
 //! evaluation with an error bound (see [`crate::predicates`]). [`Ring`] lets each predicate be

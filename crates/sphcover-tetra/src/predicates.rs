@@ -23,6 +23,17 @@
 //! decides, falling to the next point when it is flat. CGAL's regular triangulation uses the
 //! same rule, so tied configurations are split as CGAL splits them. Distinct points are
 //! required (the triangulation removes duplicated centres before inserting).
+//!
+//! Exactness domain: the stages are exact (and the filters' bounds rigorous) while no value
+//! they form underflows into the subnormal range or overflows. Taking coordinates as lengths
+//! and weights as squared lengths, that holds for instance when every coordinate is below
+//! `2^121` in magnitude and a multiple of `2^-127`, and every weight below `2^242` and a
+//! multiple of `2^-254`: every nonzero value formed from up to eight lengths (the orthocentre
+//! power has degree 8) is then a multiple of `2^-1016`, and stays below `2^1016` even through
+//! Dekker's splitter. [`crate::regular::RegularTriangulation`] scales its input by a power of
+//! two, which changes no sign, into the range where this holds (derived term by term in
+//! `src/regular/domain.rs`), and refuses inputs that no such scaling brings there. Called
+//! directly, the predicates are exact on any input for which nothing under- or overflows.
 
 use crate::expansion::{Expansion, Ring};
 
@@ -35,14 +46,12 @@ const U: f64 = 1.1102230246251565e-16;
 const ORIENT3D_BOUND: f64 = 7.771561172376103e-16;
 /// Rounding steps on the longest path of the lifted determinant (18), plus slack.
 const LIFTED_BOUND: f64 = 22.0 * U;
-/// Absolute slack for gradual underflow, valid for the input range the triangulation accepts
-/// (coordinates up to `1e20` in magnitude, weights up to `1e40`).
+/// Absolute slack of the orientation and power filters. Inside the exactness domain (module
+/// docs) nothing underflows and the relative bounds alone are rigorous; the slack keeps the
+/// filters sound for direct callers whose values underflow, as long as coordinates stay below
+/// about `1e20` and weights below `1e40`: each underflowed rounding errs by at most `2^-1075`,
+/// and the products it enters scale that by at most `2e20 · 1e41`, far below `1e-220`.
 const UNDERFLOW_SLACK: f64 = 1e-220;
-
-/// Largest coordinate magnitude the predicates are proven for.
-pub const MAX_COORDINATE: f64 = 1e20;
-/// Largest weight magnitude the predicates are proven for.
-pub const MAX_WEIGHT: f64 = 1e40;
 
 // ------------------------------------------------------------------------------------------
 // orient3d
@@ -252,9 +261,11 @@ fn to_fixed(vals: &[f64], bits: i32, out: &mut [i64]) -> Option<i32> {
     Some(low)
 }
 
-/// `v · 2^e`, exact when the result is a normal number.
+/// `v · 2^e`, exact when the result is a normal number, or when `v` and the exact result
+/// are representable (a scaling that undoes an exact one): a large `e` is applied in two
+/// halves, and the intermediate value lies between `v` and the result.
 #[inline]
-fn scale_pow2(v: f64, e: i32) -> f64 {
+pub(crate) fn scale_pow2(v: f64, e: i32) -> f64 {
     if (-1022..=1023).contains(&e) {
         v * f64::from_bits(((e + 1023) as u64) << 52)
     } else {

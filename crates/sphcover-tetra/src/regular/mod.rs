@@ -4,13 +4,14 @@
 
 mod check;
 mod conflict;
+mod domain;
 mod insert;
 mod prepare;
 
 use rayon::prelude::*;
 
 use crate::error::TetraError;
-use crate::predicates::{MAX_COORDINATE, MAX_WEIGHT, Point};
+use crate::predicates::{Point, scale_pow2};
 use crate::spatial_sort::brio_order;
 use prepare::{distinct_points, integer_grid};
 use sphcover_core::random::SplitMix64;
@@ -119,16 +120,24 @@ pub struct TriangulationStats {
 /// run on rayon; the insertions are sequential. Sorted keys are distinct pairs, so every order
 /// is the same whatever the thread count.
 ///
-/// Layout: the types, the constructor and the queries are here; `prepare` (duplicates,
-/// ranks, the dyadic grid), `insert` (the first cell, the walk, the conflict zone, the
-/// cone), `conflict` (the exact predicates on vertex handles) and `check` (validity checks
-/// for tests) hold the phases.
+/// Input domain: the predicates are exact only while nothing they compute under- or
+/// overflows. The construction works on a copy of the input scaled by a power of two (exact,
+/// and no decision changes) into the range where they are, and refuses inputs that no such
+/// scaling brings there; the queries answer in the caller's units. `domain` derives the bounds.
+///
+/// Layout: the types, the constructor and the queries are here; `domain` (the exact range and
+/// the scaling into it), `prepare` (duplicates, ranks, the dyadic grid), `insert` (the first
+/// cell, the walk, the conflict zone, the cone), `conflict` (the exact predicates on vertex
+/// handles) and `check` (validity checks for tests) hold the phases.
 #[derive(Clone, Debug)]
 pub struct RegularTriangulation {
-    /// `[x, y, z, w]` per point (one cache line holds two). While building, indexed by
-    /// insertion rank (neighbouring cells then touch neighbouring memory); afterwards by input
-    /// index, like every handle the API returns.
+    /// `[x, y, z, w]` per point (one cache line holds two), scaled into the exact range:
+    /// coordinates times `2^scale_log2`, weights times `2^(2·scale_log2)`. While building,
+    /// indexed by insertion rank (neighbouring cells then touch neighbouring memory);
+    /// afterwards by input index, like every handle the API returns.
     pw: Vec<WeightedPoint>,
+    /// The power of two the input was scaled by (see `domain`).
+    scale_log2: i32,
     /// Tetrahedron slots: vertices and neighbours together (one cache line per cell).
     cells: Vec<Cell>,
     free: Vec<u32>,
@@ -203,9 +212,16 @@ const OUTSIDE: u8 = 2;
 impl RegularTriangulation {
     /// Triangulates `points` with `weights` (squared radii).
     ///
-    /// Errors: mismatched lengths, non-finite or out-of-range values (coordinates beyond
-    /// ±1e20, weights beyond 1e40), more than `u32::MAX − 2` points, or distinct centres that
-    /// do not span 3D (fewer than four affinely independent ones).
+    /// The input is triangulated exactly on a copy scaled by a power of two, so the result
+    /// does not change when the coordinates are scaled by `2^k` and the weights by `2^(2k)`.
+    /// Inputs that no such scaling brings into the exact range are refused: coordinates
+    /// spanning more than about 74 orders of magnitude from the largest magnitude down to the
+    /// finest binary digit, or weights too large or too small for the coordinates.
+    ///
+    /// Errors: mismatched lengths, more than `u32::MAX − 2` points, non-finite values, a span
+    /// of magnitudes beyond the exact predicates ([`TetraError::CoordinateSpan`],
+    /// [`TetraError::RadiusScale`]), or distinct centres that do not span 3D (fewer than four
+    /// affinely independent ones).
     pub fn new(
         points: &[Point],
         weights: &[f64],
@@ -217,21 +233,50 @@ impl RegularTriangulation {
                 weights: weights.len(),
             });
         }
-        if points.len() >= (u32::MAX - 2) as usize {
-            return Err(TetraError::TooManyPoints {
-                count: points.len(),
-            });
+        check_count(points.len())?;
+        let k = domain::scale_for_weights(points, weights)?;
+        if k == 0 {
+            return Self::from_scaled(points, weights, 0, params);
         }
-        for (i, p) in points.iter().enumerate() {
-            if !p.iter().all(|c| c.is_finite() && c.abs() <= MAX_COORDINATE) {
-                return Err(TetraError::InvalidPoint { index: i });
-            }
+        // Exact: `domain` keeps every scaled value normal and finite.
+        let scaled: Vec<Point> = points.iter().map(|p| p.map(|c| scale_pow2(c, k))).collect();
+        let scaled_weights: Vec<f64> = weights.iter().map(|&w| scale_pow2(w, 2 * k)).collect();
+        Self::from_scaled(&scaled, &scaled_weights, k, params)
+    }
+
+    /// Triangulates the centres `points` with weights `(shrink·r)²` (`radii` finite and
+    /// non-negative, `shrink` finite and positive), the weights formed after the scaling into
+    /// the exact range, so that radii whose squares would under- or overflow in the caller's
+    /// units are still triangulated exactly.
+    pub(crate) fn from_spheres(
+        points: &[Point],
+        radii: &[f64],
+        shrink: f64,
+        params: &TriangulationParams,
+    ) -> Result<Self, TetraError> {
+        debug_assert_eq!(points.len(), radii.len());
+        check_count(points.len())?;
+        let k = domain::scale_for_radii(points, radii, shrink)?;
+        // Exact: `domain` keeps every scaled value, and `shrink·r·2^k`, normal and finite.
+        let weight = |r: f64| {
+            let s = scale_pow2(r, k) * shrink;
+            s * s
+        };
+        let weights: Vec<f64> = radii.iter().map(|&r| weight(r)).collect();
+        if k == 0 {
+            return Self::from_scaled(points, &weights, 0, params);
         }
-        for (i, w) in weights.iter().enumerate() {
-            if !(w.is_finite() && w.abs() <= MAX_WEIGHT) {
-                return Err(TetraError::InvalidWeight { index: i });
-            }
-        }
+        let scaled: Vec<Point> = points.iter().map(|p| p.map(|c| scale_pow2(c, k))).collect();
+        Self::from_scaled(&scaled, &weights, k, params)
+    }
+
+    /// The construction on an input already scaled by `2^scale_log2` into the exact range.
+    fn from_scaled(
+        points: &[Point],
+        weights: &[f64],
+        scale_log2: i32,
+        params: &TriangulationParams,
+    ) -> Result<Self, TetraError> {
         let n = points.len();
         let mut status = vec![VertexStatus::Vertex; n];
         let mut rank = vec![0u32; n];
@@ -248,6 +293,7 @@ impl RegularTriangulation {
                 })
                 .collect(),
             rank: order.iter().map(|&e| rank[e as usize]).collect(),
+            scale_log2,
             cells: Vec::with_capacity(7 * distinct + 16),
             free: Vec::new(),
             status: Vec::new(),
@@ -333,9 +379,16 @@ impl RegularTriangulation {
         Ok(tri)
     }
 
+    /// The centre of point `v` as the predicates see it: scaled into the exact range.
     #[inline]
-    fn point(&self, v: u32) -> &Point {
+    pub(crate) fn point(&self, v: u32) -> &Point {
         &self.pw[v as usize].p
+    }
+
+    /// The weight of point `v` as the predicates see it: scaled into the exact range.
+    #[inline]
+    pub(crate) fn scaled_weight(&self, v: u32) -> f64 {
+        self.pw[v as usize].w
     }
 
     /// Number of input points (vertices, hidden points and duplicates).
@@ -343,14 +396,17 @@ impl RegularTriangulation {
         self.pw.len()
     }
 
-    /// Centre of input point `v`.
+    /// Centre of input point `v`, in the caller's units (exactly as given).
     pub fn point_of(&self, v: u32) -> Point {
-        *self.point(v)
+        // Exact: undoes an exact scaling.
+        self.point(v).map(|c| scale_pow2(c, -self.scale_log2))
     }
 
-    /// Weight of input point `v`.
+    /// Weight of input point `v`, in the caller's units: as given to [`Self::new`]; for a
+    /// triangulation built by [`crate::dual_complex()`], `(σ_t·r)²` rounded to `f64` in those
+    /// units (zero or subnormal when it is that small there; the construction used it exactly).
     pub fn weight(&self, v: u32) -> f64 {
-        self.pw[v as usize].w
+        scale_pow2(self.scaled_weight(v), -2 * self.scale_log2)
     }
 
     /// What became of each input point.
@@ -401,6 +457,14 @@ impl RegularTriangulation {
     pub fn finite_tets(&self) -> impl Iterator<Item = u32> + '_ {
         (0..self.cells.len() as u32).filter(|&t| self.is_finite(t))
     }
+}
+
+/// More points than `u32` handles (minus the two markers) can address, as the typed error.
+fn check_count(n: usize) -> Result<(), TetraError> {
+    if n >= (u32::MAX - 2) as usize {
+        return Err(TetraError::TooManyPoints { count: n });
+    }
+    Ok(())
 }
 
 /// The three vertices of face `i` of `cell`, sorted.
