@@ -125,7 +125,7 @@ pub struct ReconArgs {
     /// Diffusion: strength of the fit to the samples' positions (relative).
     #[arg(long, value_name = "MU")]
     pub position_fit: Option<f64>,
-    /// Neighbours for normal estimation of unoriented input.
+    /// Neighbours for normal estimation of unoriented input (3 to 500).
     #[arg(
         long,
         visible_alias = "normal-neighbors",

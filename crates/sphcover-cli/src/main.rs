@@ -6,6 +6,7 @@ mod byte_size;
 mod commands;
 mod exit;
 mod interrupt;
+mod preflight;
 mod report;
 mod skeleton_memory;
 mod value_samples;
@@ -35,9 +36,13 @@ fn main() -> ExitCode {
         allocator::keep_freed_memory();
     }
     let reporter = Reporter::new(cli.global.verbose, cli.global.quiet);
-    if let Err(e) = configure_threads(cli.global.threads) {
+    if let Err(e) = configure_threads(cli.global.threads, &reporter) {
         reporter.error(&e);
         return ExitCode::from(exit::USAGE);
+    }
+    if let Err(e) = preflight::check_outputs(&cli.command) {
+        reporter.error(&e);
+        return ExitCode::from(exit::code_for(&e));
     }
     // Before any work: from here on an interrupt removes the run's partial outputs.
     if let Err(e) = interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
@@ -63,12 +68,25 @@ fn main() -> ExitCode {
     }
 }
 
+/// The most worker threads `--threads` starts per logical core.
+const MAX_THREADS_PER_CORE: usize = 4;
+
 /// Sizes rayon's global pool. Results never depend on the thread count (every parallel loop
 /// in the libraries is deterministic), so this only trades speed for CPU share.
-fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
-    if let Some(n) = threads {
+fn configure_threads(threads: Option<usize>, reporter: &Reporter) -> anyhow::Result<()> {
+    if let Some(mut n) = threads {
         if n == 0 {
             anyhow::bail!("--threads must be at least 1");
+        }
+        // More threads than this only cost start-up time and memory (each has its own stack
+        // and scratch), and the output does not depend on the count.
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        if n > MAX_THREADS_PER_CORE * cores {
+            reporter.warn(&format!(
+                "--threads {n} is more than {MAX_THREADS_PER_CORE} per logical core; using {}",
+                MAX_THREADS_PER_CORE * cores
+            ));
+            n = MAX_THREADS_PER_CORE * cores;
         }
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)

@@ -352,6 +352,10 @@ fn bad_input_exits_2_with_a_message() {
     // Output over the input: refused (not a PNG), input untouched.
     let out = sphcover(&["render", s(&kitten), "-o", s(&kitten)]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("must be a .png"));
+    assert!(
+        text(&out.stderr).contains("must end in .png"),
+        "{}",
+        text(&out.stderr)
+    );
     assert_eq!(std::fs::read(&kitten).unwrap(), before);
 }

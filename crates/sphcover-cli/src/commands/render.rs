@@ -15,18 +15,6 @@ use crate::report::Reporter;
 
 /// Runs `sphcover render`.
 pub fn run(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    let is_png = args
-        .output
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if !is_png {
-        return Err(BadInput(format!(
-            "{}: the output must be a .png file",
-            args.output.display()
-        ))
-        .into());
-    }
     let mut options = parse_options(args)?;
 
     let stage = reporter.stage("read");

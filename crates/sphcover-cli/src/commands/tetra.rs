@@ -2,7 +2,7 @@
 //! of the union of balls on an exact regular triangulation.
 
 use sphcover_core::io::{self, SphereSet};
-use sphcover_tetra::{DualComplexParams, TetMesh, TetMeshFormat, dual_complex, write_tet_mesh};
+use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex, write_tet_mesh};
 
 use crate::args::TetraArgs;
 use crate::exit::BadInput;
@@ -10,13 +10,6 @@ use crate::report::Reporter;
 
 /// Runs `sphcover tetra`.
 pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    if TetMeshFormat::from_path(&args.output).is_none() {
-        return Err(BadInput(format!(
-            "{}: the output must end in .vtk, .txt or .tets",
-            args.output.display()
-        ))
-        .into());
-    }
     if !(args.shrink.is_finite() && args.shrink > 0.0) {
         return Err(BadInput(format!(
             "--shrink {} must be a positive number",
