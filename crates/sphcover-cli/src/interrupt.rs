@@ -2,7 +2,7 @@
 //! partial output behind.
 //!
 //! Every output goes through `sphcover_core::io::write_atomic`, which writes a hidden
-//! temporary file `.NAME.XXXXXX.tmp` beside the output and renames it over `NAME` only when
+//! temporary file `.NAME.PID.XXXXXX.tmp` beside the output and renames it over `NAME` only when
 //! complete. A process ended by a signal's default action cannot remove that temporary
 //! file, so the runner installs a handler: a thread woken by the signal (through
 //! `signal-hook`'s self-pipe, so it runs however long the current stage is) removes the
@@ -60,12 +60,12 @@ impl InProgressOutputs {
         let outputs: Vec<PendingOutput> = paths
             .iter()
             .filter_map(|path| {
+                let directory = directory_of(path)?;
                 let file_name = path.file_name()?.to_os_string();
-                let directory = match path.parent() {
-                    Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-                    _ => PathBuf::from("."),
-                };
-                let foreign = temporaries_of(&directory, &file_name).into_iter().collect();
+                let foreign = temporaries_of(&directory, &file_name)
+                    .into_iter()
+                    .map(|(name, _)| name)
+                    .collect();
                 Some(PendingOutput {
                     directory,
                     file_name,
@@ -82,7 +82,7 @@ impl InProgressOutputs {
     pub fn remove_temporaries(&self) -> usize {
         let mut removed = 0;
         for output in self.outputs.iter() {
-            for name in temporaries_of(&output.directory, &output.file_name) {
+            for (name, _) in temporaries_of(&output.directory, &output.file_name) {
                 if !output.foreign.contains(&name)
                     && std::fs::remove_file(output.directory.join(&name)).is_ok()
                 {
@@ -171,8 +171,9 @@ fn output_paths(command: &Command) -> Vec<&Path> {
 }
 
 /// Names of the files in `directory` that look like `write_atomic`'s temporary files for
-/// `file_name`: `.{file_name}.` + six letters or digits + `.tmp`.
-fn temporaries_of(directory: &Path, file_name: &OsStr) -> Vec<OsString> {
+/// `file_name`: `.{file_name}.` + the writer's process id and `.` (absent in names written by
+/// earlier versions) + six letters or digits + `.tmp`; with the process id when there is one.
+fn temporaries_of(directory: &Path, file_name: &OsStr) -> Vec<(OsString, Option<u32>)> {
     let Ok(entries) = std::fs::read_dir(directory) else {
         return Vec::new();
     };
@@ -183,16 +184,67 @@ fn temporaries_of(directory: &Path, file_name: &OsStr) -> Vec<OsString> {
     entries
         .filter_map(Result::ok)
         .map(|entry| entry.file_name())
-        .filter(|name| {
-            let bytes = name.as_encoded_bytes();
-            bytes.len() == prefix.len() + RANDOM_CHARS + ".tmp".len()
-                && bytes.starts_with(&prefix)
-                && bytes.ends_with(b".tmp")
-                && bytes[prefix.len()..prefix.len() + RANDOM_CHARS]
-                    .iter()
-                    .all(u8::is_ascii_alphanumeric)
+        .filter_map(|name| {
+            let rest = name.as_encoded_bytes().strip_prefix(prefix.as_slice())?;
+            let rest = rest.strip_suffix(b".tmp")?;
+            let (pid, random) = match rest.iter().position(|&b| b == b'.') {
+                Some(dot) => {
+                    let digits = std::str::from_utf8(&rest[..dot]).ok()?;
+                    let pid = digits.parse::<u32>().ok()?;
+                    (Some(pid), &rest[dot + 1..])
+                }
+                None => (None, rest),
+            };
+            (random.len() == RANDOM_CHARS && random.iter().all(u8::is_ascii_alphanumeric))
+                .then_some((name, pid))
         })
         .collect()
+}
+
+/// Temporary files of `command`'s outputs that earlier runs left behind.
+#[derive(Debug, Default)]
+pub struct StaleTemporaries {
+    /// Removed: their writer no longer runs (it was killed while writing).
+    pub removed: Vec<PathBuf>,
+    /// Left alone: written by a version that did not record its process id, or on a
+    /// system where a process cannot be looked up; another run may be writing them.
+    pub unknown: Vec<PathBuf>,
+}
+
+/// Removes the temporary files of `command`'s outputs whose writing process has ended (a run
+/// killed by SIGKILL, an out-of-memory kill or a file-size limit cannot remove its own), and
+/// lists those whose writer cannot be told. A file another running process is writing is
+/// left alone.
+pub fn remove_stale_temporaries(command: &Command) -> StaleTemporaries {
+    let mut stale = StaleTemporaries::default();
+    let processes_visible = Path::new("/proc/self").exists();
+    for path in output_paths(command) {
+        let (Some(directory), Some(file_name)) = (directory_of(path), path.file_name()) else {
+            continue;
+        };
+        for (name, pid) in temporaries_of(&directory, file_name) {
+            let temporary = directory.join(&name);
+            match pid {
+                Some(pid) if processes_visible => {
+                    let running = Path::new("/proc").join(pid.to_string()).exists();
+                    if !running && std::fs::remove_file(&temporary).is_ok() {
+                        stale.removed.push(temporary);
+                    }
+                }
+                _ => stale.unknown.push(temporary),
+            }
+        }
+    }
+    stale
+}
+
+/// The directory an output goes to (`.` for a bare file name).
+fn directory_of(path: &Path) -> Option<PathBuf> {
+    path.file_name()?;
+    Some(match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    })
 }
 
 #[cfg(test)]
@@ -229,6 +281,28 @@ mod tests {
                 ".mesh.plyX.b3xY9z.tmp",
                 ".other.ply.b3xY9z.tmp",
                 "mesh.ply"
+            ]
+        );
+    }
+
+    #[test]
+    fn temporary_names_carry_the_writers_process_id() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in [
+            ".mesh.ply.1234.b3xY9z.tmp",
+            ".mesh.ply.b3xY9z.tmp",
+            ".mesh.ply.12a4.b3xY9z.tmp",
+            ".mesh.ply.1234.b3xY9.tmp",
+        ] {
+            std::fs::write(dir.path().join(name), b"").unwrap();
+        }
+        let mut found = temporaries_of(dir.path(), OsStr::new("mesh.ply"));
+        found.sort();
+        assert_eq!(
+            found,
+            [
+                (OsString::from(".mesh.ply.1234.b3xY9z.tmp"), Some(1234)),
+                (OsString::from(".mesh.ply.b3xY9z.tmp"), None),
             ]
         );
     }

@@ -44,6 +44,19 @@ fn main() -> ExitCode {
         reporter.error(&e);
         return ExitCode::from(exit::code_for(&e));
     }
+    let stale = interrupt::remove_stale_temporaries(&cli.command);
+    for path in &stale.removed {
+        reporter.warn(&format!(
+            "removed {}, the temporary file of a run that ended while writing",
+            path.display()
+        ));
+    }
+    for path in &stale.unknown {
+        reporter.warn(&format!(
+            "{} looks like the temporary file of an earlier run; remove it unless another run is writing this output",
+            path.display()
+        ));
+    }
     // Before any work: from here on an interrupt removes the run's partial outputs.
     if let Err(e) = interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
         reporter.error(&anyhow::anyhow!(

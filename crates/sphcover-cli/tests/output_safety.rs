@@ -151,7 +151,41 @@ fn a_run_killed_while_writing_leaves_no_file_at_the_output_path() {
     expected.extend(temporaries.iter().cloned());
     expected.sort();
     assert_eq!(files_in(dir.path()), expected);
-    eprintln!("temporary files left by the killed run: {temporaries:?}");
+    assert_eq!(temporaries.len(), 1, "{temporaries:?}");
+
+    // The next run writing that output removes it: its writer has ended.
+    let run = sphcover_in(Some(dir.path()), &recon_args("scan.ply", "mesh.ply"), LIMIT);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains(&format!("removed ./{}", temporaries[0])),
+        "{stderr}"
+    );
+    assert_eq!(files_in(dir.path()), ["mesh.ply", "scan.ply"]);
+}
+
+#[test]
+fn temporary_files_of_running_or_unknown_writers_are_left_alone() {
+    let (dir, _scan) = scan_dir();
+    // This test process is running; a name without a process id comes from an older version.
+    let running = format!(".mesh.ply.{}.AbC123.tmp", std::process::id());
+    let unknown = ".mesh.ply.XyZ789.tmp".to_string();
+    for name in [&running, &unknown] {
+        std::fs::write(dir.path().join(name), b"partial").unwrap();
+    }
+    let run = sphcover_in(Some(dir.path()), &recon_args("scan.ply", "mesh.ply"), LIMIT);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "{unknown} looks like the temporary file of an earlier run"
+        )),
+        "{stderr}"
+    );
+    assert!(!stderr.contains(&running), "{stderr}");
+    let mut expected = vec![running, unknown, "mesh.ply".into(), "scan.ply".into()];
+    expected.sort();
+    assert_eq!(files_in(dir.path()), expected);
 }
 
 /// A reconstruction of the bunny long enough to be interrupted mid-way (normal estimation on

@@ -56,9 +56,12 @@ where
     }
 
     let mut builder = tempfile::Builder::new();
+    // `.NAME.PID.` + random: the process id tells a later run whether the writer still runs,
+    // so that one killed while writing (SIGKILL, a file-size limit) does not leave its
+    // temporary file for ever.
     let mut prefix = std::ffi::OsString::from(".");
     prefix.push(file_name);
-    prefix.push(".");
+    prefix.push(format!(".{}.", std::process::id()));
     builder.prefix(&prefix).suffix(".tmp");
     #[cfg(unix)]
     {
