@@ -48,6 +48,8 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let recon = result.map_err(|e| match e {
         ReconError::TooFewPoints { .. }
         | ReconError::NoExtent(_)
+        | ReconError::Collinear
+        | ReconError::FarPoint { .. }
         | ReconError::Empty(_)
         | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. }) => {
             anyhow::Error::from(BadInput(format!("{}: {e}", args.input.display())))

@@ -2,10 +2,11 @@
 //!
 //! The method is described on [`reconstruct()`].
 
+mod spread;
 mod stages;
 
 use sphcover_core::{
-    Cover, CoverError, Normalisation, ParameterError, PointCloud, PointIndexError, SigError,
+    Cover, CoverError, DVec3, Normalisation, ParameterError, PointCloud, PointIndexError, SigError,
     SmallComponentsError, StageProgress, SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats,
     TriMesh, run_stages,
 };
@@ -172,6 +173,28 @@ pub enum ReconError {
     /// All points coincide (no extent to reconstruct).
     #[error("all {0} points coincide: there is no surface to reconstruct")]
     NoExtent(usize),
+    /// The points lie on a line, to rounding, and have no normals: every plane through the
+    /// line fits them, so no surface is determined.
+    #[error(
+        "the points lie on a line, to rounding, and have no normals: no surface is determined (give normals, which choose the plane through the line, or points spread in more dimensions)"
+    )]
+    Collinear,
+    /// One point lies so far from the rest that, in the frame of its bounding box, the rest
+    /// of the scan cannot be resolved.
+    #[error(
+        "point {index} at ({:?}, {:?}, {:?}) lies {ratio:.1e} times the scan's median radius from its centre: remove such far outliers first (more than 10^9 radii away, the rest of the scan cannot be resolved in the frame of the bounding box)",
+        position.x,
+        position.y,
+        position.z
+    )]
+    FarPoint {
+        /// Its index in the input.
+        index: usize,
+        /// Its position.
+        position: DVec3,
+        /// Its distance from the coordinate-wise median, in median distances to it.
+        ratio: f64,
+    },
     /// A parameter is out of range.
     #[error(transparent)]
     InvalidParameter(#[from] ParameterError),
@@ -403,7 +426,6 @@ fn check_params(params: &ReconParams) -> Result<(), ReconError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sphcover_core::DVec3;
 
     #[test]
     fn default_depth_follows_the_sample_count() {
@@ -495,7 +517,7 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_refused_before_any_work() {
-        let cloud = PointCloud::from_positions(vec![DVec3::ZERO; 10]);
+        let cloud = PointCloud::from_positions(vec![DVec3::ZERO; 20]);
         for params in [
             ReconParams {
                 graph_shrink: 0.0,
@@ -521,7 +543,7 @@ mod tests {
         }
         assert!(matches!(
             reconstruct(&cloud, &ReconParams::default(), &|_| {}),
-            Err(ReconError::NoExtent(10))
+            Err(ReconError::NoExtent(20))
         ));
     }
 }

@@ -173,10 +173,13 @@ fn normalise(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         .filter(|&i| cloud.positions[i].is_finite())
         .collect();
     ctx.stats.non_finite_points = cloud.len() - kept.len();
-    if kept.len() < MIN_POINTS {
+    // The scan's spacing is measured over each point's `k` nearest others: with fewer points
+    // it is zero, and every length derived from it (cover, trimming, refinement) with it.
+    let needed = MIN_POINTS.max(ctx.params.scan.k + 1);
+    if kept.len() < needed {
         return Err(ReconError::TooFewPoints {
             found: kept.len(),
-            needed: MIN_POINTS,
+            needed,
         });
     }
     let mut points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
@@ -184,6 +187,7 @@ fn normalise(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     if extent.is_nan() || extent <= 0.0 {
         return Err(ReconError::NoExtent(kept.len()));
     }
+    super::spread::check_spread(&points, &kept, cloud.normals.is_some())?;
     let normalisation =
         Normalisation::of_points(&points).ok_or(ReconError::NoExtent(kept.len()))?;
     normalisation.points_to_unit(&mut points);
