@@ -372,6 +372,7 @@ impl InputArgs {
             } else {
                 NonFinitePolicy::Refuse
             },
+            ..ReadOptions::default()
         }
     }
 }

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use sphcover_core::io::{self, CoverFileMeta};
+use sphcover_core::io::{self, CoverFileMeta, ReadOptions};
 use sphcover_core::{
     CentreOrder, Cover, Elimination, Normalisation, SurfaceCoverParams, Threshold,
     VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant, build_scattered_cover,
@@ -120,7 +120,7 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
 
 fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover, CoverFileMeta)> {
     let stage = reporter.stage("read volume");
-    let (volume, _info) = io::read_volume(&args.input)?;
+    let (volume, _info) = io::read_volume(&args.input, &ReadOptions::default())?;
     stage.finish();
     let params = volume_params(args);
     let bar = reporter.progress(None, "building the volume cover");

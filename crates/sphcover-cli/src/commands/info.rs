@@ -158,6 +158,7 @@ pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
 fn summarise(path: &Path) -> anyhow::Result<Summary> {
     let options = ReadOptions {
         non_finite: NonFinitePolicy::Keep,
+        ..ReadOptions::default()
     };
     let geometry = io::read_geometry(path, &options)?;
     let points = &geometry.points;
@@ -198,7 +199,7 @@ fn summarise(path: &Path) -> anyhow::Result<Summary> {
 }
 
 fn summarise_volume(path: &Path) -> anyhow::Result<VolumeSummary> {
-    let (volume, info) = io::read_volume(path)?;
+    let (volume, info) = io::read_volume(path, &ReadOptions::default())?;
     let dims = volume.dims();
     let mut bbox = Aabb::EMPTY;
     for corner in 0..8 {

@@ -41,7 +41,7 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
 
     let stage = reporter.stage("read volume");
-    let (volume, info) = io::read_volume(&args.input)?;
+    let (volume, info) = io::read_volume(&args.input, &ReadOptions::default())?;
     stage.finish();
     check_volume(args, &volume, &info, reporter)?;
     crate::skeleton_memory::check_budget(args, &volume, reporter)?;
