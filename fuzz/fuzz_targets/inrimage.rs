@@ -7,5 +7,9 @@ use std::path::Path;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|bytes: &[u8]| {
-    let _ = sphcover_core::io::parse_inrimage(bytes, Path::new("fuzz.inr"));
+    let _ = sphcover_core::io::parse_inrimage(
+        bytes,
+        Path::new("fuzz.inr"),
+        &sphcover_fuzz::volume_options(),
+    );
 });

@@ -336,6 +336,7 @@ fn run_tool(
         RunOutcome::Success => {
             let opts = ReadOptions {
                 non_finite: NonFinitePolicy::Drop,
+                ..ReadOptions::default()
             };
             io::read_mesh(output, &opts)
                 .map_err(|e| format!("unreadable output: {e}"))

@@ -40,6 +40,7 @@ fn main() -> ExitCode {
 fn run(args: Args) -> anyhow::Result<()> {
     let drop = ReadOptions {
         non_finite: NonFinitePolicy::Drop,
+        ..ReadOptions::default()
     };
     let rec = io::read_mesh(&args.rec, &drop)
         .with_context(|| format!("reading {}", args.rec.display()))?;

@@ -201,6 +201,7 @@ fn score_output(
 ) -> String {
     let opts = ReadOptions {
         non_finite: NonFinitePolicy::Drop,
+        ..ReadOptions::default()
     };
     let geometry = match io::read_geometry(output, &opts) {
         Ok(g) => g,

@@ -155,7 +155,8 @@ pub struct ReconArgs {
     pub report: Option<PathBuf>,
     /// Memory budget (e.g. 2G, 500M): before reconstructing, predict the peak from the
     /// point count and depth; over budget, use the finest coarser depth that fits (without
-    /// --depth), or refuse with the estimate (exit 2).
+    /// --depth), or refuse with the estimate (exit 2). Reading the points is held to it too
+    /// (default: 60% of the machine's memory).
     #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
     pub max_memory: Option<u64>,
     #[command(flatten)]
@@ -283,8 +284,10 @@ pub struct SkeletonArgs {
     /// method).
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
-    /// Memory budget (e.g. 2G, 500M): refuse up front (exit 2) with the estimate when the
-    /// predicted peak for the volume's size exceeds it (ridge method).
+    /// Memory budget (e.g. 2G, 500M): refuse up front (exit 2), from the volume's header
+    /// before reading its voxels, with the estimate when the predicted peak for its size
+    /// exceeds it (ridge method). Reading the input is held to it too (default: 60% of the
+    /// machine's memory).
     #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
     pub max_memory: Option<u64>,
     /// Write the PLY as ascii instead of binary little-endian.
@@ -363,15 +366,19 @@ pub struct InputArgs {
 }
 
 impl InputArgs {
-    /// The readers' options these flags ask for.
-    pub fn read_options(&self) -> sphcover_core::io::ReadOptions {
+    /// The readers' options these flags ask for, under the run's memory `limit`.
+    pub fn read_options(
+        &self,
+        limit: &crate::memory_limit::MemoryLimit,
+    ) -> sphcover_core::io::ReadOptions {
         use sphcover_core::io::{NonFinitePolicy, ReadOptions};
-        ReadOptions {
+        limit.apply(ReadOptions {
             non_finite: if self.drop_non_finite {
                 NonFinitePolicy::Drop
             } else {
                 NonFinitePolicy::Refuse
             },
-        }
+            ..ReadOptions::default()
+        })
     }
 }

@@ -31,23 +31,9 @@ pub fn parse_byte_size(text: &str) -> Result<u64, String> {
     Ok(bytes.round() as u64)
 }
 
-/// A size for people: `1.23 GiB`, `456.7 MiB`, `12.0 KiB`, `800 B`.
-pub fn format_byte_size(bytes: u64) -> String {
-    const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
-    let mut value = bytes as f64;
-    if value < 1024.0 {
-        return format!("{bytes} B");
-    }
-    let mut unit = "B";
-    for name in UNITS {
-        if value < 1024.0 {
-            break;
-        }
-        value /= 1024.0;
-        unit = name;
-    }
-    format!("{value:.1} {unit}")
-}
+/// A size for people: `1.2 GiB`, `456.7 MiB`, `12.0 KiB`, `800 B`; the readers' messages
+/// use the same form.
+pub use sphcover_core::io::format_byte_size;
 
 #[cfg(test)]
 mod tests {

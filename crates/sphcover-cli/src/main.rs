@@ -6,6 +6,7 @@ mod byte_size;
 mod commands;
 mod exit;
 mod interrupt;
+mod memory_limit;
 mod preflight;
 mod report;
 mod skeleton_memory;

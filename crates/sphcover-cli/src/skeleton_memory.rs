@@ -1,12 +1,14 @@
 //! `sphcover skeleton --max-memory`: the predicted peak of the ridge pipeline from the number
-//! of voxels, checked before the extraction. The grid is the input's, so there is no coarser
-//! parameter to fall back on: a run over budget is refused with the estimate.
-
-use sphcover_core::Volume;
+//! of voxels, checked from the volume's header before its voxels are read. The grid is the
+//! input's, so there is no coarser parameter to fall back on: a run over budget is refused
+//! with the estimate. Without `--max-memory` the budget is all the memory the process may
+//! use ([`process_memory`]): a run predicted above it cannot finish, and would end in a
+//! failed allocation deep in the pipeline.
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
 use crate::byte_size::format_byte_size;
 use crate::exit::BadInput;
+use crate::memory_limit::{ProcessMemory, process_memory};
 use crate::report::Reporter;
 
 /// Peak memory of `sphcover skeleton` (ridge method, default parameters): bytes.
@@ -35,13 +37,19 @@ impl SkeletonMemoryModel {
     }
 }
 
-/// Refuses the run (bad usage, exit 2) when `--max-memory` is below the predicted peak.
+/// Refuses the run (bad usage, exit 2) when `--max-memory`, or without it the memory of the
+/// process, is below the predicted peak for a grid of `dims` voxels.
 pub fn check_budget(
     args: &SkeletonArgs,
-    volume: &Volume,
+    dims: [usize; 3],
     reporter: &Reporter,
 ) -> anyhow::Result<()> {
     let Some(budget) = args.max_memory else {
+        if args.method == SkeletonMethod::Ridge
+            && let Some(memory) = process_memory()
+        {
+            check_memory(args, dims, &memory)?;
+        }
         return Ok(());
     };
     if args.method != SkeletonMethod::Ridge {
@@ -50,8 +58,8 @@ pub fn check_budget(
         )
         .into());
     }
-    let [nx, ny, nz] = volume.dims();
-    let voxels = nx * ny * nz;
+    let [nx, ny, nz] = dims;
+    let voxels = nx.saturating_mul(ny).saturating_mul(nz);
     let estimate = SKELETON_MEMORY_MODEL.peak_bytes(voxels);
     if estimate > budget {
         return Err(BadInput(format!(
@@ -67,6 +75,27 @@ pub fn check_budget(
         format_byte_size(estimate),
         format_byte_size(budget)
     ));
+    Ok(())
+}
+
+/// Refuses a run predicted above all the memory the process may use.
+fn check_memory(
+    args: &SkeletonArgs,
+    dims: [usize; 3],
+    memory: &ProcessMemory,
+) -> anyhow::Result<()> {
+    let [nx, ny, nz] = dims;
+    let estimate = SKELETON_MEMORY_MODEL.peak_bytes(nx.saturating_mul(ny).saturating_mul(nz));
+    if estimate > memory.bytes {
+        return Err(BadInput(format!(
+            "{}: extracting the sheet of {nx} x {ny} x {nz} voxels needs about {}, more than {}; \
+             crop the volume, or pass --max-memory to try anyway",
+            args.input.display(),
+            format_byte_size(estimate),
+            memory.describe()
+        ))
+        .into());
+    }
     Ok(())
 }
 

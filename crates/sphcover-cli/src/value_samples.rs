@@ -6,14 +6,17 @@ use sphcover_core::DVec3;
 use sphcover_core::io::{self, ReadOptions};
 
 use crate::exit::BadInput;
+use crate::memory_limit::MemoryLimit;
 use crate::report::Reporter;
 
-/// The positions of the vertices of the PLY point file `input` and their scalar `property`;
-/// bad input (exit 2) for a volume or a file without that property.
+/// The positions of the vertices of the PLY point file `input` and their scalar `property`,
+/// read under the memory `limit`; bad input (exit 2) for a volume or a file without that
+/// property.
 pub fn read_value_samples(
     input: &Path,
     property: &str,
     options: &ReadOptions,
+    limit: &MemoryLimit,
     reporter: &Reporter,
 ) -> anyhow::Result<(Vec<DVec3>, Vec<f64>)> {
     let name = input.display();
@@ -24,7 +27,9 @@ pub fn read_value_samples(
         .into());
     }
     let stage = reporter.stage("read samples");
-    let (geometry, values) = io::read_geometry_with_vertex_property(input, property, options)?;
+    let (geometry, values) =
+        io::read_geometry_with_vertex_property(input, property, &limit.apply(options.clone()))
+            .map_err(|e| limit.explain(e))?;
     stage.finish();
     let Some(values) = values else {
         return Err(BadInput(format!(

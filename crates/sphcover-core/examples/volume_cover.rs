@@ -16,7 +16,7 @@ mod volume_common;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use sphcover_core::io::read_nifti;
+use sphcover_core::io::{ReadOptions, read_nifti};
 use sphcover_core::{
     CentreOrder, Cover, DVec3, Elimination, PuEvaluator, Threshold, Volume, VolumeCoverParams,
     VolumeCoverStats, VolumeCoverVariant, VoxelValues, build_scattered_cover, build_volume_cover,
@@ -78,7 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?
     } else {
         let start = Instant::now();
-        let (volume, info) = read_nifti(&path)?;
+        let (volume, info) = read_nifti(&path, &ReadOptions::default())?;
         println!(
             "{}: NIfTI-{} {} {:?} voxels {:.4?}, {} frame(s), affine from {:?}, read in {:.3?}",
             path.display(),

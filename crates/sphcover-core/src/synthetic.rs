@@ -15,7 +15,8 @@
 //!
 //! Beside the covers, the plain shapes that tests, examples and benchmarks sample:
 //! [`fibonacci_sphere`] (evenly spread directions), [`uv_sphere`] (a closed triangle mesh) and
-//! [`voxel_subsamples`] (the points at which a voxel's partial volume is measured).
+//! [`voxel_subsamples`] (the points at which a voxel's partial volume is measured); and, for
+//! the tests of the volume readers' limits, `gzip_with_zeros` (a decompression bomb).
 
 use crate::ParameterError;
 use glam::DVec3;
@@ -558,4 +559,48 @@ fn guard_count(count: u64) -> Result<(), SyntheticError> {
     } else {
         Ok(())
     }
+}
+
+/// A gzip file (one member) of `head` followed by `zero_mib` MiB of zero bytes, compressed
+/// about 1000:1 (a gigabyte of zeros is about a megabyte of file, as any gzip makes it) and
+/// built in milliseconds whatever its size: one MiB of zeros is compressed once, flushed to a
+/// byte boundary, and repeated. Each repeat refers only to its own bytes, so the repeats
+/// decode alike; the trailer's CRC and size are those of the whole. The decompression bombs
+/// of the readers' tests and fuzz targets.
+#[cfg(feature = "nifti")]
+pub fn gzip_with_zeros(head: &[u8], zero_mib: u64) -> Vec<u8> {
+    use flate2::{Compress, Compression, Crc, FlushCompress};
+    const MIB: usize = 1 << 20;
+    // A fresh raw-DEFLATE compressor per piece, flushed (not finished): no piece refers to
+    // bytes before it, and none is marked final.
+    let deflate = |data: &[u8]| {
+        let mut out = Vec::with_capacity(data.len() / 64 + 1024);
+        let mut compress = Compress::new(Compression::best(), false);
+        // The output holds any input this small: one call consumes and flushes it all.
+        compress
+            .compress_vec(data, &mut out, FlushCompress::Sync)
+            .expect("DEFLATE into a large enough buffer");
+        debug_assert_eq!(compress.total_in(), data.len() as u64);
+        out
+    };
+    let zeros = vec![0u8; MIB];
+    let zero_piece = deflate(&zeros);
+    let mut zero_crc = Crc::new();
+    zero_crc.update(&zeros);
+
+    let mut file = vec![0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 0xff];
+    file.extend(deflate(head));
+    let mut crc = Crc::new();
+    crc.update(head);
+    for _ in 0..zero_mib {
+        file.extend_from_slice(&zero_piece);
+        crc.combine(&zero_crc);
+    }
+    // An empty final block with fixed codes: BFINAL = 1, BTYPE = 01, end-of-block.
+    file.extend([0x03, 0x00]);
+    file.extend(crc.sum().to_le_bytes());
+    // ISIZE is the length modulo 2^32, as RFC 1952 says.
+    let size = (head.len() as u64).wrapping_add(zero_mib << 20);
+    file.extend((size as u32).to_le_bytes());
+    file
 }

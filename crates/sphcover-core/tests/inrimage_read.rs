@@ -6,7 +6,8 @@ use std::path::Path;
 
 use glam::DVec3;
 use sphcover_core::io::{
-    IoError, Location, Problem, SampleType, VolumeInfo, is_volume_path, parse_inrimage, read_volume,
+    IoError, Location, Problem, ReadOptions, SampleType, VolumeInfo, is_volume_path,
+    parse_inrimage, read_volume,
 };
 
 /// A header padded to `blocks` × 256 bytes.
@@ -33,7 +34,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 fn parse(
     bytes: &[u8],
 ) -> Result<(sphcover_core::Volume, sphcover_core::io::InrimageInfo), IoError> {
-    parse_inrimage(bytes, Path::new("t.inr"))
+    parse_inrimage(bytes, Path::new("t.inr"), &ReadOptions::default())
 }
 
 fn malformed(bytes: &[u8]) -> (Location, Problem) {
@@ -178,7 +179,7 @@ fn read_volume_dispatches_on_the_name() {
         let path = dir.path().join(name);
         std::fs::write(&path, &bytes).unwrap();
         assert!(is_volume_path(&path));
-        let (vol, info) = read_volume(&path).unwrap();
+        let (vol, info) = read_volume(&path, &ReadOptions::default()).unwrap();
         assert!(matches!(info, VolumeInfo::Inrimage(_)));
         assert_eq!(vol.value(8), 100.0);
         assert_eq!(info.datatype_name(), "int16");
@@ -367,10 +368,15 @@ fn truncated_data_is_refused_before_allocating() {
     );
     f.extend([0u8; 16]);
     malformed(&f);
-    // Trailing bytes after the declared data are not decompressed nor read.
+    // Bytes after the declared data: ignored in a plain file (never read), refused in a gzip
+    // stream one byte past the data (a stream that inflates further than its header says
+    // is not decompressed to its end).
     let mut long = good.clone();
     long.extend(vec![7u8; 1000]);
-    assert_eq!(parse(&gzip(&long)).unwrap().0.value(8), 100.0);
+    assert_eq!(parse(&long).unwrap().0.value(8), 100.0);
+    let (at, problem) = malformed(&gzip(&long));
+    assert_eq!(at, Location::Byte(good.len() as u64));
+    assert!(problem.to_string().contains("goes on after"), "{problem}");
 }
 
 #[test]

@@ -26,7 +26,10 @@ fn parse_with(
     policy: NonFinitePolicy,
 ) -> Result<sphcover_core::io::Geometry, IoError> {
     let path = Path::new(name);
-    let options = ReadOptions { non_finite: policy };
+    let options = ReadOptions {
+        non_finite: policy,
+        ..ReadOptions::default()
+    };
     parse_geometry(bytes, Format::from_path(path)?, path, &options)
 }
 

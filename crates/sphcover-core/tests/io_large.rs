@@ -52,6 +52,7 @@ fn a_file_above_the_mapping_threshold_reads_back_identically_on_any_thread_count
 
     let keep = ReadOptions {
         non_finite: NonFinitePolicy::Keep,
+        ..ReadOptions::default()
     };
     let one = in_pool(1, || read_geometry(&path, &keep).unwrap());
     let three = in_pool(3, || read_geometry(&path, &keep).unwrap());

@@ -213,7 +213,10 @@ const POLICIES: [NonFinitePolicy; 3] = [
 /// Parses with every policy; only a panic fails the test (errors are expected).
 fn parse_all_ways(bytes: &[u8], format: Format) {
     for policy in POLICIES {
-        let options = ReadOptions { non_finite: policy };
+        let options = ReadOptions {
+            non_finite: policy,
+            ..ReadOptions::default()
+        };
         if let Ok(g) = parse_geometry(bytes, format, Path::new("fuzz"), &options) {
             // Whatever is accepted is consistent.
             assert!(g.points.check().is_ok());

@@ -8,7 +8,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use sphcover_core::io::{
-    AffineSource, IoError, Location, SampleType, VolumeInfo, parse_nifti, read_nifti, read_volume,
+    AffineSource, IoError, Location, ReadOptions, SampleType, VolumeInfo, parse_nifti, read_nifti,
+    read_volume,
 };
 use sphcover_core::{DVec3, VoxelValues};
 
@@ -209,7 +210,8 @@ fn every_datatype_both_orders_both_versions_plain_and_gzip() {
                         if gz { ".gz" } else { "" }
                     );
                     let path = write(dir.path(), &name, &bytes);
-                    let (vol, info) = read_nifti(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+                    let (vol, info) = read_nifti(&path, &ReadOptions::default())
+                        .unwrap_or_else(|e| panic!("{name}: {e}"));
                     assert_eq!(info.version, version);
                     assert_eq!(info.big_endian, big);
                     assert_eq!(info.gzip, gz);
@@ -230,7 +232,7 @@ fn every_datatype_both_orders_both_versions_plain_and_gzip() {
                     }
                     assert_eq!(vol.voxel_centre([2, 3, 4]), DVec3::new(1.0, 0.75, 8.0));
                     // The in-memory parser agrees.
-                    let (again, _) = parse_nifti(&bytes, &path).unwrap();
+                    let (again, _) = parse_nifti(&bytes, &path, &ReadOptions::default()).unwrap();
                     assert_eq!(again, vol);
                 }
             }
@@ -253,7 +255,8 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
         let mut file = h.bytes();
         file.extend(encode(dt, false, &values));
         let path = write(dir.path(), &format!("q{version}.nii"), &file);
-        let (vol, VolumeInfo::Nifti(info)) = read_volume(&path).unwrap() else {
+        let (vol, VolumeInfo::Nifti(info)) = read_volume(&path, &ReadOptions::default()).unwrap()
+        else {
             panic!("a .nii file must read as NIfTI")
         };
         assert_eq!(info.affine_source, AffineSource::Qform);
@@ -281,7 +284,8 @@ fn sform_wins_over_qform_which_wins_over_pixdim() {
         let mut file = h.bytes();
         file.extend(encode(dt, false, &values));
         let path = write(dir.path(), &format!("s{version}.nii"), &file);
-        let (vol, VolumeInfo::Nifti(info)) = read_volume(&path).unwrap() else {
+        let (vol, VolumeInfo::Nifti(info)) = read_volume(&path, &ReadOptions::default()).unwrap()
+        else {
             panic!("a .nii file must read as NIfTI")
         };
         assert_eq!(info.affine_source, AffineSource::Sform);
@@ -306,7 +310,7 @@ fn scaling_applies_unless_slope_is_zero() {
             let mut file = h.bytes();
             file.extend(encode(dt, true, &values));
             let path = write(dir.path(), "scaled.nii", &file);
-            let (vol, info) = read_nifti(&path).unwrap();
+            let (vol, info) = read_nifti(&path, &ReadOptions::default()).unwrap();
             assert_eq!(info.scaling, expect);
             assert_eq!(info.dims, [2, 2, 1]);
             for (i, v) in values.iter().enumerate() {
@@ -332,7 +336,7 @@ fn four_d_volumes_keep_the_first_frame_and_extensions_are_skipped() {
     for gz in [false, true] {
         let bytes = if gz { gzip(&file) } else { file.clone() };
         let path = write(dir.path(), "4d.nii.gz", &bytes);
-        let (vol, info) = read_nifti(&path).unwrap();
+        let (vol, info) = read_nifti(&path, &ReadOptions::default()).unwrap();
         assert_eq!(info.frames, 2);
         assert_eq!(info.vox_offset, 384);
         assert_eq!(vol.len(), 12);
@@ -362,7 +366,7 @@ fn malformed_files_are_refused_with_file_and_offset() {
         for gz in [false, true] {
             let data = if gz { gzip(bytes) } else { bytes.to_vec() };
             let path = write(dir.path(), name, &data);
-            let err = read_nifti(&path).expect_err(name);
+            let err = read_nifti(&path, &ReadOptions::default()).expect_err(name);
             let msg = err.to_string();
             assert!(msg.contains(name), "{msg}");
             assert!(msg.contains(needle), "{name}: {msg}");
@@ -429,16 +433,16 @@ fn absurd_dimensions_are_refused_before_allocating() {
     let h = Header::new(1, false, dt, &[32767, 32767, 32767]);
     let bytes = h.bytes();
     let path = write(dir.path(), "huge.nii", &bytes);
-    let err = read_nifti(&path).unwrap_err();
+    let err = read_nifti(&path, &ReadOptions::default()).unwrap_err();
     assert!(err.to_string().contains("truncated"), "{err}");
     let path = write(dir.path(), "huge.nii.gz", &gzip(&bytes));
-    let err = read_nifti(&path).unwrap_err();
+    let err = read_nifti(&path, &ReadOptions::default()).unwrap_err();
     assert!(err.to_string().contains("more than a"), "{err}");
     assert_eq!(location(&err), Location::Byte(42));
     // NIfTI-2: dimensions whose byte count overflows 64 bits.
     let h = Header::new(2, true, dt, &[1 << 40, 1 << 40, 1 << 40]);
     let path = write(dir.path(), "overflow.nii", &h.bytes());
-    let err = read_nifti(&path).unwrap_err();
+    let err = read_nifti(&path, &ReadOptions::default()).unwrap_err();
     assert!(err.to_string().contains("overflow"), "{err}");
 }
 
@@ -447,7 +451,7 @@ fn empty_corrupt_and_missing_files() {
     let dir = tempfile::tempdir().unwrap();
     let path = write(dir.path(), "empty.nii", &[]);
     assert!(
-        read_nifti(&path)
+        read_nifti(&path, &ReadOptions::default())
             .unwrap_err()
             .to_string()
             .contains("empty file")
@@ -459,8 +463,11 @@ fn empty_corrupt_and_missing_files() {
     let n = gz.len();
     gz.truncate(n - 12); // cut the trailer and some of the stream
     let path = write(dir.path(), "cut.nii.gz", &gz);
-    let err = read_nifti(&path).unwrap_err();
+    let err = read_nifti(&path, &ReadOptions::default()).unwrap_err();
     assert!(matches!(err, IoError::Malformed { .. }), "{err}");
     let missing = dir.path().join("missing.nii");
-    assert!(matches!(read_nifti(&missing), Err(IoError::Read { .. })));
+    assert!(matches!(
+        read_nifti(&missing, &ReadOptions::default()),
+        Err(IoError::Read { .. })
+    ));
 }

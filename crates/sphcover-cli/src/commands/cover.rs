@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use sphcover_core::io::{self, CoverFileMeta};
+use sphcover_core::io::{self, CoverFileMeta, ReadOptions};
 use sphcover_core::{
     CentreOrder, Cover, Elimination, Normalisation, SurfaceCoverParams, Threshold,
     VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant, build_scattered_cover,
@@ -12,6 +12,7 @@ use sphcover_core::{
 
 use crate::args::{CoverArgs, CoverCentreOrder, CoverElimination};
 use crate::exit::BadInput;
+use crate::memory_limit::MemoryLimit;
 use crate::report::Reporter;
 
 /// Runs `sphcover cover`.
@@ -21,10 +22,11 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
     {
         return Err(BadInput(format!("--eps {eps} must be a positive number")).into());
     }
+    let limit = MemoryLimit::machine_default();
     let (cover, meta) = if let Some(property) = &args.value_property {
-        scattered_cover(args, property, reporter)?
+        scattered_cover(args, property, &limit, reporter)?
     } else if io::is_volume_path(&args.input) {
-        volume_cover(args, reporter)?
+        volume_cover(args, &limit, reporter)?
     } else {
         if args.threshold.is_some()
             || args.linear
@@ -36,7 +38,7 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
             )
             .into());
         }
-        surface_cover(args, reporter)?
+        surface_cover(args, &limit, reporter)?
     };
     let stage = reporter.stage("write");
     let options = super::write_options(&args.input, args.ascii);
@@ -45,9 +47,14 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover, CoverFileMeta)> {
+fn surface_cover(
+    args: &CoverArgs,
+    limit: &MemoryLimit,
+    reporter: &Reporter,
+) -> anyhow::Result<(Cover, CoverFileMeta)> {
     let stage = reporter.stage("read points");
-    let cloud = io::read_point_cloud(&args.input, &args.read.read_options())?;
+    let cloud = io::read_point_cloud(&args.input, &args.read.read_options(limit))
+        .map_err(|e| limit.explain(e))?;
     stage.finish();
     if cloud.normals.is_none() {
         return Err(BadInput(format!(
@@ -118,9 +125,14 @@ fn surface_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover
     Ok((cover, meta))
 }
 
-fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover, CoverFileMeta)> {
+fn volume_cover(
+    args: &CoverArgs,
+    limit: &MemoryLimit,
+    reporter: &Reporter,
+) -> anyhow::Result<(Cover, CoverFileMeta)> {
     let stage = reporter.stage("read volume");
-    let (volume, _info) = io::read_volume(&args.input)?;
+    let (volume, _info) = io::read_volume(&args.input, &limit.apply(ReadOptions::default()))
+        .map_err(|e| limit.explain(e))?;
     stage.finish();
     let params = volume_params(args);
     let bar = reporter.progress(None, "building the volume cover");
@@ -143,12 +155,14 @@ fn volume_cover(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<(Cover,
 fn scattered_cover(
     args: &CoverArgs,
     property: &str,
+    limit: &MemoryLimit,
     reporter: &Reporter,
 ) -> anyhow::Result<(Cover, CoverFileMeta)> {
     let (positions, values) = crate::value_samples::read_value_samples(
         &args.input,
         property,
-        &args.read.read_options(),
+        &args.read.read_options(limit),
+        limit,
         reporter,
     )?;
     let params = volume_params(args);

@@ -8,6 +8,7 @@ use sphcover_core::io::{self, FileInfo, NonFinitePolicy, ReadOptions};
 use sphcover_core::{Aabb, DVec3};
 
 use crate::args::InfoArgs;
+use crate::memory_limit::MemoryLimit;
 use crate::report::Reporter;
 
 /// A normal counts as unit length when its length is within this of 1 (files store normals
@@ -118,15 +119,16 @@ struct MeshSummary {
 /// Runs `sphcover info`: every file is reported, and the first unreadable one ends the run
 /// with its error after the others have been reported.
 pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    let limit = MemoryLimit::machine_default();
     let mut first_error = None;
     let mut out = String::new();
     for path in &args.files {
         let stage = reporter.stage(&format!("read {}", path.display()));
         let bar = reporter.progress(None, &format!("reading {}", path.display()));
         let result = if io::is_volume_path(path) {
-            summarise_volume(path).map(Report::Volume)
+            summarise_volume(path, &limit).map(Report::Volume)
         } else {
-            summarise(path).map(Report::Geometry)
+            summarise(path, &limit).map(Report::Geometry)
         };
         bar.finish_and_clear();
         stage.finish();
@@ -155,11 +157,12 @@ pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
     first_error.map_or(Ok(()), Err)
 }
 
-fn summarise(path: &Path) -> anyhow::Result<Summary> {
-    let options = ReadOptions {
+fn summarise(path: &Path, limit: &MemoryLimit) -> anyhow::Result<Summary> {
+    let options = limit.apply(ReadOptions {
         non_finite: NonFinitePolicy::Keep,
-    };
-    let geometry = io::read_geometry(path, &options)?;
+        ..ReadOptions::default()
+    });
+    let geometry = io::read_geometry(path, &options).map_err(|e| limit.explain(e))?;
     let points = &geometry.points;
     let bbox = Aabb::from_points(&points.positions);
     let info: &FileInfo = &geometry.info;
@@ -197,8 +200,9 @@ fn summarise(path: &Path) -> anyhow::Result<Summary> {
     })
 }
 
-fn summarise_volume(path: &Path) -> anyhow::Result<VolumeSummary> {
-    let (volume, info) = io::read_volume(path)?;
+fn summarise_volume(path: &Path, limit: &MemoryLimit) -> anyhow::Result<VolumeSummary> {
+    let (volume, info) = io::read_volume(path, &limit.apply(ReadOptions::default()))
+        .map_err(|e| limit.explain(e))?;
     let dims = volume.dims();
     let mut bbox = Aabb::EMPTY;
     for corner in 0..8 {

@@ -15,6 +15,7 @@ use sphcover_recon::{
 use crate::args::{ReconArgs, ReconMethodArg};
 use crate::byte_size::format_byte_size;
 use crate::exit::BadInput;
+use crate::memory_limit::MemoryLimit;
 use crate::report::{Reporter, stage_message};
 
 /// Runs `sphcover recon`.
@@ -24,7 +25,9 @@ const MAX_NORMAL_NEIGHBOURS: usize = 500;
 pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut params = params(args)?;
     let stage = reporter.stage("read points");
-    let mut cloud = io::read_point_cloud(&args.input, &args.read.read_options())?;
+    let limit = MemoryLimit::from_flag(args.max_memory);
+    let mut cloud = io::read_point_cloud(&args.input, &args.read.read_options(&limit))
+        .map_err(|e| limit.explain(e))?;
     stage.finish();
     if args.estimate_normals {
         cloud.normals = None;

@@ -11,6 +11,7 @@ use sphcover_render::{
 
 use crate::args::RenderArgs;
 use crate::exit::BadInput;
+use crate::memory_limit::MemoryLimit;
 use crate::report::Reporter;
 
 /// Runs `sphcover render`.
@@ -180,12 +181,17 @@ fn parse_background(text: &str) -> Result<Background, String> {
 
 /// Reads the input and the values to colour by.
 fn read(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<(Geometry, Option<Vec<f64>>)> {
-    let options = args.read.read_options();
+    let limit = MemoryLimit::machine_default();
+    let options = args.read.read_options(&limit);
     let (geometry, scalars) = match &args.colour_by {
-        None => (io::read_geometry(&args.input, &options)?, None),
+        None => (
+            io::read_geometry(&args.input, &options).map_err(|e| limit.explain(e))?,
+            None,
+        ),
         Some(name) => {
             let (geometry, column) =
-                io::read_geometry_with_vertex_property(&args.input, name, &options)?;
+                io::read_geometry_with_vertex_property(&args.input, name, &options)
+                    .map_err(|e| limit.explain(e))?;
             let values = match column {
                 Some(values) => values,
                 None => builtin_property(&geometry, name)

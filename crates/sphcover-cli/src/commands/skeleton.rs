@@ -3,7 +3,7 @@
 //! comparison.
 
 use sphcover_core::io::{self, ReadOptions, VolumeInfo};
-use sphcover_core::{PointCloud, TriMesh, Volume};
+use sphcover_core::{PointCloud, TriMesh};
 use sphcover_skeleton::{
     NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton,
     extract_skeleton_from_samples, nms_skeleton,
@@ -11,6 +11,7 @@ use sphcover_skeleton::{
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
+use crate::memory_limit::MemoryLimit;
 use crate::report::{Reporter, stage_message};
 
 /// Relative difference of voxel edge lengths accepted as cubic voxels without a warning.
@@ -40,11 +41,15 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
         .into());
     }
 
+    // Everything the header decides is checked before the voxels are read.
+    let header = io::read_volume_info(&args.input)?;
+    check_volume(args, &header, reporter)?;
+    crate::skeleton_memory::check_budget(args, header.dims(), reporter)?;
+    let limit = MemoryLimit::from_flag(args.max_memory);
     let stage = reporter.stage("read volume");
-    let (volume, info) = io::read_volume(&args.input)?;
+    let (volume, info) = io::read_volume(&args.input, &limit.apply(ReadOptions::default()))
+        .map_err(|e| limit.explain(e))?;
     stage.finish();
-    check_volume(args, &volume, &info, reporter)?;
-    crate::skeleton_memory::check_budget(args, &volume, reporter)?;
     let [nx, ny, nz] = volume.dims();
     let size = volume.voxel_size();
     reporter.detail(&format!(
@@ -120,6 +125,7 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
         &args.input,
         property,
         &ReadOptions::default(),
+        &MemoryLimit::machine_default(),
         reporter,
     )?;
     reporter.detail(&format!("  {} samples with `{property}`", positions.len()));
@@ -191,15 +197,10 @@ fn write_sheet(
     Ok(())
 }
 
-/// Refuses what the pipeline cannot treat correctly: several frames, strongly anisotropic
-/// voxels, and voxel axes that are not the world axes (up to order and sign); warns about
-/// mildly anisotropic voxels.
-fn check_volume(
-    args: &SkeletonArgs,
-    volume: &Volume,
-    info: &VolumeInfo,
-    reporter: &Reporter,
-) -> anyhow::Result<()> {
+/// Refuses, from the header, what the pipeline cannot treat correctly: several frames,
+/// strongly anisotropic voxels, and voxel axes that are not the world axes (up to order and
+/// sign); warns about mildly anisotropic voxels.
+fn check_volume(args: &SkeletonArgs, info: &VolumeInfo, reporter: &Reporter) -> anyhow::Result<()> {
     let name = args.input.display();
     if info.frames() > 1 {
         return Err(BadInput(format!(
@@ -208,7 +209,7 @@ fn check_volume(
         ))
         .into());
     }
-    let size = volume.voxel_size();
+    let size = info.voxel_size();
     let (lo, hi) = (size.min_element(), size.max_element());
     if hi > MAX_ANISOTROPY * lo {
         return Err(BadInput(format!(
@@ -223,7 +224,7 @@ fn check_volume(
             size.x, size.y, size.z
         ));
     }
-    let m = volume.affine().matrix3;
+    let m = info.affine().matrix3;
     for col in [m.x_axis, m.y_axis, m.z_axis] {
         let big = col.abs().max_element();
         let off_axis = col

@@ -176,6 +176,41 @@ pub enum IoError {
         /// What is inconsistent.
         message: String,
     },
+    /// The file is well formed, but holding what its header declares would take more memory
+    /// than [`ReadOptions::max_bytes`](super::ReadOptions::max_bytes) allows. Refused from
+    /// the header, before the data is read or allocated.
+    #[error(
+        "{}: declares {declared}: {} in memory, above the memory limit {}",
+        path.display(),
+        format_byte_size(*bytes),
+        format_byte_size(*limit)
+    )]
+    OverMemoryLimit {
+        /// The file.
+        path: PathBuf,
+        /// What the header declares, e.g. `512 x 512 x 300 voxels of int16 (150.0 MiB
+        /// decoded, held as float32)`.
+        declared: String,
+        /// Bytes the reader would allocate for it.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// The memory for what the file declares was within the limit but could not be
+    /// allocated (an address-space or cgroup limit, or an exhausted machine).
+    #[error(
+        "{}: cannot allocate {} for {what}",
+        path.display(),
+        format_byte_size(*bytes)
+    )]
+    OutOfMemory {
+        /// The file.
+        path: PathBuf,
+        /// What the memory was for.
+        what: String,
+        /// Bytes asked for.
+        bytes: u64,
+    },
 }
 
 /// The plural ending of a count.
@@ -185,9 +220,10 @@ fn plural(n: &u64) -> &'static str {
 
 impl IoError {
     /// True when the error lies with what the caller asked for (a missing, unreadable or
-    /// malformed input, an unknown format, an output the format cannot hold, an output that
-    /// would overwrite an input) rather than with the machine (a failed write) or with the
-    /// caller's data structures. Command-line tools map it to their "bad input" exit code.
+    /// malformed input, an input larger than the memory limit, an unknown format, an output
+    /// the format cannot hold, an output that would overwrite an input) rather than with the
+    /// machine (a failed write or allocation) or with the caller's data structures.
+    /// Command-line tools map it to their "bad input" exit code.
     pub fn is_bad_input(&self) -> bool {
         match self {
             IoError::Read { .. }
@@ -196,22 +232,34 @@ impl IoError {
             | IoError::NonFinite { .. }
             | IoError::NoRadius { .. }
             | IoError::Unsupported { .. }
-            | IoError::OutputIsInput { .. } => true,
-            IoError::Write { .. } | IoError::InvalidData { .. } => false,
+            | IoError::OutputIsInput { .. }
+            | IoError::OverMemoryLimit { .. } => true,
+            IoError::Write { .. } | IoError::InvalidData { .. } | IoError::OutOfMemory { .. } => {
+                false
+            }
         }
     }
 }
 
-/// A problem and its place, before the reader's caller attaches the file name.
+/// Why a reader stopped, before its caller attaches the file name: a problem in the content
+/// and its place, or a size the read must not allocate.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Failure {
-    pub at: Location,
-    pub problem: Problem,
+pub(crate) enum Failure {
+    /// The content breaks the format ([`IoError::Malformed`]).
+    Content { at: Location, problem: Problem },
+    /// The declared data is above the memory limit ([`IoError::OverMemoryLimit`]).
+    OverLimit {
+        declared: String,
+        bytes: u64,
+        limit: u64,
+    },
+    /// The allocator refused memory within the limit ([`IoError::OutOfMemory`]).
+    OutOfMemory { what: String, bytes: u64 },
 }
 
 impl Failure {
     pub(crate) fn new(at: Location, problem: Problem) -> Failure {
-        Failure { at, problem }
+        Failure::Content { at, problem }
     }
 
     pub(crate) fn syntax(at: Location, message: impl Into<String>) -> Failure {
@@ -223,12 +271,82 @@ impl Failure {
     }
 
     pub(crate) fn into_io(self, path: &Path) -> IoError {
-        IoError::Malformed {
-            path: path.to_path_buf(),
-            at: self.at,
-            problem: self.problem,
+        let path = path.to_path_buf();
+        match self {
+            Failure::Content { at, problem } => IoError::Malformed { path, at, problem },
+            Failure::OverLimit {
+                declared,
+                bytes,
+                limit,
+            } => IoError::OverMemoryLimit {
+                path,
+                declared,
+                bytes,
+                limit,
+            },
+            Failure::OutOfMemory { what, bytes } => IoError::OutOfMemory { path, what, bytes },
         }
     }
+}
+
+/// The memory a reader sets aside for what a file declares, checked against the read's limit
+/// ([`ReadOptions::max_bytes`](super::ReadOptions::max_bytes)) before each allocation.
+#[derive(Debug)]
+pub(crate) struct MemoryBudget {
+    limit: Option<u64>,
+    bytes: u64,
+    declared: Vec<String>,
+}
+
+impl MemoryBudget {
+    pub(crate) fn new(limit: Option<u64>) -> MemoryBudget {
+        MemoryBudget {
+            limit,
+            bytes: 0,
+            declared: Vec::new(),
+        }
+    }
+
+    /// Counts `bytes` more, for what `declared` describes (`"1000 vertices"`); refuses when
+    /// the total passes the limit, naming everything counted so far.
+    pub(crate) fn reserve(
+        &mut self,
+        bytes: u64,
+        declared: impl FnOnce() -> String,
+    ) -> Result<(), Failure> {
+        self.bytes = self.bytes.saturating_add(bytes);
+        let Some(limit) = self.limit else {
+            return Ok(());
+        };
+        self.declared.push(declared());
+        if self.bytes > limit {
+            return Err(Failure::OverLimit {
+                declared: self.declared.join(" and "),
+                bytes: self.bytes,
+                limit,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A size for people: `1.2 GiB`, `456.7 MiB`, `12.0 KiB`, `800 B` (powers of 1024, one
+/// decimal; TiB is the largest unit).
+pub fn format_byte_size(bytes: u64) -> String {
+    const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
+    if bytes < 1024 {
+        return format!("{bytes} B");
+    }
+    let mut value = bytes as f64;
+    let mut unit = "B";
+    for name in UNITS {
+        if value < 1024.0 {
+            break;
+        }
+        value /= 1024.0;
+        unit = name;
+    }
+    format!("{value:.1} {unit}")
 }
 
 /// Cuts a token for an error message so a megabyte of garbage does not end up in it.

@@ -14,23 +14,23 @@
 //! * 8- and 16-bit and `float` samples are stored as `f32`, 32-bit integers and `double` as
 //!   `f64`, as the NIfTI reader does.
 //! * gzip is recognised by its magic bytes, whatever the extension. The declared data size
-//!   is checked before anything large is allocated: against the file size when
-//!   uncompressed, against what DEFLATE can expand the file to when compressed, and no more
-//!   than header and declared data is ever decompressed. Byte offsets in errors count from
-//!   the start of the decompressed stream.
+//!   is checked before anything large is allocated (the steps in [`super::volume_file`]):
+//!   against the file size when uncompressed, against what DEFLATE can expand the file to
+//!   when compressed, and against the memory limit; a gzip stream that goes on past the
+//!   declared data is refused one byte later. Byte offsets in errors count from the start of
+//!   the decompressed stream.
 
-use std::fs::File;
-use std::io::{BufReader, Read};
 use std::path::Path;
 
 use glam::DVec3;
 
+use super::ReadOptions;
 use super::error::{Failure, IoError, Location, Problem};
-use super::volume_file::{DecodeError, SampleType, decode_samples};
+use super::volume_file::{DecodeError, SampleDecoder, SampleType, VolumeStream, VoxelData};
 use crate::volume::Volume;
 
-/// DEFLATE cannot expand data by more than this ratio (see the NIfTI reader).
-const MAX_DEFLATE_RATIO: u64 = 1032;
+/// The first bytes of every INRIMAGE-4 file.
+const MAGIC: &[u8] = b"#INRIMAGE-4#{";
 /// Header blocks are this long.
 const BLOCK: usize = 256;
 /// No writer produces a header longer than this; a file without `##}` before it is not an
@@ -59,68 +59,36 @@ pub struct InrimageInfo {
 }
 
 /// Reads an INRIMAGE-4 file (`.inr` or `.inr.gz`) as a [`Volume`] with axis-aligned voxels.
-pub fn read_inrimage(path: &Path) -> Result<(Volume, InrimageInfo), IoError> {
-    let read_error = |source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    };
-    let file = File::open(path).map_err(read_error)?;
-    let file_size = file.metadata().map_err(read_error)?.len();
-    let mut reader = BufReader::with_capacity(1 << 16, file);
-    let gzip = {
-        let buf = std::io::BufRead::fill_buf(&mut reader).map_err(read_error)?;
-        buf.starts_with(&[0x1f, 0x8b])
-    };
-    let result = if gzip {
-        decode(flate2::read::MultiGzDecoder::new(reader), file_size, true)
-    } else {
-        decode(reader, file_size, false)
-    };
-    result.map_err(|e| e.into_io(path))
+/// A volume whose values would take more than `options.max_bytes` is refused from the header
+/// with [`IoError::OverMemoryLimit`].
+pub fn read_inrimage(
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<(Volume, InrimageInfo), IoError> {
+    let mut stream = VolumeStream::open(path)?;
+    decode(&mut stream, options).map_err(|e| e.into_io(path))
+}
+
+/// Reads only the header of an INRIMAGE-4 file, with every check [`read_inrimage`] makes
+/// before it reads the voxels.
+pub fn read_inrimage_info(path: &Path) -> Result<InrimageInfo, IoError> {
+    let mut stream = VolumeStream::open(path)?;
+    read_header(&mut stream)
+        .map(|(info, _)| info)
+        .map_err(|e| e.into_io(path))
 }
 
 /// Parses an INRIMAGE-4 file held in memory (plain or gzip); `path` only names it in errors.
-pub fn parse_inrimage(bytes: &[u8], path: &Path) -> Result<(Volume, InrimageInfo), IoError> {
-    let size = bytes.len() as u64;
-    if bytes.starts_with(&[0x1f, 0x8b]) {
-        decode(flate2::read::MultiGzDecoder::new(bytes), size, true)
-    } else {
-        decode(bytes, size, false)
-    }
-    .map_err(|e| e.into_io(path))
+pub fn parse_inrimage(
+    bytes: &[u8],
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<(Volume, InrimageInfo), IoError> {
+    decode(&mut VolumeStream::from_bytes(bytes), options).map_err(|e| e.into_io(path))
 }
 
 fn header_error(at: usize, message: impl Into<String>) -> DecodeError {
     DecodeError::Content(Failure::header(Location::Byte(at as u64), message))
-}
-
-/// Reads up to `buf.len()` bytes, stopping early only at the end of the stream; `offset` is
-/// the stream offset of `buf[0]` (for messages about corrupt gzip data).
-fn fill<R: Read>(r: &mut R, buf: &mut [u8], offset: u64, gzip: bool) -> Result<usize, DecodeError> {
-    let mut done = 0;
-    while done < buf.len() {
-        match r.read(&mut buf[done..]) {
-            Ok(0) => break,
-            Ok(n) => done += n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e)
-                if gzip
-                    && matches!(
-                        e.kind(),
-                        std::io::ErrorKind::InvalidData
-                            | std::io::ErrorKind::InvalidInput
-                            | std::io::ErrorKind::UnexpectedEof
-                    ) =>
-            {
-                return Err(DecodeError::Content(Failure::syntax(
-                    Location::Byte(offset + done as u64),
-                    format!("corrupt gzip stream: {e}"),
-                )));
-            }
-            Err(e) => return Err(DecodeError::Os(e)),
-        }
-    }
-    Ok(done)
 }
 
 /// The header keys the reader uses, each with the byte offset of its line.
@@ -236,14 +204,12 @@ fn parse_keys(header: &[u8]) -> Result<Keys, DecodeError> {
     Ok(keys)
 }
 
-fn decode<R: Read>(
-    mut stream: R,
-    file_size: u64,
-    gzip: bool,
-) -> Result<(Volume, InrimageInfo), DecodeError> {
-    const MAGIC: &[u8] = b"#INRIMAGE-4#{";
+/// Reads and checks the header, and checks the declared data against what the stream can
+/// hold; reads nothing past the header.
+fn read_header(stream: &mut VolumeStream<'_>) -> Result<(InrimageInfo, VoxelData), DecodeError> {
+    let gzip = stream.gzip();
     let mut header = vec![0u8; BLOCK];
-    let got = fill(&mut stream, &mut header, 0, gzip)?;
+    let got = stream.fill(&mut header)?;
     if got == 0 {
         return Err(Failure::new(Location::Byte(0), Problem::EmptyFile).into());
     }
@@ -272,12 +238,7 @@ fn decode<R: Read>(
             ));
         }
         header.resize(header.len() + BLOCK, 0);
-        let more = fill(
-            &mut stream,
-            &mut header[block_start + BLOCK..],
-            (block_start + BLOCK) as u64,
-            gzip,
-        )?;
+        let more = stream.fill(&mut header[block_start + BLOCK..])?;
         if more < BLOCK {
             return Err(header_error(
                 block_start + BLOCK + more,
@@ -362,76 +323,56 @@ fn decode<R: Read>(
     let declared_end = (header_size as u64)
         .checked_add(data_bytes)
         .ok_or_else(absurd)?;
-    let truncated = |end: u64| {
-        DecodeError::Content(Failure::new(
-            Location::Byte(end),
-            Problem::Truncated {
-                element: format!("{} voxel", sample_type.name()),
-                index: end.saturating_sub(header_size as u64) / sample_type.size() as u64,
-                declared: voxels,
-            },
-        ))
+    let data = VoxelData {
+        dims: [dims[0], dims[1], dims[2]],
+        frames: 1,
+        decoder: SampleDecoder::new(sample_type, big_endian, None, true),
+        start: header_size as u64,
     };
-    if gzip {
-        let bound = file_size
-            .saturating_mul(MAX_DEFLATE_RATIO)
-            .saturating_add(1024);
-        if declared_end > bound {
-            return Err(header_error(
-                MAGIC.len(),
-                format!(
-                    "the header declares {} × {} × {} {} voxels ({declared_end} bytes with the header), more than a {file_size}-byte gzip file can hold",
-                    dims[0],
-                    dims[1],
-                    dims[2],
-                    sample_type.name()
-                ),
-            ));
+    let file_size = stream.file_size();
+    if declared_end > stream.capacity() {
+        if !gzip {
+            return Err(data.truncated(file_size));
         }
-    } else if declared_end > file_size {
-        return Err(truncated(file_size));
+        return Err(header_error(
+            MAGIC.len(),
+            format!(
+                "the header declares {} × {} × {} {} voxels ({declared_end} bytes with the header), more than a {file_size}-byte gzip file can hold",
+                dims[0],
+                dims[1],
+                dims[2],
+                sample_type.name()
+            ),
+        ));
     }
-    let usable = usize::try_from(data_bytes).map_err(|_| {
-        header_error(
+    let [Ok(nx), Ok(ny), Ok(nz)] = [dims[0], dims[1], dims[2]].map(usize::try_from) else {
+        return Err(header_error(
             MAGIC.len(),
             format!("dims {:?}: too large for this machine", &dims[..3]),
-        )
-    })?;
-
-    // Grow as data arrives, so that a gzip stream that lies about its size stays cheap; no
-    // more than the declared size is ever decompressed.
-    let mut data: Vec<u8> = Vec::new();
-    let chunk = 1usize << 22;
-    while data.len() < usable {
-        let start = data.len();
-        let want = (usable - start).min(chunk);
-        data.resize(start + want, 0);
-        let got = fill(
-            &mut stream,
-            &mut data[start..],
-            (header_size + start) as u64,
-            gzip,
-        )?;
-        if got < want {
-            return Err(truncated((header_size + start + got) as u64));
-        }
-    }
-
-    let values = decode_samples(&data, sample_type, big_endian, None, true);
-    let dims3 = [dims[0] as usize, dims[1] as usize, dims[2] as usize];
-    let voxel_size = DVec3::from_array(keys.voxel.map(|v| v.unwrap_or(1.0)));
-    let origin = DVec3::from_array(keys.origin.map(|v| v.unwrap_or(0.0)));
-    let volume = Volume::axis_aligned(dims3, values, voxel_size, origin)
-        .map_err(|e| header_error(MAGIC.len(), format!("invalid volume: {e}")))?;
+        ));
+    };
     let info = InrimageInfo {
         gzip,
         big_endian,
         sample_type,
-        dims: dims3,
-        voxel_size,
-        origin,
+        dims: [nx, ny, nz],
+        voxel_size: DVec3::from_array(keys.voxel.map(|v| v.unwrap_or(1.0))),
+        origin: DVec3::from_array(keys.origin.map(|v| v.unwrap_or(0.0))),
         header_size: header_size as u64,
         comments: keys.comments,
     };
+    Ok((info, data))
+}
+
+fn decode(
+    stream: &mut VolumeStream<'_>,
+    options: &ReadOptions,
+) -> Result<(Volume, InrimageInfo), DecodeError> {
+    let (info, data) = read_header(stream)?;
+    data.check_memory(options.max_bytes)?;
+    let values = data.read_values(stream)?;
+    stream.expect_end()?;
+    let volume = Volume::axis_aligned(info.dims, values, info.voxel_size, info.origin)
+        .map_err(|e| header_error(MAGIC.len(), format!("invalid volume: {e}")))?;
     Ok((volume, info))
 }

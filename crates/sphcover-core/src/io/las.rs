@@ -18,7 +18,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::error::{Failure, Location, Problem};
+use super::error::{Failure, Location, MemoryBudget, Problem};
 use super::{ElementInfo, FileInfo, Format, Parsed, PropertyInfo, VertexOrigins};
 use crate::point_cloud::PointCloud;
 
@@ -127,7 +127,11 @@ fn text_at(b: &[u8], at: usize, len: usize) -> String {
     String::from_utf8_lossy(&raw[..end]).trim().to_string()
 }
 
-pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
+/// Bytes of a point in memory: its position and its intensity.
+const POINT_BYTES: u64 = 24 + 8;
+
+/// Reads a LAS file; the points must fit in `limit` bytes.
+pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
     if !bytes.starts_with(b"LASF") {
         let found = super::error::token_for_message(&bytes[..bytes.len().min(4)]);
         return Err(header(
@@ -268,7 +272,10 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
             ),
         ));
     }
-    // `count ≤ available`, so this fits in memory: it is bounded by the file size.
+    MemoryBudget::new(limit).reserve(count.saturating_mul(POINT_BYTES), || {
+        format!("{count} points")
+    })?;
+    // `count ≤ available`, so this fits in `usize`: it is bounded by the file size.
     let n = count as usize;
     let data = &bytes[offset..offset + n * record_length];
     let scale = DVec3::from_array(scale);

@@ -4,7 +4,11 @@
 //! against the bytes actually present before allocating, and reports every problem as an
 //! [`IoError`] naming the file and the line (text) or byte offset (binary) where it is. No
 //! byte sequence makes a reader panic or allocate more than a small multiple of the file
-//! size.
+//! size. Where a reader sizes an allocation from a declared count (PLY elements, OFF counts,
+//! LAS points, binary STL triangles, volume dimensions), the count times the bytes each
+//! record takes in memory is also checked against [`ReadOptions::max_bytes`] first, and a
+//! file over it is refused with [`IoError::OverMemoryLimit`]; text formats without counts
+//! (OBJ, XYZ) and cover files grow their arrays with the records actually present.
 //!
 //! # Formats and the rules chosen where formats are loose
 //!
@@ -70,14 +74,14 @@ use crate::point_cloud::PointCloud;
 
 pub use atomic::write_atomic;
 pub use cover_file::{CoverFileMeta, parse_cover, read_cover, write_cover};
-pub use error::{IoError, Location, Problem};
+pub use error::{IoError, Location, Problem, format_byte_size};
 #[cfg(feature = "nifti")]
-pub use inrimage::{InrimageInfo, parse_inrimage, read_inrimage};
+pub use inrimage::{InrimageInfo, parse_inrimage, read_inrimage, read_inrimage_info};
 #[cfg(feature = "nifti")]
-pub use nifti::{AffineSource, NiftiInfo, parse_nifti, read_nifti};
+pub use nifti::{AffineSource, NiftiInfo, parse_nifti, read_nifti, read_nifti_info};
 pub use vertex_property::{parse_ply_with_vertex_property, read_geometry_with_vertex_property};
 #[cfg(feature = "nifti")]
-pub use volume_file::{SampleType, VolumeInfo, is_volume_path, read_volume};
+pub use volume_file::{SampleType, VolumeInfo, is_volume_path, read_volume, read_volume_info};
 
 /// A file format, named by the file's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -161,6 +165,12 @@ pub enum NonFinitePolicy {
 pub struct ReadOptions {
     /// What to do with non-finite vertices.
     pub non_finite: NonFinitePolicy,
+    /// The most memory, in bytes, a reader may set aside for the records or voxels a file
+    /// declares (its count times each one's size in memory), checked from the header before
+    /// anything is allocated or decompressed: a file declaring more is refused with
+    /// [`IoError::OverMemoryLimit`]. `None` (the default) sets no limit besides what the
+    /// file's size can hold.
+    pub max_bytes: Option<u64>,
 }
 
 /// Encoding of PLY output.
@@ -378,12 +388,13 @@ pub fn parse_geometry(
     if bytes.is_empty() {
         return Err(error::Failure::new(Location::Byte(0), Problem::EmptyFile).into_io(path));
     }
+    let limit = options.max_bytes;
     let parsed = match format {
-        Format::Ply => ply::read(bytes),
+        Format::Ply => ply::read(bytes, limit),
         Format::Obj => obj::read(bytes),
-        Format::Off => off::read(bytes),
-        Format::Stl => stl::read(bytes),
-        Format::Las => las::read(bytes),
+        Format::Off => off::read(bytes, limit),
+        Format::Stl => stl::read(bytes, limit),
+        Format::Las => las::read(bytes, limit),
         Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::read(bytes, format),
     }
     .map_err(|failure| failure.into_io(path))?;

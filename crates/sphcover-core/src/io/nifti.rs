@@ -12,28 +12,23 @@
 //!   the origin at voxel `(0, 0, 0)`.
 //! * Volumes with more than three dimensions keep their first frame;
 //!   [`NiftiInfo::frames`] says how many there were.
-//! * Every count is checked against the data actually present before anything large is
-//!   allocated: an uncompressed file shorter than its header declares is refused from its
-//!   size; a gzip stream is decompressed incrementally, refused when it ends early, and
-//!   refused up front when it declares more data than DEFLATE can expand its compressed
-//!   size to (1032:1). Byte offsets in errors count from the start of the decompressed
-//!   stream.
+//! * Every count is checked against the data actually present and against the memory limit
+//!   before anything large is allocated (the steps in [`super::volume_file`]): an
+//!   uncompressed file shorter than its header declares is refused from its size; a gzip
+//!   stream is refused up front when it declares more data than DEFLATE can expand its
+//!   compressed size to (1032:1), and when it ends early or goes on past the declared data.
+//!   Byte offsets in errors count from the start of the decompressed stream.
 //! * Not read: the two-file `.hdr`/`.img` pair (magic `ni1`/`ni2`), complex and RGB
 //!   datatypes, 64-bit integers.
 
-use std::fs::File;
-use std::io::{BufReader, Read};
 use std::path::Path;
 
 use glam::{DAffine3, DMat3, DVec3};
 
+use super::ReadOptions;
 use super::error::{Failure, IoError, Location, Problem};
-use super::volume_file::{DecodeError, SampleType, decode_samples};
+use super::volume_file::{DecodeError, SampleDecoder, SampleType, VolumeStream, VoxelData};
 use crate::volume::Volume;
-
-/// DEFLATE cannot expand data by more than this ratio (a 258-byte match costs at least two
-/// bits), so a gzip file declaring more is refused before decompressing.
-const MAX_DEFLATE_RATIO: u64 = 1032;
 
 impl SampleType {
     /// The sample type of a NIfTI `datatype` code, if supported.
@@ -107,107 +102,29 @@ pub struct NiftiInfo {
 }
 
 /// Reads a NIfTI-1 or NIfTI-2 file (`.nii` or `.nii.gz`): its first 3D frame as a
-/// [`Volume`] and what its header declares.
-pub fn read_nifti(path: &Path) -> Result<(Volume, NiftiInfo), IoError> {
-    let read_error = |source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    };
-    let file = File::open(path).map_err(read_error)?;
-    let file_size = file.metadata().map_err(read_error)?.len();
-    let mut reader = BufReader::with_capacity(1 << 16, file);
-    let gzip = {
-        let buf = std::io::BufRead::fill_buf(&mut reader).map_err(read_error)?;
-        buf.len() >= 2 && buf[0] == 0x1f && buf[1] == 0x8b
-    };
-    if gzip {
-        let mut stream = Counting::new(flate2::read::MultiGzDecoder::new(reader));
-        decode(&mut stream, file_size, true).map_err(|e| e.into_io(path))
-    } else {
-        let mut stream = Counting::new(reader);
-        decode(&mut stream, file_size, false).map_err(|e| e.into_io(path))
-    }
+/// [`Volume`] and what its header declares. A first frame whose values would take more than
+/// `options.max_bytes` is refused from the header with [`IoError::OverMemoryLimit`].
+pub fn read_nifti(path: &Path, options: &ReadOptions) -> Result<(Volume, NiftiInfo), IoError> {
+    let mut stream = VolumeStream::open(path)?;
+    decode(&mut stream, options).map_err(|e| e.into_io(path))
+}
+
+/// Reads only the header of a NIfTI file, with every check [`read_nifti`] makes before it
+/// reads the voxels.
+pub fn read_nifti_info(path: &Path) -> Result<NiftiInfo, IoError> {
+    let mut stream = VolumeStream::open(path)?;
+    read_header(&mut stream)
+        .map(|(info, _)| info)
+        .map_err(|e| e.into_io(path))
 }
 
 /// Parses a NIfTI file held in memory (plain or gzip); `path` only names it in errors.
-pub fn parse_nifti(bytes: &[u8], path: &Path) -> Result<(Volume, NiftiInfo), IoError> {
-    let size = bytes.len() as u64;
-    if bytes.starts_with(&[0x1f, 0x8b]) {
-        let mut stream = Counting::new(flate2::read::MultiGzDecoder::new(bytes));
-        decode(&mut stream, size, true)
-    } else {
-        decode(&mut Counting::new(bytes), size, false)
-    }
-    .map_err(|e| e.into_io(path))
-}
-
-/// A reader that counts the bytes it has delivered (the decompressed offset).
-struct Counting<R> {
-    inner: R,
-    offset: u64,
-    gzip: bool,
-}
-
-impl<R: Read> Counting<R> {
-    fn new(inner: R) -> Counting<R> {
-        Counting {
-            inner,
-            offset: 0,
-            gzip: false,
-        }
-    }
-
-    /// Reads up to `buf.len()` bytes, stopping early only at the end of the stream; returns
-    /// how many were read.
-    fn fill(&mut self, buf: &mut [u8]) -> Result<usize, DecodeError> {
-        let mut done = 0;
-        while done < buf.len() {
-            match self.inner.read(&mut buf[done..]) {
-                Ok(0) => break,
-                Ok(n) => {
-                    done += n;
-                    self.offset += n as u64;
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(self.stream_error(e)),
-            }
-        }
-        Ok(done)
-    }
-
-    /// Skips up to `n` bytes; returns how many were skipped.
-    fn skip(&mut self, n: u64) -> Result<u64, DecodeError> {
-        let mut scratch = [0u8; 1 << 14];
-        let mut left = n;
-        while left > 0 {
-            let chunk = left.min(scratch.len() as u64) as usize;
-            let got = self.fill(&mut scratch[..chunk])?;
-            if got == 0 {
-                break;
-            }
-            left -= got as u64;
-        }
-        Ok(n - left)
-    }
-
-    /// A corrupt gzip stream is a content problem; a failing disk is not.
-    fn stream_error(&self, e: std::io::Error) -> DecodeError {
-        let corrupt = self.gzip
-            && matches!(
-                e.kind(),
-                std::io::ErrorKind::InvalidData
-                    | std::io::ErrorKind::InvalidInput
-                    | std::io::ErrorKind::UnexpectedEof
-            );
-        if corrupt {
-            DecodeError::Content(Failure::syntax(
-                Location::Byte(self.offset),
-                format!("corrupt gzip stream: {e}"),
-            ))
-        } else {
-            DecodeError::Os(e)
-        }
-    }
+pub fn parse_nifti(
+    bytes: &[u8],
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<(Volume, NiftiInfo), IoError> {
+    decode(&mut VolumeStream::from_bytes(bytes), options).map_err(|e| e.into_io(path))
 }
 
 /// Reads numbers of either byte order from a header buffer.
@@ -447,12 +364,22 @@ fn quaternion_matrix(q: [f64; 3]) -> DMat3 {
     )
 }
 
-fn decode<R: Read>(
-    stream: &mut Counting<R>,
-    file_size: u64,
-    gzip: bool,
-) -> Result<(Volume, NiftiInfo), DecodeError> {
-    stream.gzip = gzip;
+/// Where the voxels are, past the header.
+struct Layout {
+    data: VoxelData,
+    /// Bytes of the first frame, and of all frames.
+    frame_bytes: u64,
+    data_bytes: u64,
+    /// Bytes of the header proper (348 or 540); extensions lie between it and `data.start`.
+    header_size: u64,
+    /// Offset of `dim[1]`, where errors about the dimensions point.
+    dims_at: usize,
+}
+
+/// Reads and checks the header, and checks the declared data against what the stream can
+/// hold; reads nothing past the header.
+fn read_header(stream: &mut VolumeStream<'_>) -> Result<(NiftiInfo, Layout), DecodeError> {
+    let gzip = stream.gzip();
     let mut buf = [0u8; 540];
     let got = stream.fill(&mut buf[..4])?;
     if got == 0 {
@@ -548,115 +475,88 @@ fn decode<R: Read>(
     let declared_end = vox_offset
         .checked_add(data_bytes)
         .ok_or_else(|| absurd(format!("dims {extent:?} overflow")))?;
-    let declared = format!(
-        "{} × {} × {} voxels × {frames} frame{} of {} from byte {vox_offset}",
-        extent[0],
-        extent[1],
-        extent[2],
-        if frames == 1 { "" } else { "s" },
-        datatype.name()
-    );
-    if gzip {
-        let bound = file_size
-            .saturating_mul(MAX_DEFLATE_RATIO)
-            .saturating_add(1024);
-        if declared_end > bound {
-            return Err(absurd(format!(
-                "the header declares {declared} ({declared_end} bytes), more than a {file_size}-byte gzip file can hold"
-            )));
-        }
-    } else if declared_end > file_size {
-        return Err(truncated(file_size, vox_offset, datatype, voxels, frames));
-    }
-    let usable = usize::try_from(frame_bytes)
-        .ok()
-        .filter(|_| usize::try_from(voxels).is_ok())
-        .ok_or_else(|| absurd(format!("{declared}: too large for this machine")))?;
-
-    let (affine, affine_source) = affine_of(&h)?;
     let scaling = (h.scl_slope.is_finite() && h.scl_slope != 0.0 && h.scl_inter.is_finite())
         .then_some((h.scl_slope, h.scl_inter))
         .filter(|&s| s != (1.0, 0.0));
-
-    // Extensions between the header and the data are skipped.
-    let gap = vox_offset - h.size as u64;
-    if stream.skip(gap)? < gap {
-        return Err(truncated(
-            stream.offset,
-            vox_offset,
-            datatype,
-            voxels,
-            frames,
-        ));
-    }
-    let mut data = vec![0u8; 0];
-    // Grow as data arrives: an uncompressed file's size was checked, and a gzip stream is
-    // bounded by the DEFLATE ratio, but reading in chunks keeps a lying stream cheap.
-    let chunk = 1usize << 22;
-    while data.len() < usable {
-        let start = data.len();
-        let want = (usable - start).min(chunk);
-        data.resize(start + want, 0);
-        let got = stream.fill(&mut data[start..])?;
-        if got < want {
-            return Err(truncated(
-                stream.offset,
-                vox_offset,
-                datatype,
-                voxels,
-                frames,
-            ));
-        }
-    }
-    let rest = data_bytes - frame_bytes;
-    if stream.skip(rest)? < rest {
-        return Err(truncated(
-            stream.offset,
-            vox_offset,
-            datatype,
-            voxels,
-            frames,
-        ));
-    }
-
     // NIfTI-1 slopes are f32, so a scaled value rounded to f32 loses nothing the file held;
     // NIfTI-2 slopes are f64.
-    let values = decode_samples(&data, datatype, big, scaling, version == 1);
-    let dims = [extent[0] as usize, extent[1] as usize, extent[2] as usize];
-    let volume = Volume::new(dims, values, affine)
-        .map_err(|e| header_error(h.dim[1].1, format!("invalid volume: {e}")))?;
+    let decoder = SampleDecoder::new(datatype, big, scaling, version == 1);
+    let data = VoxelData {
+        dims: [extent[0], extent[1], extent[2]],
+        frames,
+        decoder,
+        start: vox_offset,
+    };
+    let file_size = stream.file_size();
+    if declared_end > stream.capacity() {
+        if !gzip {
+            return Err(data.truncated(file_size));
+        }
+        return Err(absurd(format!(
+            "the header declares {} × {} × {} voxels × {frames} frame{} of {} from byte {vox_offset} ({declared_end} bytes), more than a {file_size}-byte gzip file can hold",
+            extent[0],
+            extent[1],
+            extent[2],
+            if frames == 1 { "" } else { "s" },
+            datatype.name()
+        )));
+    }
+    let dims = [extent[0], extent[1], extent[2]].map(usize::try_from);
+    let [Ok(nx), Ok(ny), Ok(nz)] = dims else {
+        return Err(absurd(format!(
+            "dims {:?}: too large for this machine",
+            &extent[..3]
+        )));
+    };
+
+    let (affine, affine_source) = affine_of(&h)?;
+    let m = affine.matrix3;
     let info = NiftiInfo {
         version,
         big_endian: big,
         gzip,
         datatype,
-        dims,
+        dims: [nx, ny, nz],
         frames,
-        voxel_size: volume.voxel_size(),
+        voxel_size: DVec3::new(m.x_axis.length(), m.y_axis.length(), m.z_axis.length()),
         affine,
         affine_source,
         scaling,
         vox_offset,
         description: h.description,
     };
-    Ok((volume, info))
+    let layout = Layout {
+        data,
+        frame_bytes,
+        data_bytes,
+        header_size: h.size as u64,
+        dims_at: h.dim[1].1,
+    };
+    Ok((info, layout))
 }
 
-/// The error for data ending at stream offset `end` before the declared voxels.
-fn truncated(
-    end: u64,
-    vox_offset: u64,
-    datatype: SampleType,
-    voxels: u64,
-    frames: u64,
-) -> DecodeError {
-    let first_missing = end.saturating_sub(vox_offset) / datatype.size() as u64;
-    DecodeError::Content(Failure::new(
-        Location::Byte(end),
-        Problem::Truncated {
-            element: format!("{} voxel", datatype.name()),
-            index: first_missing,
-            declared: voxels.saturating_mul(frames),
-        },
-    ))
+fn decode(
+    stream: &mut VolumeStream<'_>,
+    options: &ReadOptions,
+) -> Result<(Volume, NiftiInfo), DecodeError> {
+    let (info, layout) = read_header(stream)?;
+    let data = &layout.data;
+    data.check_memory(options.max_bytes)?;
+
+    // Extensions between the header and the data are skipped.
+    let gap = data.start - layout.header_size;
+    if stream.skip(gap)? < gap {
+        return Err(data.truncated(stream.offset()));
+    }
+    let values = data.read_values(stream)?;
+    // The other frames are inflated (gzip) to check that they are all there, never kept.
+    let rest = layout.data_bytes - layout.frame_bytes;
+    if stream.skip(rest)? < rest {
+        return Err(data.truncated(stream.offset()));
+    }
+    stream.expect_end()?;
+
+    let volume = Volume::new(info.dims, values, info.affine)
+        .map_err(|e| header_error(layout.dims_at, format!("invalid volume: {e}")))?;
+    Ok((volume, info))
 }

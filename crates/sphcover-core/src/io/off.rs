@@ -16,7 +16,7 @@ use std::io::Write;
 use glam::DVec3;
 
 use super::encode::write_records;
-use super::error::{Failure, Location, Problem};
+use super::error::{Failure, Location, MemoryBudget, Problem};
 use super::text::{LineCursor, Tokens, bad_number, parse_f64, parse_integer, push_real, push_uint};
 use super::{
     ElementInfo, Export, FileInfo, Format, Parsed, PropertyInfo, VertexOrigins, push_polygon,
@@ -65,7 +65,8 @@ fn parse_keyword(token: &[u8], at: Location) -> Result<Columns, Failure> {
     Ok(columns)
 }
 
-pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
+/// Reads an OFF file; the arrays its counts reserve must fit in `limit` bytes.
+pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
     let mut cursor = LineCursor::new(bytes, 0, 1);
     let Some((first_line, line)) = cursor.next_content_line(Some(b'#')) else {
         return Err(Failure::header(
@@ -131,6 +132,12 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
 
     // Preallocate no more than the bytes left can hold ("0 0 0\n" is 6 bytes).
     let capacity = (vertex_count as usize).min(cursor.remaining() / 6);
+    let mut budget = MemoryBudget::new(limit);
+    // Position, normal and line number of each vertex.
+    let per_vertex = 24 + if columns.normals { 24 } else { 0 } + 8;
+    budget.reserve((capacity as u64).saturating_mul(per_vertex), || {
+        declared_count(vertex_count, capacity, "vertices")
+    })?;
     let mut positions = Vec::with_capacity(capacity);
     let mut normals = columns.normals.then(|| Vec::with_capacity(capacity));
     let mut lines = Vec::with_capacity(capacity);
@@ -165,7 +172,12 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
         lines.push(line_no);
     }
 
-    let mut triangles = Vec::with_capacity((face_count as usize).min(cursor.remaining() / 8));
+    // "3 0 1 2\n" is 8 bytes; each face makes at least one 12-byte triangle.
+    let face_capacity = (face_count as usize).min(cursor.remaining() / 8);
+    budget.reserve((face_capacity as u64).saturating_mul(12), || {
+        declared_count(face_count, face_capacity, "faces")
+    })?;
+    let mut triangles = Vec::with_capacity(face_capacity);
     let mut corners = Vec::new();
     let mut skipped = 0u64;
     for f in 0..face_count {
@@ -254,6 +266,15 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
         info,
         origins: VertexOrigins::Lines(lines),
     })
+}
+
+/// `"N vertices"`, or with how many of them the file can hold when fewer.
+fn declared_count(count: u64, capacity: usize, what: &str) -> String {
+    if capacity as u64 == count {
+        format!("{count} {what}")
+    } else {
+        format!("{count} {what} (of which the file can hold {capacity})")
+    }
 }
 
 fn truncated(cursor: &LineCursor<'_>, element: &str, index: u64, declared: u64) -> Failure {

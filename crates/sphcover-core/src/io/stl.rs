@@ -12,7 +12,7 @@ use std::io::Write;
 
 use glam::DVec3;
 
-use super::error::{Failure, Location, Problem};
+use super::error::{Failure, Location, MemoryBudget, Problem};
 use super::text::{LineCursor, Tokens, bad_number, parse_f64};
 use super::{
     ElementInfo, Export, FileInfo, Format, Parsed, PropertyInfo, VertexOrigins, push_polygon,
@@ -21,6 +21,11 @@ use crate::point_cloud::PointCloud;
 
 const HEADER: usize = 80;
 const RECORD: usize = 50;
+/// Bytes reserved per triangle of a binary file: the triangle (12) and half a merged vertex
+/// (the reader expects each vertex to be shared by about six triangles, so `n / 2`
+/// vertices), each a position (24), an origin (8) and a hash-table entry (key, index and
+/// control byte, about 32).
+const BYTES_PER_TRIANGLE: u64 = 12 + (24 + 8 + 32) / 2;
 
 /// A fast hasher for vertex keys (bit patterns are already well mixed by the floats).
 #[derive(Default)]
@@ -86,13 +91,14 @@ pub(crate) fn has_unreferenced_vertex(vertices: usize, triangles: &[[u32; 3]]) -
     used.iter().any(|&u| !u)
 }
 
-pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
+/// Reads an STL file; what a binary file's triangle count reserves must fit in `limit` bytes.
+pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
     let declared = bytes
         .get(HEADER..HEADER + 4)
         .map(|b| u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])));
     let binary_size = declared.map(|n| (HEADER + 4) as u64 + RECORD as u64 * n);
     if binary_size == Some(bytes.len() as u64) {
-        return read_binary(bytes);
+        return read_binary(bytes, limit);
     }
     let size_mismatch = || {
         let n = declared.unwrap_or(0);
@@ -123,8 +129,11 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
     ))
 }
 
-fn read_binary(bytes: &[u8]) -> Result<Parsed, Failure> {
+fn read_binary(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
     let n = (bytes.len() - HEADER - 4) / RECORD;
+    MemoryBudget::new(limit).reserve((n as u64).saturating_mul(BYTES_PER_TRIANGLE), || {
+        format!("{n} triangles")
+    })?;
     let mut merger = VertexMerger::with_capacity(n / 2);
     let mut triangles = Vec::with_capacity(n);
     let f32_at =

@@ -70,7 +70,7 @@ pub fn parse_ply_with_vertex_property(
     let Some((vertex, k)) = column else {
         return Ok((whole()?, None));
     };
-    let parsed = ply::read(bytes).map_err(|f| f.into_io(path))?;
+    let parsed = ply::read(bytes, options.max_bytes).map_err(|f| f.into_io(path))?;
     let (mut columns, _) =
         ply::read_element_columns(bytes, &header, vertex, &[k]).map_err(|f| f.into_io(path))?;
     let geometry = non_finite::apply_with_columns(parsed, options.non_finite, path, &mut columns)?;
@@ -102,7 +102,10 @@ mod tests {
     }
 
     fn options(non_finite: NonFinitePolicy) -> ReadOptions {
-        ReadOptions { non_finite }
+        ReadOptions {
+            non_finite,
+            ..ReadOptions::default()
+        }
     }
 
     #[test]

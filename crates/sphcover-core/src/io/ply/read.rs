@@ -8,7 +8,7 @@ use super::header::{
     Element, Encoding, Header, Property, Scalar, VertexRoles, face_indices, parse_header,
     vertex_roles,
 };
-use crate::io::error::{Failure, Location, Problem};
+use crate::io::error::{Failure, Location, MemoryBudget, Problem};
 use crate::io::text::{LineCursor, Tokens, bad_number, parse_f32, parse_f64, parse_integer};
 use crate::io::{FileInfo, Format, Parsed, VertexOrigins, push_polygon};
 use crate::point_cloud::PointCloud;
@@ -27,6 +27,16 @@ struct Vertices {
 }
 
 impl Vertices {
+    /// Bytes per vertex in memory with these roles, plus `origin` bytes for its location.
+    fn bytes_per_vertex(roles: &VertexRoles, origin: u64) -> u64 {
+        let scalars = [roles.confidence, roles.value, roles.radius]
+            .iter()
+            .filter(|r| r.is_some())
+            .count() as u64;
+        let normals = if roles.normal.is_some() { 24 } else { 0 };
+        24 + normals + 8 * scalars + origin
+    }
+
     fn with_capacity(roles: &VertexRoles, n: usize) -> Vertices {
         Vertices {
             positions: Vec::with_capacity(n),
@@ -104,8 +114,39 @@ impl Faces {
     }
 }
 
-/// Reads a PLY file.
-pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
+/// Bytes of a triangle in memory: a face makes at least one unless it is degenerate.
+const TRIANGLE_BYTES: u64 = 12;
+
+/// Counts the vertex arrays (`capacity` records of `bytes_per_record` each) in the budget.
+fn reserve(
+    budget: &mut MemoryBudget,
+    element: &Element,
+    capacity: usize,
+    bytes_per_record: u64,
+) -> Result<(), Failure> {
+    budget.reserve((capacity as u64).saturating_mul(bytes_per_record), || {
+        let plural = |n: u64| {
+            let name = &element.name;
+            match name.as_str() {
+                "vertex" if n != 1 => "vertices".to_string(),
+                _ if n != 1 => format!("{name}s"),
+                _ => name.clone(),
+            }
+        };
+        if capacity as u64 == element.count {
+            format!("{} {}", element.count, plural(element.count))
+        } else {
+            format!(
+                "{} {} (of which the file can hold {capacity})",
+                element.count,
+                plural(element.count)
+            )
+        }
+    })
+}
+
+/// Reads a PLY file; the vertex and face arrays must fit in `limit` bytes.
+pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
     let header = parse_header(bytes)?;
     let end = Location::Line(header.end_line);
     let vertex = header
@@ -133,6 +174,7 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
 
     let mut vertices = Vertices::default();
     let mut faces = Faces::default();
+    let mut budget = MemoryBudget::new(limit);
     let origins = match header.encoding {
         Encoding::Ascii => read_ascii(
             bytes,
@@ -140,8 +182,8 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
             vertex,
             &roles,
             face_list,
-            &mut vertices,
-            &mut faces,
+            (&mut vertices, &mut faces),
+            &mut budget,
         )?,
         Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => read_binary(
             bytes,
@@ -149,8 +191,8 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
             vertex,
             &roles,
             face_list,
-            &mut vertices,
-            &mut faces,
+            (&mut vertices, &mut faces),
+            &mut budget,
         )?,
     };
 
@@ -255,8 +297,8 @@ fn read_binary(
     vertex: usize,
     roles: &VertexRoles,
     face_list: Option<(usize, usize)>,
-    vertices: &mut Vertices,
-    faces: &mut Faces,
+    (vertices, faces): (&mut Vertices, &mut Faces),
+    budget: &mut MemoryBudget,
 ) -> Result<VertexOrigins, Failure> {
     let big = header.encoding == Encoding::BinaryBigEndian;
     let vertex_count = header.elements[vertex].count;
@@ -278,6 +320,9 @@ fn read_binary(
             }
             let len = element.count as usize * stride;
             if e == vertex {
+                // Located by their stride: no per-vertex origin.
+                let per_vertex = Vertices::bytes_per_vertex(roles, 0);
+                reserve(budget, element, element.count as usize, per_vertex)?;
                 *vertices = decode_fixed_vertices(&bytes[pos..pos + len], element, roles, big);
                 origins = VertexOrigins::Stride {
                     start: pos as u64,
@@ -290,6 +335,12 @@ fn read_binary(
         let capacity = (element.count as usize).min(remaining / element.min_size().max(1));
         let mut fields = vec![(0usize, 0usize); element.properties.len()];
         if e == vertex {
+            reserve(
+                budget,
+                element,
+                capacity,
+                Vertices::bytes_per_vertex(roles, 8),
+            )?;
             *vertices = Vertices::with_capacity(roles, capacity);
             let mut starts = Vec::with_capacity(capacity);
             pos = walk_binary(bytes, pos, element, big, &mut fields, |_, start, fields| {
@@ -301,6 +352,7 @@ fn read_binary(
         } else if let Some((f, list)) = face_list
             && f == e
         {
+            reserve(budget, element, capacity, TRIANGLE_BYTES)?;
             faces.triangles.reserve(capacity);
             let Property::List { item, .. } = element.properties[list] else {
                 return Err(Failure::header(
@@ -466,8 +518,8 @@ fn read_ascii(
     vertex: usize,
     roles: &VertexRoles,
     face_list: Option<(usize, usize)>,
-    vertices: &mut Vertices,
-    faces: &mut Faces,
+    (vertices, faces): (&mut Vertices, &mut Faces),
+    budget: &mut MemoryBudget,
 ) -> Result<VertexOrigins, Failure> {
     let vertex_count = header.elements[vertex].count;
     let mut cursor = LineCursor::new(bytes, header.body_start, header.end_line + 1);
@@ -482,6 +534,12 @@ fn read_ascii(
         let capacity = (element.count as usize).min(cursor.remaining() / min_record);
         let mut wanted = vec![false; element.properties.len()];
         if e == vertex {
+            reserve(
+                budget,
+                element,
+                capacity,
+                Vertices::bytes_per_vertex(roles, 8),
+            )?;
             *vertices = Vertices::with_capacity(roles, capacity);
             lines = Vec::with_capacity(capacity);
             let normal = roles.normal.unwrap_or(roles.xyz);
@@ -509,6 +567,7 @@ fn read_ascii(
         } else if let Some((f, list)) = face_list
             && f == e
         {
+            reserve(budget, element, capacity, TRIANGLE_BYTES)?;
             faces.triangles.reserve(capacity);
             walk_ascii(
                 &mut cursor,
