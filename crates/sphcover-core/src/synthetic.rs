@@ -583,18 +583,22 @@ pub fn gzip_with_zeros(head: &[u8], zero_mib: u64) -> Vec<u8> {
         debug_assert_eq!(compress.total_in(), data.len() as u64);
         out
     };
-    let zeros = vec![0u8; MIB];
-    let zero_piece = deflate(&zeros);
-    let mut zero_crc = Crc::new();
-    zero_crc.update(&zeros);
+    // Made once per process: the fuzz targets build a file per input.
+    static ZERO_MIB: std::sync::OnceLock<(Vec<u8>, Crc)> = std::sync::OnceLock::new();
+    let (zero_piece, zero_crc) = ZERO_MIB.get_or_init(|| {
+        let zeros = vec![0u8; MIB];
+        let mut crc = Crc::new();
+        crc.update(&zeros);
+        (deflate(&zeros), crc)
+    });
 
     let mut file = vec![0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 0xff];
     file.extend(deflate(head));
     let mut crc = Crc::new();
     crc.update(head);
     for _ in 0..zero_mib {
-        file.extend_from_slice(&zero_piece);
-        crc.combine(&zero_crc);
+        file.extend_from_slice(zero_piece);
+        crc.combine(zero_crc);
     }
     // An empty final block with fixed codes: BFINAL = 1, BTYPE = 01, end-of-block.
     file.extend([0x03, 0x00]);

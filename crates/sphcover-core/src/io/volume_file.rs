@@ -436,7 +436,7 @@ impl VoxelData {
 }
 
 /// The type of the samples a volume file stores (NIfTI `datatype`, INRIMAGE `TYPE` and
-/// `PIXSIZE`): every reader decodes through `decode_samples`.
+/// `PIXSIZE`): every reader decodes through `SampleDecoder`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SampleType {
     /// Unsigned 8-bit integer.
