@@ -145,6 +145,22 @@ fn reserve(
     })
 }
 
+/// Room for `capacity` vertices, each with its 8-byte origin, after charging it to `budget`.
+fn reserve_vertices(
+    budget: &mut MemoryBudget,
+    element: &Element,
+    roles: &VertexRoles,
+    capacity: usize,
+) -> Result<Vertices, Failure> {
+    reserve(
+        budget,
+        element,
+        capacity,
+        Vertices::bytes_per_vertex(roles, 8),
+    )?;
+    Ok(Vertices::with_capacity(roles, capacity))
+}
+
 /// Reads a PLY file; the vertex and face arrays must fit in `limit` bytes.
 pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
     let header = parse_header(bytes)?;
@@ -335,13 +351,7 @@ fn read_binary(
         let capacity = (element.count as usize).min(remaining / element.min_size().max(1));
         let mut fields = vec![(0usize, 0usize); element.properties.len()];
         if e == vertex {
-            reserve(
-                budget,
-                element,
-                capacity,
-                Vertices::bytes_per_vertex(roles, 8),
-            )?;
-            *vertices = Vertices::with_capacity(roles, capacity);
+            *vertices = reserve_vertices(budget, element, roles, capacity)?;
             let mut starts = Vec::with_capacity(capacity);
             pos = walk_binary(bytes, pos, element, big, &mut fields, |_, start, fields| {
                 starts.push(start as u64);
@@ -534,13 +544,7 @@ fn read_ascii(
         let capacity = (element.count as usize).min(cursor.remaining() / min_record);
         let mut wanted = vec![false; element.properties.len()];
         if e == vertex {
-            reserve(
-                budget,
-                element,
-                capacity,
-                Vertices::bytes_per_vertex(roles, 8),
-            )?;
-            *vertices = Vertices::with_capacity(roles, capacity);
+            *vertices = reserve_vertices(budget, element, roles, capacity)?;
             lines = Vec::with_capacity(capacity);
             let normal = roles.normal.unwrap_or(roles.xyz);
             for k in roles
