@@ -105,7 +105,7 @@ fn skeleton_checks_max_memory_from_the_header_before_reading() {
 fn info_refuses_a_gzip_stream_that_goes_on_past_its_declared_data() {
     let dir = tempfile::tempdir().unwrap();
     // 64³ uint8 declared over 256 MiB of zeros.
-    let head = support::nifti_header([64, 64, 64], 2, 8);
+    let head = sphcover_core::synthetic::nifti_header([64, 64, 64], 2, 8);
     let path = dir.path().join("long.nii.gz");
     std::fs::write(&path, sphcover_core::synthetic::gzip_with_zeros(&head, 256)).unwrap();
     let run = sphcover(&["info", path.to_str().unwrap()], LIMIT);

@@ -12,7 +12,7 @@ use sphcover_core::io::{
     Format, IoError, Location, Problem, ReadOptions, VolumeInfo, parse_geometry, read_volume,
     read_volume_info,
 };
-use sphcover_core::synthetic::gzip_with_zeros;
+use sphcover_core::synthetic::{gzip_with_zeros, inrimage_header, nifti_header};
 
 const MIB: u64 = 1 << 20;
 
@@ -21,39 +21,6 @@ fn limited(bytes: u64) -> ReadOptions {
         max_bytes: Some(bytes),
         ..ReadOptions::default()
     }
-}
-
-/// A little-endian NIfTI-1 header (and the 4 extension bytes) for `dims` of `datatype`
-/// (`bitpix` bits), data from byte 352.
-fn nifti_header(dims: [i16; 3], datatype: i16, bitpix: i16) -> Vec<u8> {
-    let mut h = vec![0u8; 352];
-    h[0..4].copy_from_slice(&348i32.to_le_bytes());
-    for (i, d) in [3, dims[0], dims[1], dims[2], 1, 1, 1, 1]
-        .iter()
-        .enumerate()
-    {
-        h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
-    }
-    h[70..72].copy_from_slice(&datatype.to_le_bytes());
-    h[72..74].copy_from_slice(&bitpix.to_le_bytes());
-    for i in 0..8 {
-        h[76 + 4 * i..80 + 4 * i].copy_from_slice(&1.0f32.to_le_bytes());
-    }
-    h[108..112].copy_from_slice(&352.0f32.to_le_bytes());
-    h[344..348].copy_from_slice(b"n+1\0");
-    h
-}
-
-/// An INRIMAGE-4 header (one 256-byte block) for `dims` of 16-bit signed integers.
-fn inrimage_header(dims: [u64; 3]) -> Vec<u8> {
-    let text = format!(
-        "#INRIMAGE-4#{{\nXDIM={}\nYDIM={}\nZDIM={}\nVDIM=1\nTYPE=signed fixed\nPIXSIZE=16 bits\nCPU=pc\n",
-        dims[0], dims[1], dims[2]
-    );
-    let mut h = text.into_bytes();
-    h.resize(256 - 4, b'\n');
-    h.extend_from_slice(b"##}\n");
-    h
 }
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {

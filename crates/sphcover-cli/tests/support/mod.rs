@@ -158,45 +158,12 @@ pub fn write_jittered_samples(
     std::fs::write(path, header + &body).unwrap();
 }
 
-/// A little-endian NIfTI-1 header (with the 4 extension bytes) declaring `dims` voxels of
-/// `datatype` (`bitpix` bits), data from byte 352, unit voxels.
-pub fn nifti_header(dims: [i16; 3], datatype: i16, bitpix: i16) -> Vec<u8> {
-    let mut h = vec![0u8; 352];
-    h[0..4].copy_from_slice(&348i32.to_le_bytes());
-    for (i, d) in [3, dims[0], dims[1], dims[2], 1, 1, 1, 1]
-        .iter()
-        .enumerate()
-    {
-        h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
-    }
-    h[70..72].copy_from_slice(&datatype.to_le_bytes());
-    h[72..74].copy_from_slice(&bitpix.to_le_bytes());
-    for i in 0..8 {
-        h[76 + 4 * i..80 + 4 * i].copy_from_slice(&1.0f32.to_le_bytes());
-    }
-    h[108..112].copy_from_slice(&352.0f32.to_le_bytes());
-    h[344..348].copy_from_slice(b"n+1\0");
-    h
-}
-
-/// A one-block INRIMAGE-4 header declaring `dims` 16-bit signed voxels.
-pub fn inrimage_header(dims: [u64; 3]) -> Vec<u8> {
-    let mut h = format!(
-        "#INRIMAGE-4#{{\nXDIM={}\nYDIM={}\nZDIM={}\nVDIM=1\nTYPE=signed fixed\nPIXSIZE=16 bits\nCPU=pc\n",
-        dims[0], dims[1], dims[2]
-    )
-    .into_bytes();
-    h.resize(256 - 4, b'\n');
-    h.extend_from_slice(b"##}\n");
-    h
-}
-
 /// Decompression bombs as a user met them, written to `dir`: gzip volumes of zeros whose
 /// headers declare what the streams really inflate to. `(name, declared bytes)`:
 /// `bomb_1g.nii.gz` (1024 x 1024 x 512 int16, 1 GiB, a 1 MB file), `bomb_8g.nii.gz`
 /// (2048 x 2048 x 1024 int16, 8 GiB, an 8 MB file) and `bomb_2g.inr.gz` (1024³ int16).
 pub fn write_bombs(dir: &Path) -> Vec<PathBuf> {
-    use sphcover_core::synthetic::gzip_with_zeros;
+    use sphcover_core::synthetic::{gzip_with_zeros, inrimage_header, nifti_header};
     let bombs = [
         (
             "bomb_1g.nii.gz",
