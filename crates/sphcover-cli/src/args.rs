@@ -54,6 +54,8 @@ pub struct InfoArgs {
     /// Print the report as JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub memory: ReadMemoryArgs,
 }
 
 /// Arguments of `sphcover tetra`.
@@ -75,6 +77,8 @@ pub struct TetraArgs {
     pub seed: u64,
     #[command(flatten)]
     pub read: InputArgs,
+    #[command(flatten)]
+    pub memory: ReadMemoryArgs,
 }
 
 /// Reconstruction methods of `sphcover recon`.
@@ -206,6 +210,8 @@ pub struct CoverArgs {
     pub ascii: bool,
     #[command(flatten)]
     pub read: InputArgs,
+    #[command(flatten)]
+    pub memory: ReadMemoryArgs,
 }
 
 /// `sphcover cover --centre-order`.
@@ -293,6 +299,8 @@ pub struct SkeletonArgs {
     /// Write the PLY as ascii instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,
+    #[command(flatten)]
+    pub read: InputArgs,
 }
 
 /// Arguments of `sphcover render`.
@@ -354,15 +362,34 @@ pub struct RenderArgs {
     pub supersample: usize,
     #[command(flatten)]
     pub read: InputArgs,
+    #[command(flatten)]
+    pub memory: ReadMemoryArgs,
 }
 
 /// How input files are read.
 #[derive(Debug, Args)]
 pub struct InputArgs {
     /// Drop vertices with NaN or infinite coordinates (with a warning) instead of refusing
-    /// the file.
+    /// the file; in a volume, such voxels become background (its lowest finite value).
     #[arg(long)]
     pub drop_non_finite: bool,
+}
+
+/// The memory limit of the readers, for commands without a memory budget of their own.
+#[derive(Debug, Args)]
+pub struct ReadMemoryArgs {
+    /// Most memory the data an input declares may take (e.g. 2G, 500M): a file declaring
+    /// more is refused from its header, before anything is read (exit 2). Default: 60% of the
+    /// machine's memory.
+    #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
+    pub max_memory: Option<u64>,
+}
+
+impl ReadMemoryArgs {
+    /// The limit these flags ask for.
+    pub fn limit(&self) -> crate::memory_limit::MemoryLimit {
+        crate::memory_limit::MemoryLimit::from_flag(self.max_memory)
+    }
 }
 
 impl InputArgs {

@@ -11,6 +11,7 @@ mod preflight;
 mod report;
 mod skeleton_memory;
 mod value_samples;
+mod volume_input;
 
 use std::process::ExitCode;
 

@@ -132,11 +132,18 @@ impl MemoryLimit {
     }
 
     /// A reader's error for the command: a refusal over the limit says where the limit came
-    /// from (and stays bad input, exit 2); every other error is passed on unchanged.
+    /// from, a refusal of non-finite values names the flag that drops them (both stay bad
+    /// input, exit 2); every other error is passed on unchanged.
     pub fn explain(&self, error: IoError) -> anyhow::Error {
         match error {
             IoError::OverMemoryLimit { .. } => {
                 BadInput(format!("{error} ({})", self.origin())).into()
+            }
+            IoError::NonFinite { .. } => {
+                BadInput(format!("{error}; --drop-non-finite drops them")).into()
+            }
+            IoError::NonFiniteVoxels { all: false, .. } => {
+                BadInput(format!("{error}; --drop-non-finite makes them background")).into()
             }
             other => other.into(),
         }

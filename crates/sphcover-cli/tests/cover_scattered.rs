@@ -104,7 +104,7 @@ fn scattered_samples_bad_input_is_reported() {
     let run = cover(&nan, "density", &[]);
     assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
     assert!(
-        text(&run.stderr).contains("sample 17 has a non-finite value"),
+        text(&run.stderr).contains("nan.ply: vertex 17: `density` is not finite (1 sample"),
         "{}",
         text(&run.stderr)
     );

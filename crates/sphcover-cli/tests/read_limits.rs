@@ -77,6 +77,75 @@ fn bombs_are_refused_from_the_header_by_info_skeleton_and_cover() {
     );
 }
 
+/// `--max-memory` raises the readers' limit of `info`, `cover`, `tetra` and `render` too; when
+/// the system then refuses the memory (here an address-space limit below what the bomb
+/// declares), the run ends with exit 1 and a message naming the file and the size, never an
+/// abort. A limit below the file's data refuses it from the header, naming the flag.
+#[test]
+fn max_memory_sets_the_readers_limit_and_a_refused_allocation_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let bombs = write_bombs(dir.path());
+    let bomb = bombs[0].to_str().unwrap();
+    let out = dir.path().join("out.ply");
+    let out = out.to_str().unwrap();
+    for args in [
+        vec!["info", bomb, "--max-memory", "100G"],
+        vec!["cover", bomb, "-o", out, "--max-memory", "100G"],
+    ] {
+        let run = sphcover_under_ulimit(ULIMIT_KIB, &args, LIMIT);
+        let stderr = text(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(&format!(
+                "{bomb}: cannot allocate 2.0 GiB for 536870912 voxel values"
+            )),
+            "{args:?}: {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    let spheres = dir.path().join("spheres.sph");
+    std::fs::write(&spheres, "0 0 0 1\n1 0 0 1\n0 1 0 1\n0 0 1 1\n1 1 1 1\n").unwrap();
+    let spheres = spheres.to_str().unwrap();
+    let tets = dir.path().join("out.vtk");
+    let png = dir.path().join("out.png");
+    for args in [
+        vec!["info", bomb, "--max-memory", "1M"],
+        vec![
+            "tetra",
+            spheres,
+            "-o",
+            tets.to_str().unwrap(),
+            "--max-memory",
+            "100",
+        ],
+        vec![
+            "render",
+            spheres,
+            "-o",
+            png.to_str().unwrap(),
+            "--max-memory",
+            "100",
+        ],
+    ] {
+        let run = sphcover(&args, LIMIT);
+        let stderr = text(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("above the memory limit") && stderr.contains("(--max-memory)"),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert_eq!(
+        files_in(dir.path()),
+        [
+            "bomb_1g.nii.gz",
+            "bomb_2g.inr.gz",
+            "bomb_8g.nii.gz",
+            "spheres.sph"
+        ]
+    );
+}
+
 #[test]
 fn skeleton_checks_max_memory_from_the_header_before_reading() {
     let dir = tempfile::tempdir().unwrap();

@@ -264,3 +264,105 @@ fn the_report_file_holds_the_stage_counts() {
     assert!(json["tunnels_closed"].is_u64());
     assert!(json["flap_triangles_collapsed"].is_u64());
 }
+
+/// Voxels holding NaN or an infinity are refused by every command that processes a volume,
+/// naming the first one; with `--drop-non-finite` they become background, so a slab whose
+/// air holds them gives the sheet of the clean slab byte for byte. `info` counts them.
+#[test]
+fn non_finite_voxels_are_refused_or_with_the_flag_become_background() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let clean = d.join("clean.nii");
+    write_nifti(&clean, &[24, 24, 24], [0.5; 3], None, &slab_values(1));
+    let mut values = slab_values(1);
+    // In the air (k = 0 and k = 23), below and above the slab; (7, 1, 0) comes first.
+    let at = |i: usize, j: usize, k: usize| i + 24 * (j + 24 * k);
+    values[at(5, 6, 0)] = f32::NAN;
+    values[at(7, 1, 0)] = f32::INFINITY;
+    values[at(3, 3, 23)] = f32::NEG_INFINITY;
+    let holed = d.join("holed.nii");
+    write_nifti(&holed, &[24, 24, 24], [0.5; 3], None, &values);
+    let all_nan = d.join("all_nan.nii");
+    write_nifti(&all_nan, &[8, 8, 8], [1.0; 3], None, &[f32::NAN; 512]);
+
+    let path = |p: &Path| p.to_str().unwrap().to_owned();
+    let out = d.join("out.ply");
+    let refusals: [Vec<String>; 4] = [
+        vec!["skeleton".into(), path(&holed), "-o".into(), path(&out)],
+        vec![
+            "skeleton".into(),
+            path(&holed),
+            "-o".into(),
+            path(&out),
+            "--method".into(),
+            "nms".into(),
+        ],
+        vec!["cover".into(), path(&holed), "-o".into(), path(&out)],
+        vec![
+            "skeleton".into(),
+            path(&all_nan),
+            "-o".into(),
+            path(&out),
+            "--drop-non-finite".into(),
+        ],
+    ];
+    for args in &refusals {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let run = sphcover(&args);
+        let err = text(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?} wrote a file");
+        if args[1].ends_with("holed.nii") {
+            assert!(
+                err.contains(
+                    "holed.nii: voxel (7, 1, 0) is not finite (3 voxels hold NaN or an infinity); --drop-non-finite makes them background"
+                ),
+                "{err}"
+            );
+            assert!(err.contains("--drop-non-finite"), "{err}");
+        } else {
+            assert!(
+                err.contains("512 voxels hold NaN or an infinity: every voxel"),
+                "{err}"
+            );
+        }
+    }
+
+    for method in ["ridge", "nms"] {
+        let sheet = |input: &Path, name: &str, extra: &[&str]| {
+            let output = d.join(format!("{name}-{method}.ply"));
+            let mut args = vec![
+                "skeleton",
+                input.to_str().unwrap(),
+                "-o",
+                output.to_str().unwrap(),
+                "--method",
+                method,
+            ];
+            args.extend_from_slice(extra);
+            let run = sphcover(&args);
+            assert_eq!(
+                run.status.code(),
+                Some(0),
+                "{args:?}: {}",
+                text(&run.stderr)
+            );
+            (std::fs::read(&output).unwrap(), text(&run.stderr))
+        };
+        let (expected, _) = sheet(&clean, "clean", &[]);
+        let (dropped, warning) = sheet(&holed, "dropped", &["--drop-non-finite"]);
+        assert!(expected == dropped, "{method}: the sheets differ");
+        assert!(
+            warning.contains("3 voxels holding NaN or an infinity set to the lowest finite value"),
+            "{warning}"
+        );
+    }
+
+    let info = sphcover(&["info", holed.to_str().unwrap(), "--json"]);
+    assert_eq!(info.status.code(), Some(0), "{}", text(&info.stderr));
+    assert!(
+        text(&info.stdout).contains("\"non_finite_voxels\": 3"),
+        "{}",
+        text(&info.stdout)
+    );
+}

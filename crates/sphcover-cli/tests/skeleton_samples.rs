@@ -89,3 +89,53 @@ fn scattered_sample_bad_input_is_refused_without_output() {
     names.sort();
     assert_eq!(names, ["flat.ply", "samples.ply"]);
 }
+
+/// A sample whose value is NaN or infinite is refused as a vertex with such a coordinate is,
+/// naming it; `--drop-non-finite` drops it with a warning.
+#[test]
+fn non_finite_sample_values_are_refused_or_dropped_with_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let nan_at = [17usize, 4000];
+    let holed = dir.path().join("holed.ply");
+    write_jittered_samples(&holed, [20, 20, 16], 7, |p, n| {
+        if nan_at.contains(&n) {
+            f64::NAN
+        } else {
+            -1000.0 + 1500.0 * (1.0 + ((2.0 - (p.z - 8.0).abs()) / 0.8).tanh())
+        }
+    });
+    let out = dir.path().join("sheet.ply");
+    let args = |extra: &[&'static str]| {
+        let mut a = vec![
+            holed.to_str().unwrap().to_owned(),
+            "-o".to_owned(),
+            out.to_str().unwrap().to_owned(),
+            "--value-property".to_owned(),
+            "density".to_owned(),
+        ];
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let mut refused = vec!["skeleton".to_owned()];
+    refused.extend(args(&[]));
+    let refused: Vec<&str> = refused.iter().map(String::as_str).collect();
+    let run = sphcover(&refused);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("holed.ply: vertex 17: `density` is not finite (2 samples with a NaN or infinite value); --drop-non-finite drops them"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let mut dropped = vec!["skeleton".to_owned()];
+    dropped.extend(args(&["--drop-non-finite"]));
+    let dropped: Vec<&str> = dropped.iter().map(String::as_str).collect();
+    let run = sphcover(&dropped);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("dropped 2 samples whose `density` is NaN or infinite"),
+        "{stderr}"
+    );
+    assert!(out.exists());
+}

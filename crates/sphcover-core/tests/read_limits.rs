@@ -2,7 +2,8 @@
 //! a file cannot hold, on files made here: decompression bombs (a small `.nii.gz` or
 //! `.inr.gz` whose header declares gigabytes over a gzip stream of zeros that really inflates
 //! to them), gzip streams that go on past the declared data, and point and mesh files
-//! declaring more records than the limit allows or than their size holds.
+//! declaring more records than the limit allows or than their size holds, and text files
+//! whose records pass it.
 #![cfg(feature = "nifti")]
 
 use std::path::{Path, PathBuf};
@@ -350,6 +351,74 @@ fn las_stl_and_off_counts_are_checked_against_the_limit() {
         &limited(need - 1),
     ));
     assert_eq!(declared, "300 vertices and 100 faces");
+}
+
+/// XYZ and OBJ declare no count: what their records take is counted as they are read, twice
+/// over for the arrays' room to grow, and the read stops at the record that passes the limit.
+#[test]
+fn text_records_are_counted_against_the_limit_as_they_are_read() {
+    // XYZ with normals: position, normal and line number, 56 bytes a point.
+    let mut xyz = String::new();
+    for i in 0..1000 {
+        xyz.push_str(&format!("{i} 0 1 0 0 1\n"));
+    }
+    let need = 2 * 1000 * 56;
+    let whole = parse_geometry(
+        xyz.as_bytes(),
+        Format::Xyz,
+        Path::new("a.xyz"),
+        &limited(need),
+    )
+    .unwrap();
+    assert_eq!(whole.points.len(), 1000);
+    let (declared, bytes, limit, message) = over_limit(parse_geometry(
+        xyz.as_bytes(),
+        Format::Xyz,
+        Path::new("a.xyz"),
+        &limited(need - 1),
+    ));
+    assert_eq!(
+        declared,
+        "1000 points by line 1000 (text, with room for its arrays to grow)"
+    );
+    assert_eq!((bytes, limit), (need, need - 1));
+    assert!(
+        message.starts_with("a.xyz: declares 1000 points by line 1000"),
+        "{message}"
+    );
+
+    // OBJ: 36 bytes a vertex, 12 a triangle of its faces (a quad is two).
+    let mut obj = String::new();
+    for i in 0..400 {
+        obj.push_str(&format!("v {i} 0 1\n"));
+    }
+    for f in 0..100 {
+        obj.push_str(&format!(
+            "f {} {} {} {}\n",
+            4 * f + 1,
+            4 * f + 2,
+            4 * f + 3,
+            4 * f + 4
+        ));
+    }
+    let need = 2 * (400 * 36 + 100 * 2 * 12);
+    parse_geometry(
+        obj.as_bytes(),
+        Format::Obj,
+        Path::new("a.obj"),
+        &limited(need),
+    )
+    .unwrap();
+    let (declared, _, _, _) = over_limit(parse_geometry(
+        obj.as_bytes(),
+        Format::Obj,
+        Path::new("a.obj"),
+        &limited(need - 1),
+    ));
+    assert_eq!(
+        declared,
+        "400 vertices and 100 faces by line 500 (text, with room for its arrays to grow)"
+    );
 }
 
 #[test]

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use sphcover_core::io::{self, CoverFileMeta, ReadOptions};
+use sphcover_core::io::{self, CoverFileMeta};
 use sphcover_core::{
     CentreOrder, Cover, Elimination, Normalisation, SurfaceCoverParams, Threshold,
     VolumeCoverParams, VolumeCoverStats, VolumeCoverVariant, build_scattered_cover,
@@ -22,7 +22,7 @@ pub fn run(args: &CoverArgs, reporter: &Reporter) -> anyhow::Result<()> {
     {
         return Err(BadInput(format!("--eps {eps} must be a positive number")).into());
     }
-    let limit = MemoryLimit::machine_default();
+    let limit = args.memory.limit();
     let (cover, meta) = if let Some(property) = &args.value_property {
         scattered_cover(args, property, &limit, reporter)?
     } else if io::is_volume_path(&args.input) {
@@ -131,8 +131,8 @@ fn volume_cover(
     reporter: &Reporter,
 ) -> anyhow::Result<(Cover, CoverFileMeta)> {
     let stage = reporter.stage("read volume");
-    let (volume, _info) = io::read_volume(&args.input, &limit.apply(ReadOptions::default()))
-        .map_err(|e| limit.explain(e))?;
+    let (volume, _info) =
+        crate::volume_input::read_volume(&args.input, &args.read, limit, reporter)?;
     stage.finish();
     let params = volume_params(args);
     let bar = reporter.progress(None, "building the volume cover");
@@ -161,7 +161,7 @@ fn scattered_cover(
     let (positions, values) = crate::value_samples::read_value_samples(
         &args.input,
         property,
-        &args.read.read_options(limit),
+        &args.read,
         limit,
         reporter,
     )?;

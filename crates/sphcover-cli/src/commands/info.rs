@@ -37,7 +37,7 @@ struct VolumeSummary {
     world_bounding_box: BoxSummary,
     scaling: Option<(f64, f64)>,
     value_range: Option<(f64, f64)>,
-    non_finite_voxels: usize,
+    non_finite_voxels: u64,
     description: String,
 }
 
@@ -119,7 +119,7 @@ struct MeshSummary {
 /// Runs `sphcover info`: every file is reported, and the first unreadable one ends the run
 /// with its error after the others have been reported.
 pub fn run(args: &InfoArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    let limit = MemoryLimit::machine_default();
+    let limit = args.memory.limit();
     let mut first_error = None;
     let mut out = String::new();
     for path in &args.files {
@@ -201,17 +201,17 @@ fn summarise(path: &Path, limit: &MemoryLimit) -> anyhow::Result<Summary> {
 }
 
 fn summarise_volume(path: &Path, limit: &MemoryLimit) -> anyhow::Result<VolumeSummary> {
-    let (volume, info) = io::read_volume(path, &limit.apply(ReadOptions::default()))
-        .map_err(|e| limit.explain(e))?;
+    let options = limit.apply(ReadOptions {
+        non_finite: NonFinitePolicy::Keep,
+        ..ReadOptions::default()
+    });
+    let (volume, info) = io::read_volume(path, &options).map_err(|e| limit.explain(e))?;
     let dims = volume.dims();
     let mut bbox = Aabb::EMPTY;
     for corner in 0..8 {
         let ijk = [0, 1, 2].map(|a| if corner >> a & 1 == 1 { dims[a] - 1 } else { 0 });
         bbox.add(volume.voxel_centre(ijk));
     }
-    let non_finite = (0..volume.len())
-        .filter(|&i| !volume.value(i).is_finite())
-        .count();
     Ok(VolumeSummary {
         file: path.display().to_string(),
         format: info.format_description(),
@@ -224,7 +224,7 @@ fn summarise_volume(path: &Path, limit: &MemoryLimit) -> anyhow::Result<VolumeSu
         world_bounding_box: BoxSummary::of(&bbox),
         scaling: info.scaling(),
         value_range: volume.value_range(),
-        non_finite_voxels: non_finite,
+        non_finite_voxels: info.non_finite_voxels(),
         description: info.description(),
     })
 }

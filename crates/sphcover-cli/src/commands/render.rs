@@ -11,7 +11,6 @@ use sphcover_render::{
 
 use crate::args::RenderArgs;
 use crate::exit::BadInput;
-use crate::memory_limit::MemoryLimit;
 use crate::report::Reporter;
 
 /// Runs `sphcover render`.
@@ -181,7 +180,7 @@ fn parse_background(text: &str) -> Result<Background, String> {
 
 /// Reads the input and the values to colour by.
 fn read(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<(Geometry, Option<Vec<f64>>)> {
-    let limit = MemoryLimit::machine_default();
+    let limit = args.memory.limit();
     let options = args.read.read_options(&limit);
     let (geometry, scalars) = match &args.colour_by {
         None => (

@@ -2,7 +2,7 @@
 //! from scattered samples with values, or the non-maximum-suppression baseline for
 //! comparison.
 
-use sphcover_core::io::{self, ReadOptions, VolumeInfo};
+use sphcover_core::io::{self, VolumeInfo};
 use sphcover_core::{PointCloud, TriMesh};
 use sphcover_skeleton::{
     NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton,
@@ -47,8 +47,8 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     crate::skeleton_memory::check_budget(args, header.dims(), reporter)?;
     let limit = MemoryLimit::from_flag(args.max_memory);
     let stage = reporter.stage("read volume");
-    let (volume, info) = io::read_volume(&args.input, &limit.apply(ReadOptions::default()))
-        .map_err(|e| limit.explain(e))?;
+    let (volume, info) =
+        crate::volume_input::read_volume(&args.input, &args.read, &limit, reporter)?;
     stage.finish();
     let [nx, ny, nz] = volume.dims();
     let size = volume.voxel_size();
@@ -121,11 +121,12 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
         )
         .into());
     }
+    let limit = MemoryLimit::machine_default();
     let (positions, values) = crate::value_samples::read_value_samples(
         &args.input,
         property,
-        &ReadOptions::default(),
-        &MemoryLimit::machine_default(),
+        &args.read,
+        &limit,
         reporter,
     )?;
     reporter.detail(&format!("  {} samples with `{property}`", positions.len()));

@@ -6,7 +6,6 @@ use sphcover_tetra::{DualComplexParams, TetMesh, dual_complex, write_tet_mesh};
 
 use crate::args::TetraArgs;
 use crate::exit::BadInput;
-use crate::memory_limit::MemoryLimit;
 use crate::report::Reporter;
 
 /// Runs `sphcover tetra`.
@@ -67,7 +66,7 @@ pub fn run(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<()> {
 
 /// Reads the sphere set, dropping non-finite spheres with a warning when asked to.
 fn read_spheres(args: &TetraArgs, reporter: &Reporter) -> anyhow::Result<SphereSet> {
-    let limit = MemoryLimit::machine_default();
+    let limit = args.memory.limit();
     let geometry = io::read_geometry(&args.spheres, &args.read.read_options(&limit))
         .map_err(|e| limit.explain(e))?;
     let dropped = geometry.info.non_finite.dropped_vertices;

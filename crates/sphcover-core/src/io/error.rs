@@ -133,6 +133,28 @@ pub enum IoError {
         /// Number of non-finite values among their positions, normals and radii.
         coordinates: u64,
     },
+    /// Voxels holding NaN or an infinity were found and the policy refuses them (or none is
+    /// finite).
+    #[error(
+        "{}: voxel ({}, {}, {}) is not finite ({count} voxel{} hold{} NaN or an infinity{})",
+        path.display(),
+        voxel[0],
+        voxel[1],
+        voxel[2],
+        plural(.count),
+        if *.count == 1 { "s" } else { "" },
+        if *.all { ": every voxel" } else { "" }
+    )]
+    NonFiniteVoxels {
+        /// The file.
+        path: PathBuf,
+        /// Grid coordinates `(i, j, k)` of the first offending voxel.
+        voxel: [usize; 3],
+        /// Number of offending voxels.
+        count: u64,
+        /// True when no voxel is finite (no policy can help).
+        all: bool,
+    },
     /// A sphere set was asked for but the file has no radius per vertex.
     #[error(
         "{}: the file holds no sphere radii (a PLY `radius` vertex property or 4 columns x y z r)",
@@ -230,6 +252,7 @@ impl IoError {
             | IoError::UnknownFormat { .. }
             | IoError::Malformed { .. }
             | IoError::NonFinite { .. }
+            | IoError::NonFiniteVoxels { .. }
             | IoError::NoRadius { .. }
             | IoError::Unsupported { .. }
             | IoError::OutputIsInput { .. }
@@ -255,6 +278,12 @@ pub(crate) enum Failure {
     },
     /// The allocator refused memory within the limit ([`IoError::OutOfMemory`]).
     OutOfMemory { what: String, bytes: u64 },
+    /// Voxels are not finite ([`IoError::NonFiniteVoxels`]).
+    NonFiniteVoxels {
+        voxel: [usize; 3],
+        count: u64,
+        all: bool,
+    },
 }
 
 impl Failure {
@@ -285,6 +314,12 @@ impl Failure {
                 limit,
             },
             Failure::OutOfMemory { what, bytes } => IoError::OutOfMemory { path, what, bytes },
+            Failure::NonFiniteVoxels { voxel, count, all } => IoError::NonFiniteVoxels {
+                path,
+                voxel,
+                count,
+                all,
+            },
         }
     }
 }
@@ -327,6 +362,53 @@ impl MemoryBudget {
             });
         }
         Ok(())
+    }
+}
+
+/// The memory of the records a text file holds, counted as they are read: a text file
+/// declares no count to check first. The arrays holding the records grow by doubling, so a
+/// read may hold up to twice what its records take: twice their bytes is what is checked
+/// against the limit ([`ReadOptions::max_bytes`](super::ReadOptions::max_bytes)), before each
+/// record is stored.
+#[derive(Debug)]
+pub(crate) struct GrowingBudget {
+    limit: Option<u64>,
+    bytes: u64,
+}
+
+impl GrowingBudget {
+    pub(crate) fn new(limit: Option<u64>) -> GrowingBudget {
+        GrowingBudget { limit, bytes: 0 }
+    }
+
+    /// How many records of `bytes` each to reserve room for when about `estimate` are
+    /// expected: the estimate, capped where the reservation alone would pass the limit.
+    pub(crate) fn capped(&self, estimate: usize, bytes: u64) -> usize {
+        match self.limit {
+            Some(limit) => {
+                estimate.min(usize::try_from(limit / 2 / bytes.max(1)).unwrap_or(usize::MAX))
+            }
+            None => estimate,
+        }
+    }
+
+    /// Counts `bytes` more for the next record; refuses once twice the total passes the
+    /// limit, with what `declared` says was read so far (`"1000 points by line 1001"`).
+    #[inline]
+    pub(crate) fn add(
+        &mut self,
+        bytes: u64,
+        declared: impl FnOnce() -> String,
+    ) -> Result<(), Failure> {
+        self.bytes = self.bytes.saturating_add(bytes);
+        match self.limit {
+            Some(limit) if self.bytes.saturating_mul(2) > limit => Err(Failure::OverLimit {
+                declared: format!("{} (text, with room for its arrays to grow)", declared()),
+                bytes: self.bytes.saturating_mul(2),
+                limit,
+            }),
+            _ => Ok(()),
+        }
     }
 }
 

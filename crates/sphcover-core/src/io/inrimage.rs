@@ -56,6 +56,9 @@ pub struct InrimageInfo {
     pub header_size: u64,
     /// Comment lines of the header, without their `#`.
     pub comments: Vec<String>,
+    /// Voxels found holding NaN or an infinity, handled as [`ReadOptions::non_finite`] says
+    /// (0 when only the header was read).
+    pub non_finite_voxels: u64,
 }
 
 /// Reads an INRIMAGE-4 file (`.inr` or `.inr.gz`) as a [`Volume`] with axis-aligned voxels.
@@ -360,6 +363,7 @@ fn read_header(stream: &mut VolumeStream<'_>) -> Result<(InrimageInfo, VoxelData
         origin: DVec3::from_array(keys.origin.map(|v| v.unwrap_or(0.0))),
         header_size: header_size as u64,
         comments: keys.comments,
+        non_finite_voxels: 0,
     };
     Ok((info, data))
 }
@@ -370,8 +374,10 @@ fn decode(
 ) -> Result<(Volume, InrimageInfo), DecodeError> {
     let (info, data) = read_header(stream)?;
     data.check_memory(options.max_bytes)?;
-    let values = data.read_values(stream)?;
+    let mut values = data.read_values(stream)?;
     stream.expect_end()?;
+    let mut info = info;
+    info.non_finite_voxels = data.apply_non_finite(&mut values, options.non_finite)?;
     let volume = Volume::axis_aligned(info.dims, values, info.voxel_size, info.origin)
         .map_err(|e| header_error(MAGIC.len(), format!("invalid volume: {e}")))?;
     Ok((volume, info))

@@ -147,16 +147,20 @@ impl Format {
 }
 
 /// What readers do with vertices whose position, normal or radius holds a NaN or an
-/// infinity.
+/// infinity, and with voxels holding one.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum NonFinitePolicy {
-    /// Fail with [`IoError::NonFinite`], naming the first such vertex and counting them all.
+    /// Fail with [`IoError::NonFinite`] ([`IoError::NonFiniteVoxels`] for a volume), naming
+    /// the first such vertex (voxel) and counting them all.
     #[default]
     Refuse,
     /// Remove those vertices (and the triangles using them, reindexing the rest); the counts
-    /// are in [`FileInfo::non_finite`].
+    /// are in [`FileInfo::non_finite`]. A volume cannot lose voxels: they take its lowest
+    /// finite value, its background (a volume without a finite voxel is still refused); the
+    /// count is in [`VolumeInfo::non_finite_voxels`].
     Drop,
-    /// Keep them as they are (for inspection); the counts are in [`FileInfo::non_finite`].
+    /// Keep them as they are (for inspection); the counts are in [`FileInfo::non_finite`]
+    /// ([`VolumeInfo::non_finite_voxels`]).
     Keep,
 }
 
@@ -391,11 +395,11 @@ pub fn parse_geometry(
     let limit = options.max_bytes;
     let parsed = match format {
         Format::Ply => ply::read(bytes, limit),
-        Format::Obj => obj::read(bytes),
+        Format::Obj => obj::read(bytes, limit),
         Format::Off => off::read(bytes, limit),
         Format::Stl => stl::read(bytes, limit),
         Format::Las => las::read(bytes, limit),
-        Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::read(bytes, format),
+        Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::read(bytes, format, limit),
     }
     .map_err(|failure| failure.into_io(path))?;
     non_finite::apply(parsed, options.non_finite, path)

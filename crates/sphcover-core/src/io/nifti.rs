@@ -99,6 +99,9 @@ pub struct NiftiInfo {
     pub vox_offset: u64,
     /// The `descrip` field, trimmed.
     pub description: String,
+    /// Voxels of the first frame found holding NaN or an infinity, handled as
+    /// [`ReadOptions::non_finite`] says (0 when only the header was read).
+    pub non_finite_voxels: u64,
 }
 
 /// Reads a NIfTI-1 or NIfTI-2 file (`.nii` or `.nii.gz`): its first 3D frame as a
@@ -524,6 +527,7 @@ fn read_header(stream: &mut VolumeStream<'_>) -> Result<(NiftiInfo, Layout), Dec
         scaling,
         vox_offset,
         description: h.description,
+        non_finite_voxels: 0,
     };
     let layout = Layout {
         data,
@@ -548,13 +552,15 @@ fn decode(
     if stream.skip(gap)? < gap {
         return Err(data.truncated(stream.offset()));
     }
-    let values = data.read_values(stream)?;
+    let mut values = data.read_values(stream)?;
     // The other frames are inflated (gzip) to check that they are all there, never kept.
     let rest = layout.data_bytes - layout.frame_bytes;
     if stream.skip(rest)? < rest {
         return Err(data.truncated(stream.offset()));
     }
     stream.expect_end()?;
+    let mut info = info;
+    info.non_finite_voxels = data.apply_non_finite(&mut values, options.non_finite)?;
 
     let volume = Volume::new(info.dims, values, info.affine)
         .map_err(|e| header_error(layout.dims_at, format!("invalid volume: {e}")))?;

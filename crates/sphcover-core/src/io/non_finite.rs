@@ -1,13 +1,14 @@
 //! The non-finite policy: find vertices whose position, normal or radius holds a NaN or an
-//! infinity, then refuse, drop or keep them.
+//! infinity, or voxels that do, then refuse, drop or keep them.
 
 use std::path::Path;
 
 use rayon::prelude::*;
 
 use super::{Geometry, IoError, NonFinitePolicy, Parsed};
+use crate::volume::VoxelValues;
 
-/// Chunk of vertices per parallel task; fixed so counts never depend on the thread count.
+/// Chunk of vertices or voxels per parallel task; fixed so counts never depend on the thread count.
 const CHUNK: usize = 1 << 16;
 
 /// Number of non-finite values of vertex `i`.
@@ -116,4 +117,158 @@ fn drop_non_finite(parsed: &mut Parsed, columns: &mut [Vec<f64>]) {
     });
     parsed.info.non_finite.dropped_vertices = (n - next as usize) as u64;
     parsed.info.non_finite.dropped_triangles = (before - parsed.triangles.len()) as u64;
+}
+
+/// Voxels holding NaN or an infinity, found by [`apply_to_voxels`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct NonFiniteVoxels {
+    /// How many.
+    pub count: u64,
+    /// Linear index of the first one.
+    pub first: Option<usize>,
+}
+
+/// Finds the non-finite voxels of `values`, then refuses, replaces or keeps them.
+///
+/// A grid cannot lose a voxel, so [`NonFinitePolicy::Drop`] gives them the lowest finite value
+/// of the volume: the background, for the images this crate reads (an object brighter than
+/// its surroundings), so that they take part in no object and no fit pulls towards them.
+/// A volume without a finite voxel is refused whatever the policy but
+/// [`NonFinitePolicy::Keep`].
+pub(crate) fn apply_to_voxels(
+    values: &mut VoxelValues,
+    policy: NonFinitePolicy,
+) -> Result<NonFiniteVoxels, NonFiniteVoxels> {
+    let found = match values {
+        VoxelValues::F32(v) => find_voxels(v, |x| x.is_finite()),
+        VoxelValues::F64(v) => find_voxels(v, |x| x.is_finite()),
+    };
+    if found.count == 0 || policy == NonFinitePolicy::Keep {
+        return Ok(found);
+    }
+    if policy == NonFinitePolicy::Refuse || found.count == values.len() as u64 {
+        return Err(found);
+    }
+    match values {
+        VoxelValues::F32(v) => replace_voxels(v, |x| x.is_finite(), f32::min),
+        VoxelValues::F64(v) => replace_voxels(v, |x| x.is_finite(), f64::min),
+    }
+    Ok(found)
+}
+
+fn find_voxels<T: Copy + Sync>(values: &[T], finite: fn(T) -> bool) -> NonFiniteVoxels {
+    // Fixed chunks summed in order: the first index never depends on the thread count.
+    let per_chunk: Vec<NonFiniteVoxels> = values
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let mut found = NonFiniteVoxels::default();
+            for (i, &x) in chunk.iter().enumerate() {
+                if !finite(x) {
+                    found.count += 1;
+                    found.first.get_or_insert(c * CHUNK + i);
+                }
+            }
+            found
+        })
+        .collect();
+    NonFiniteVoxels {
+        count: per_chunk.iter().map(|f| f.count).sum(),
+        first: per_chunk.iter().find_map(|f| f.first),
+    }
+}
+
+/// Sets the non-finite values to the lowest finite one (which exists: the caller checked).
+fn replace_voxels<T: Copy + Send + Sync>(
+    values: &mut [T],
+    finite: fn(T) -> bool,
+    min: fn(T, T) -> T,
+) {
+    let lowest = values
+        .par_chunks(CHUNK)
+        .filter_map(|chunk| chunk.iter().copied().filter(|&x| finite(x)).reduce(min))
+        .reduce_with(min)
+        .expect("at least one finite voxel");
+    values.par_iter_mut().for_each(|x| {
+        if !finite(*x) {
+            *x = lowest;
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with_holes(n: usize, holes: &[(usize, f32)]) -> Vec<f32> {
+        let mut v: Vec<f32> = (0..n).map(|i| (i % 97) as f32 - 20.0).collect();
+        for &(i, x) in holes {
+            v[i] = x;
+        }
+        v
+    }
+
+    #[test]
+    fn voxels_are_counted_across_chunks_and_the_first_is_the_lowest_index() {
+        let holes = [
+            (CHUNK + 3, f32::NAN),
+            (5, f32::INFINITY),
+            (3 * CHUNK, f32::NEG_INFINITY),
+        ];
+        let n = 3 * CHUNK + 10;
+        for policy in [NonFinitePolicy::Refuse, NonFinitePolicy::Keep] {
+            let mut values = VoxelValues::F32(with_holes(n, &holes));
+            let result = apply_to_voxels(&mut values, policy);
+            let expected = NonFiniteVoxels {
+                count: 3,
+                first: Some(5),
+            };
+            match policy {
+                NonFinitePolicy::Refuse => assert_eq!(result, Err(expected)),
+                _ => assert_eq!(result, Ok(expected)),
+            }
+            // Neither refusing nor keeping changes a value.
+            let VoxelValues::F32(v) = values else {
+                unreachable!()
+            };
+            assert!(v[CHUNK + 3].is_nan() && v[5] == f32::INFINITY);
+        }
+    }
+
+    #[test]
+    fn dropping_gives_voxels_the_lowest_finite_value_and_keeps_the_others() {
+        let holes = [(7, f32::NAN), (2 * CHUNK + 1, f32::INFINITY)];
+        let original = with_holes(2 * CHUNK + 5, &holes);
+        let mut values = VoxelValues::F64(original.iter().map(|&x| f64::from(x)).collect());
+        let found = apply_to_voxels(&mut values, NonFinitePolicy::Drop).unwrap();
+        assert_eq!(found.count, 2);
+        let VoxelValues::F64(v) = values else {
+            unreachable!()
+        };
+        for (i, (&after, &before)) in v.iter().zip(&original).enumerate() {
+            if holes.iter().any(|h| h.0 == i) {
+                assert_eq!(after, -20.0, "voxel {i}");
+            } else {
+                assert_eq!(after, f64::from(before), "voxel {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_volume_without_a_finite_voxel_is_refused_even_when_dropping() {
+        let mut values = VoxelValues::F32(vec![f32::NAN; 10]);
+        let refused = apply_to_voxels(&mut values, NonFinitePolicy::Drop);
+        assert_eq!(
+            refused,
+            Err(NonFiniteVoxels {
+                count: 10,
+                first: Some(0)
+            })
+        );
+        let mut clean = VoxelValues::F32(vec![1.0; 10]);
+        assert_eq!(
+            apply_to_voxels(&mut clean, NonFinitePolicy::Refuse),
+            Ok(NonFiniteVoxels::default())
+        );
+    }
 }

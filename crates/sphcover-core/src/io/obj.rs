@@ -14,7 +14,7 @@ use std::io::Write;
 use glam::DVec3;
 
 use super::encode::write_records;
-use super::error::{Failure, Location, Problem};
+use super::error::{Failure, GrowingBudget, Location, Problem};
 use super::text::{LineCursor, Tokens, bad_number, parse_f64, parse_integer, push_real, push_uint};
 use super::{
     ElementInfo, Export, FileInfo, Format, Parsed, PropertyInfo, VertexOrigins, push_polygon,
@@ -43,7 +43,8 @@ fn resolve(index: i64, count: usize) -> Option<i64> {
     }
 }
 
-pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
+pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
+    let mut budget = GrowingBudget::new(limit);
     let mut cursor = LineCursor::new(bytes, 0, 1);
     let mut positions: Vec<DVec3> = Vec::new();
     let mut lines: Vec<u64> = Vec::new();
@@ -94,6 +95,15 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
                 }
                 // Trailing `w` or vertex colours are ignored.
                 let p = DVec3::from_array(xyz);
+                // A vertex: position, line number and its slot in the normal pairing; a
+                // normal: itself and its copy as a vertex normal.
+                budget.add(if keyword == b"v" { 36 } else { 48 }, || {
+                    format!(
+                        "{} vertices and {} normals by line {line_no}",
+                        positions.len(),
+                        normals.len()
+                    )
+                })?;
                 if keyword == b"v" {
                     if positions.len() >= u32::MAX as usize {
                         return Err(Failure::syntax(at, "more than 2^32 - 1 vertices"));
@@ -174,6 +184,21 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Parsed, Failure> {
                         }
                     }
                 }
+                // Its triangles, and a check for each corner naming a later vertex.
+                let later = corners
+                    .iter()
+                    .filter(|&&v| v as usize >= positions.len())
+                    .count();
+                budget.add(
+                    12 * corners.len().saturating_sub(2) as u64 + 32 * later as u64,
+                    || {
+                        format!(
+                            "{} vertices and {} faces by line {line_no}",
+                            positions.len(),
+                            polygons + 1
+                        )
+                    },
+                )?;
                 polygons += 1;
                 if !push_polygon(&corners, &mut triangles) {
                     skipped += 1;

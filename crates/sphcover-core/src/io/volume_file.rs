@@ -101,6 +101,16 @@ impl VolumeInfo {
         }
     }
 
+    /// Voxels found holding NaN or an infinity, handled as
+    /// [`ReadOptions::non_finite`](super::ReadOptions::non_finite) says (0 when only the
+    /// header was read).
+    pub fn non_finite_voxels(&self) -> u64 {
+        match self {
+            VolumeInfo::Nifti(i) => i.non_finite_voxels,
+            VolumeInfo::Inrimage(i) => i.non_finite_voxels,
+        }
+    }
+
     /// Grid dimensions `[nx, ny, nz]` (of the first frame).
     pub fn dims(&self) -> [usize; 3] {
         match self {
@@ -389,6 +399,26 @@ impl VoxelData {
                 self.decoder.value_type_name()
             )
         })
+    }
+
+    /// Applies the non-finite `policy` to the first frame's `values` (see
+    /// [`NonFinitePolicy`](super::NonFinitePolicy)); returns how many voxels were not finite.
+    pub(crate) fn apply_non_finite(
+        &self,
+        values: &mut VoxelValues,
+        policy: super::NonFinitePolicy,
+    ) -> Result<u64, Failure> {
+        super::non_finite::apply_to_voxels(values, policy)
+            .map(|found| found.count)
+            .map_err(|found| {
+                let first = found.first.unwrap_or(0) as u64;
+                let [nx, ny, _] = self.dims;
+                Failure::NonFiniteVoxels {
+                    voxel: [first % nx, first / nx % ny, first / (nx * ny)].map(|c| c as usize),
+                    count: found.count,
+                    all: found.count == self.voxels(),
+                }
+            })
     }
 
     /// The error for data ending at stream offset `end` before the declared voxels.

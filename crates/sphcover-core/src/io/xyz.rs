@@ -19,7 +19,7 @@ use std::io::Write;
 use glam::DVec3;
 
 use super::encode::write_records;
-use super::error::{Failure, Location, Problem};
+use super::error::{Failure, GrowingBudget, Location, Problem};
 use super::text::{LineCursor, Tokens, bad_number, parse_f64, push_real};
 use super::{ElementInfo, Export, FileInfo, Format, Parsed, PropertyInfo, VertexOrigins};
 use crate::point_cloud::PointCloud;
@@ -92,7 +92,8 @@ fn layout_from_comment(line: &[u8]) -> Option<Layout> {
     })
 }
 
-pub(crate) fn read(bytes: &[u8], format: Format) -> Result<Parsed, Failure> {
+pub(crate) fn read(bytes: &[u8], format: Format, limit: Option<u64>) -> Result<Parsed, Failure> {
+    let mut budget = GrowingBudget::new(limit);
     let mut cursor = LineCursor::new(bytes, 0, 1);
     let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
     let mut layout = layout_from_comment(first_line);
@@ -134,7 +135,7 @@ pub(crate) fn read(bytes: &[u8], format: Format) -> Result<Parsed, Failure> {
                 })?;
                 // Reserve from the first line's length: no count is declared, and this
                 // bounds the estimate by the file size.
-                let estimate = bytes.len() / (line.len() + 1).max(1);
+                let estimate = budget.capped(bytes.len() / (line.len() + 1).max(1), 32);
                 positions.reserve(estimate);
                 lines.reserve(estimate);
                 layout = Some(l);
@@ -156,6 +157,10 @@ pub(crate) fn read(bytes: &[u8], format: Format) -> Result<Parsed, Failure> {
             *slot = parse_f64(token)
                 .ok_or_else(|| bad_number(at, current.element(), index, token, false))?;
         }
+        // Position and line number, and 8 bytes per further column.
+        budget.add(32 + 8 * (current.columns() as u64 - 3), || {
+            format!("{} {}s by line {line_no}", index + 1, current.element())
+        })?;
         positions.push(DVec3::new(values[0], values[1], values[2]));
         match current {
             Layout::Points => {}
