@@ -101,7 +101,8 @@ pub struct ReconArgs {
     /// then estimated); a PLY `confidence` property is used as the scanner's confidence.
     #[arg(value_name = "INPUT")]
     pub input: PathBuf,
-    /// Output mesh (PLY keeps the per-vertex confidence as `value`; OBJ, OFF, STL).
+    /// Output mesh (PLY keeps the per-vertex confidence as `quality`, which MeshLab shows;
+    /// OBJ, OFF, STL).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Cover tolerance ε, relative to the longest bounding-box edge (default 2.5e-3).
@@ -148,7 +149,7 @@ pub struct ReconArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Also write the input points with their confidence and outlier label (PLY
-    /// properties `confidence` and `value` = 1 for outliers).
+    /// properties `confidence` and `quality` = 1 for outliers).
     #[arg(long, value_name = "FILE")]
     pub points_out: Option<PathBuf>,
     /// Also write the final cover (cover PLY, readable by `sphcover tetra` and the library).

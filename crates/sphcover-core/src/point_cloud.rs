@@ -17,7 +17,7 @@ pub struct PointCloud {
     pub normals: Option<Vec<DVec3>>,
     /// Per-point confidence in `[0, 1]` (scanner-given, or computed by reconstruction).
     pub confidence: Option<Vec<f64>>,
-    /// Per-point scalar value (for example a CT intensity sample or a PLY `scalar`/`value`).
+    /// Per-point scalar value (for example a CT intensity sample or a PLY `quality`/`scalar`/`value`).
     pub values: Option<Vec<f64>>,
 }
 

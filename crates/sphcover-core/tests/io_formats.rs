@@ -67,8 +67,9 @@ element edge 1\r\nproperty int vertex1\r\nproperty int vertex2\r\nend_header\r\n
         g.points.normals.as_deref(),
         Some(&[v(0.0, 0.0, 1.0), v(0.0, 0.0, 1.0), v(0.0, 1.0, 0.0)][..])
     );
-    assert_eq!(g.points.confidence.as_deref(), Some(&[0.5, 1.0, 0.25][..]));
-    assert_eq!(g.points.values.as_deref(), Some(&[10.0, 11.0, 12.0][..]));
+    // `quality` (MeshLab's scalar) comes before `scalar_Intensity`: it is the values.
+    assert_eq!(g.points.confidence, None);
+    assert_eq!(g.points.values.as_deref(), Some(&[0.5, 1.0, 0.25][..]));
     assert_eq!(g.triangles, vec![[0, 1, 2], [0, 1, 2], [0, 2, 0]]);
     assert_eq!(g.info.polygons, 2);
     let names: Vec<&str> = g.info.elements.iter().map(|e| e.name.as_str()).collect();
@@ -392,7 +393,7 @@ fn writers_refuse_data_their_format_cannot_hold() {
     let dir = tempfile::tempdir().unwrap();
     let options = WriteOptions::default();
     let mesh = tetra();
-    for name in ["m.xyz", "m.obj", "m.off", "m.stl", "m.sph", "m.txt"] {
+    for name in ["m.xyz", "m.sph", "m.txt"] {
         let path = dir.path().join(name);
         let err = write_mesh(&path, &mesh, &options).unwrap_err();
         assert!(matches!(err, IoError::Unsupported { .. }), "{name}: {err}");
@@ -401,6 +402,10 @@ fn writers_refuse_data_their_format_cannot_hold() {
     }
     let cloud = PointCloud::from_positions(vec![v(0.0, 0.0, 0.0)]);
     let err = write_point_cloud(&dir.path().join("c.stl"), &cloud, &options).unwrap_err();
+    assert!(matches!(err, IoError::Unsupported { .. }), "{err}");
+    let mut valued = cloud.clone();
+    valued.values = Some(vec![1.0]);
+    let err = write_point_cloud(&dir.path().join("c.obj"), &valued, &options).unwrap_err();
     assert!(matches!(err, IoError::Unsupported { .. }), "{err}");
     let spheres = SphereSet {
         centres: vec![v(0.0, 0.0, 0.0)],
@@ -412,6 +417,35 @@ fn writers_refuse_data_their_format_cannot_hold() {
     bad.values = Some(vec![]);
     let err = write_point_cloud(&dir.path().join("c.ply"), &bad, &options).unwrap_err();
     assert!(matches!(err, IoError::InvalidData { .. }), "{err}");
+}
+
+/// A mesh written to OBJ, OFF or STL is its geometry: the per-vertex values those formats
+/// have no place for (and in STL the vertex normals) are left out, the rest reads back.
+#[test]
+fn meshes_with_values_write_their_geometry_to_obj_off_and_stl() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut mesh = tetra();
+    mesh.normals = Some(vec![v(0.0, 0.0, 1.0); 4]);
+    for name in ["m.obj", "m.off", "m.stl"] {
+        let path = dir.path().join(name);
+        write_mesh(&path, &mesh, &WriteOptions::default()).unwrap();
+        let back = read_mesh(&path, &ReadOptions::default()).unwrap();
+        // STL merges its corners into vertices in order of first use: compare corners.
+        let corners = |m: &TriMesh| -> Vec<[DVec3; 3]> {
+            m.triangles
+                .iter()
+                .map(|t| t.map(|i| m.vertices[i as usize]))
+                .collect()
+        };
+        assert_eq!(corners(&back), corners(&mesh), "{name}");
+        assert_eq!(back.values, None, "{name}");
+        let normals = if name == "m.stl" {
+            None
+        } else {
+            mesh.normals.clone()
+        };
+        assert_eq!(back.normals, normals, "{name}");
+    }
 }
 
 #[test]

@@ -1,11 +1,10 @@
 //! `sphcover recon`: a surface mesh from scanned points (thesis §5), robust to noise,
 //! outliers and wrong normals.
 
-use std::borrow::Cow;
 use std::path::Path;
 
 use serde_json::json;
-use sphcover_core::io::{self, CoverFileMeta, Format, WriteOptions};
+use sphcover_core::io::{self, CoverFileMeta, WriteOptions};
 use sphcover_core::{PointCloud, SurfaceCoverError, SurfaceCoverParams};
 use sphcover_recon::{
     COARSEST_BUDGET_DEPTH, GraphCutParams, Method, RECON_MEMORY_MODEL, ReconError, ReconParams,
@@ -69,18 +68,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         inputs: vec![args.input.clone()],
         ..WriteOptions::default()
     };
-    // Only the formats without per-vertex values (or normals) need a trimmed copy.
-    let mut mesh = Cow::Borrowed(&recon.mesh);
-    match Format::from_path(&args.output)? {
-        Format::Ply => {}
-        Format::Stl => {
-            let mesh = mesh.to_mut();
-            mesh.values = None;
-            mesh.normals = None;
-        }
-        _ => mesh.to_mut().values = None,
-    }
-    io::write_mesh(&args.output, &mesh, &options)?;
+    io::write_mesh(&args.output, &recon.mesh, &options)?;
     if let Some(path) = &args.points_out {
         let points = PointCloud {
             positions: cloud.positions.clone(),

@@ -215,8 +215,8 @@ fn builtin_property(geometry: &Geometry, name: &str) -> Option<Vec<f64>> {
     let points = &geometry.points;
     let axis = |k: usize| Some(points.positions.iter().map(|p| p[k]).collect());
     match name.to_ascii_lowercase().as_str() {
-        "confidence" | "quality" => points.confidence.clone(),
-        "value" | "values" | "scalar" | "intensity" => points.values.clone(),
+        "confidence" => points.confidence.clone(),
+        "quality" | "value" | "values" | "scalar" | "intensity" => points.values.clone(),
         "radius" => geometry.radii.clone(),
         "x" => axis(0),
         "y" => axis(1),
@@ -241,7 +241,7 @@ fn unknown_property(path: &Path, geometry: &Geometry, name: &str) -> anyhow::Err
         ("y", true),
         ("z", true),
         ("confidence", geometry.points.confidence.is_some()),
-        ("value", geometry.points.values.is_some()),
+        ("quality", geometry.points.values.is_some()),
         ("radius", geometry.radii.is_some()),
     ] {
         if present && !names.iter().any(|n| n == builtin) {

@@ -14,7 +14,7 @@
 //!
 //! | extension | reads | writes |
 //! |---|---|---|
-//! | `.ply` | ascii, binary little/big endian; any scalar type; `vertex` (x y z, nx ny nz, `confidence`/`quality`, `value`/`scalar`/`intensity`/`scalar_*`, `radius`) and `face` (`vertex_indices`/`vertex_index` lists); other elements and properties skipped | binary little endian (default), big endian or ascii; `float` or `double` |
+//! | `.ply` | ascii, binary little/big endian; any scalar type; `vertex` (x y z, nx ny nz, `confidence`, `quality`/`value`/`scalar`/`intensity`/`scalar_*` as the values, `radius`) and `face` (`vertex_indices`/`vertex_index` lists); other elements and properties skipped | binary little endian (default), big endian or ascii; `float` or `double` |
 //! | `.obj` | `v`, `vn`, `f` (all corner forms, negative indices); other statements ignored | `v`, `vn`, `f` |
 //! | `.off` | `OFF` with `N`, `C`, `ST` prefixes (extra per-vertex columns), `#` comments | `OFF` / `NOFF` |
 //! | `.stl` | binary and ascii; identical vertices merged | binary |
@@ -41,8 +41,11 @@
 //!   stores `f32`. Text formats without declared types (OBJ, OFF, column text) store an `f32`
 //!   as the shortest digits that identify it; they read back as an `f64` that rounds to the
 //!   same `f32`.
-//! * A writer given data its format cannot hold (faces to XYZ, per-vertex values to OBJ,
-//!   a point cloud to STL, …) returns [`IoError::Unsupported`] instead of dropping data.
+//! * A writer given data its format cannot hold (faces to XYZ, per-vertex values of a point
+//!   cloud to OBJ, a point cloud to STL, …) returns [`IoError::Unsupported`] instead of
+//!   dropping data. The one exception is [`write_mesh`]: a mesh written to OBJ, OFF or STL
+//!   is its geometry, so per-vertex values (and in STL, vertex normals) that the format has
+//!   no place for are left out, as mesh tools do.
 //! * Every writer goes through [`write_atomic`]: the output appears complete or not at all.
 
 mod atomic;
@@ -601,13 +604,16 @@ pub fn write_point_cloud(
     write_export(path, export, options)
 }
 
-/// Writes a triangle mesh in the format named by the extension of `path`.
+/// Writes a triangle mesh in the format named by the extension of `path`. Per-vertex values
+/// are written where the format has a place for them (PLY) and left out elsewhere; vertex
+/// normals everywhere but STL (which stores one normal per triangle, computed).
 pub fn write_mesh(path: &Path, mesh: &TriMesh, options: &WriteOptions) -> Result<(), IoError> {
+    let format = Format::from_path(path)?;
     let export = Export {
         positions: &mesh.vertices,
-        normals: mesh.normals.as_deref(),
+        normals: mesh.normals.as_deref().filter(|_| format != Format::Stl),
         confidence: None,
-        values: mesh.values.as_deref(),
+        values: mesh.values.as_deref().filter(|_| format == Format::Ply),
         radii: None,
         triangles: &mesh.triangles,
     };

@@ -401,9 +401,10 @@ pub(crate) fn vertex_roles(element: &Element) -> Result<VertexRoles, Failure> {
     Ok(VertexRoles {
         xyz,
         normal,
-        confidence: find(&|p| p == "confidence" || p == "quality")?,
+        confidence: find(&named("confidence"))?,
+        // `quality` is MeshLab's per-vertex scalar, what the writer names the values.
         value: find(&|p| {
-            matches!(p, "value" | "scalar" | "intensity") || p.starts_with("scalar_")
+            matches!(p, "quality" | "value" | "scalar" | "intensity") || p.starts_with("scalar_")
         })?,
         radius: find(&named("radius"))?,
     })

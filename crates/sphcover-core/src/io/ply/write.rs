@@ -1,5 +1,5 @@
-//! PLY output: `vertex` with x y z and whichever of nx ny nz, confidence, value, radius are
-//! present, then `face` lists of 3 indices when there are triangles.
+//! PLY output: `vertex` with x y z and whichever of nx ny nz, confidence, quality (the
+//! values), radius are present, then `face` lists of 3 indices when there are triangles.
 
 use std::io::Write;
 
@@ -58,7 +58,8 @@ pub(crate) fn write(
     }
     for (present, name) in [
         (e.confidence.is_some(), "confidence"),
-        (e.values.is_some(), "value"),
+        // MeshLab's name for a per-vertex scalar: it colours by it and keeps it.
+        (e.values.is_some(), "quality"),
         (e.radii.is_some(), "radius"),
     ] {
         if present {
