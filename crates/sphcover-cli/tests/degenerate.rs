@@ -228,11 +228,14 @@ fn collinear_points() -> Vec<DVec3> {
 #[test]
 fn collinear_points_with_normals_give_the_strip_their_normals_span() {
     // The normals (all +z) say the line lies in the plane z = 0: the result is that plane,
-    // trimmed to a strip along the line.
+    // trimmed to a strip along the line; untrimmed it would fill the bounding box.
     let points = collinear_points();
     let case = Case::new(&points, Some(&vec![DVec3::Z; points.len()]));
-    let mesh = case.expect_mesh(&case.recon(&[]));
-    assert_flat(&mesh, "untrimmed");
+    let message = case.expect_refusal(&case.recon(&[]));
+    assert!(
+        message.contains("the points lie on a plane") && message.contains("--trim"),
+        "{message}"
+    );
     let trimmed = case.expect_mesh(&case.recon(&["--trim"]));
     assert_flat(&trimmed, "trimmed");
     let (lo, hi) = bounding_box(&trimmed);
@@ -258,18 +261,16 @@ fn open_sheet() -> Vec<DVec3> {
         .collect()
 }
 
-/// An open sheet, trimmed: a flat piece covering the samples' square and ending near it.
-/// The bound is 6 sample spacings (1/19) past the square's edges: the default trim is 3
-/// spacings, and measured the surface reaches 0.27 ≈ 5.2 spacings past them at depth 6.
+/// An open sheet is refused untrimmed (it encloses nothing: the surface would be its plane
+/// across the bounding box), with the hint to trim; trimmed, a flat piece covering the
+/// samples' square and ending near it. The bound is 6 sample spacings (1/19) past the
+/// square's edges: the default trim is 3 spacings, and measured the surface reaches 0.27 ≈
+/// 5.2 spacings past them at depth 6.
 fn assert_trimmed_sheet(case: &Case) {
-    let run = case.recon(&[]);
-    let untrimmed = case.expect_mesh(&run);
-    assert_flat(&untrimmed, "untrimmed sheet");
-    // An open result without --trim says that the surface is extrapolated and how to trim.
-    let stderr = text(&run.stderr);
+    let message = case.expect_refusal(&case.recon(&[]));
     assert!(
-        stderr.contains("the surface is open") && stderr.contains("--trim"),
-        "{stderr}"
+        message.contains("the points lie on a plane, to rounding") && message.contains("(--trim)"),
+        "{message}"
     );
     let run = case.recon(&["--trim"]);
     assert!(

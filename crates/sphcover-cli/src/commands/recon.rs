@@ -56,6 +56,9 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. }) => {
             anyhow::Error::from(BadInput(format!("{}: {e}", args.input.display())))
         }
+        ReconError::Flat => {
+            anyhow::Error::from(BadInput(format!("{}: {e} (--trim)", args.input.display())))
+        }
         other => anyhow::Error::from(other).context(format!("{}", args.input.display())),
     })?;
     for (name, time) in &recon.stats.stages {

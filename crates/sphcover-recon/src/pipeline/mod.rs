@@ -179,6 +179,11 @@ pub enum ReconError {
         "the points lie on a line, to rounding, and have no normals: no surface is determined (give normals, which choose the plane through the line, or points spread in more dimensions)"
     )]
     Collinear,
+    /// The points lie on a plane (or on a line, with normals) and the surface is not trimmed.
+    #[error(
+        "the points lie on a plane, to rounding: they enclose nothing, and the untrimmed surface would be their plane extrapolated over the whole bounding box; trim the surface to the samples for the flat sheet they cover"
+    )]
+    Flat,
     /// One point lies so far from the rest that, in the frame of its bounding box, the rest
     /// of the scan cannot be resolved.
     #[error(

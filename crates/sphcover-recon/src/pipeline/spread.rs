@@ -1,10 +1,13 @@
 //! What the reconstruction refuses before it starts: points on a line without normals (no
-//! surface is determined: every plane through the line fits) and scans whose bounding box a
-//! far point blows up so much that the rest of the scan cannot be resolved in it. Both used
-//! to fail inside a later stage or return a mesh of the bounding box's size.
+//! surface is determined: every plane through the line fits), flat sets (on a plane, or on a
+//! line with normals) without trimming, and scans whose bounding box a far point blows up so
+//! much that the rest of the scan cannot be resolved in it. These used to fail inside a later
+//! stage or return a mesh of the bounding box's size.
 //!
-//! Points on a plane are not refused: they are an open sheet (a scanned flat part), which the
-//! pipeline reconstructs as a flat surface, trimmed to the samples with `Trim`.
+//! A flat set is a legitimate open sheet (a scanned flat part), but it encloses nothing: the
+//! untrimmed surface is the sheet's plane extrapolated over the whole bounding cube (91K
+//! triangles for 2,000 points in a unit square, reaching 1.4 units past it). With `Trim` the
+//! pipeline reconstructs the flat sheet the samples cover.
 
 use sphcover_core::{DMat3, DVec3, SymmetricEigen3};
 
@@ -20,12 +23,14 @@ const FLAT_RATIO: f64 = 1e-6;
 /// dropped and the frame follows the rest. Nearer outliers are dropped as isolated.
 const FAR_RATIO: f64 = 1e9;
 
-/// Checks the finite input `points` (`oriented`: they come with normals); `index` maps a
-/// point back to its input index (for the message).
+/// Checks the finite input `points` (`oriented`: they come with normals; `trimmed`: the
+/// surface is trimmed to them); `index` maps a point back to its input index (for the
+/// message).
 pub(super) fn check_spread(
     points: &[DVec3],
     index: &[usize],
     oriented: bool,
+    trimmed: bool,
 ) -> Result<(), ReconError> {
     if let Some((far, ratio)) = farthest_beyond(points, FAR_RATIO) {
         return Err(ReconError::FarPoint {
@@ -34,9 +39,12 @@ pub(super) fn check_spread(
             ratio,
         });
     }
-    let [_, across, along] = principal_spreads(points);
+    let [thickness, across, along] = principal_spreads(points);
     if !oriented && across <= FLAT_RATIO * along {
         return Err(ReconError::Collinear);
+    }
+    if !trimmed && thickness <= FLAT_RATIO * along {
+        return Err(ReconError::Flat);
     }
     Ok(())
 }
@@ -103,10 +111,11 @@ mod tests {
 
     proptest! {
         /// Points on any line through any point, at any scale, are refused without normals
-        /// and kept with them (the normals choose the plane); lifting one point off the line
-        /// by a visible amount makes a plane, which is kept either way.
+        /// and kept with them when trimmed (the normals choose the plane); lifting one point
+        /// off the line by a visible amount makes a plane, kept when trimmed; lifting another
+        /// off that plane makes a solid set, kept either way.
         #[test]
-        fn lines_without_normals_are_refused_at_any_orientation_and_scale(
+        fn lines_and_planes_are_refused_at_any_orientation_and_scale(
             direction in proptest::array::uniform3(-1.0f64..1.0),
             origin in proptest::array::uniform3(-1e3f64..1e3),
             scale in 1e-3f64..1e3,
@@ -118,14 +127,24 @@ mod tests {
                 .map(|i| DVec3::from(origin) + scale * i as f64 * direction)
                 .collect();
             let index: Vec<usize> = (0..points.len()).collect();
-            let refused = matches!(
-                check_spread(&points, &index, false),
-                Err(ReconError::Collinear)
-            );
-            prop_assert!(refused);
-            prop_assert!(check_spread(&points, &index, true).is_ok());
-            points[0] += 10.0 * scale * direction.any_orthonormal_vector();
-            prop_assert!(check_spread(&points, &index, false).is_ok());
+            let check = |points: &[DVec3], oriented, trimmed| {
+                check_spread(points, &index, oriented, trimmed)
+            };
+            for trimmed in [false, true] {
+                prop_assert!(matches!(check(&points, false, trimmed), Err(ReconError::Collinear)));
+            }
+            prop_assert!(matches!(check(&points, true, false), Err(ReconError::Flat)));
+            prop_assert!(check(&points, true, true).is_ok());
+            let (u, v) = direction.any_orthonormal_pair();
+            points[0] += 10.0 * scale * u;
+            for oriented in [false, true] {
+                prop_assert!(matches!(check(&points, oriented, false), Err(ReconError::Flat)));
+                prop_assert!(check(&points, oriented, true).is_ok());
+            }
+            points[1] += 10.0 * scale * v;
+            for (oriented, trimmed) in [(false, false), (true, false), (false, true), (true, true)] {
+                prop_assert!(check(&points, oriented, trimmed).is_ok());
+            }
         }
     }
 
@@ -135,9 +154,9 @@ mod tests {
         let index: Vec<usize> = (10..510).collect();
         // Outliers 10^6 radii away are dropped as isolated, not refused.
         points[7] = DVec3::new(1e6, 0.0, 0.0);
-        assert!(check_spread(&points, &index, false).is_ok());
+        assert!(check_spread(&points, &index, false, false).is_ok());
         points[3] = DVec3::new(1e300, 0.0, 0.0);
-        match check_spread(&points, &index, false) {
+        match check_spread(&points, &index, false, false) {
             Err(ReconError::FarPoint { index, ratio, .. }) => {
                 assert_eq!(index, 13);
                 assert!(ratio > 1e299 && ratio.is_finite(), "{ratio}");

@@ -187,7 +187,8 @@ fn normalise(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     if extent.is_nan() || extent <= 0.0 {
         return Err(ReconError::NoExtent(kept.len()));
     }
-    super::spread::check_spread(&points, &kept, cloud.normals.is_some())?;
+    let trimmed = ctx.params.trim != Trim::Off;
+    super::spread::check_spread(&points, &kept, cloud.normals.is_some(), trimmed)?;
     let normalisation =
         Normalisation::of_points(&points).ok_or(ReconError::NoExtent(kept.len()))?;
     normalisation.points_to_unit(&mut points);
