@@ -97,7 +97,7 @@ pub enum ReconMethodArg {
 /// Arguments of `sphcover recon`.
 #[derive(Debug, Args)]
 pub struct ReconArgs {
-    /// Scanned points: PLY, OBJ, OFF, STL, XYZ/PWN, LAS; with normals or without (they are
+    /// Scanned points: PLY, OBJ, OFF, STL, XYZ/PWN, LAS/LAZ; with normals or without (they are
     /// then estimated); a PLY `confidence` property is used as the scanner's confidence.
     #[arg(value_name = "INPUT")]
     pub input: PathBuf,

@@ -1,5 +1,5 @@
 //! LAS reader: files built here byte by byte (versions 1.2 and 1.4, point formats 0, 3, 6),
-//! and every way the header can lie.
+//! every way the header can lie, and LAZ twins of LAS files.
 
 use std::path::Path;
 
@@ -214,24 +214,139 @@ fn refuses_bad_signature_version_and_layout() {
     assert_eq!(malformed(&b).0, Location::Byte(94));
 }
 
+/// The LAZ twin of a LAS file: the same header and records, the records compressed by
+/// LASzip (the `laz` crate's compressor) behind a `laszip encoded` record.
+fn laz_twin(las: &[u8]) -> Vec<u8> {
+    use laz::{LasZipCompressor, LazItemRecordBuilder, LazVlr};
+    let u16_at = |at: usize| usize::from(u16::from_le_bytes([las[at], las[at + 1]]));
+    let u32_at = |at: usize| u32::from_le_bytes(las[at..at + 4].try_into().unwrap());
+    let offset = u32_at(96) as usize;
+    let format = las[104];
+    let record_length = u16_at(105);
+    let count = match u32_at(107) {
+        // Point formats 6 to 10 leave the legacy count 0 for the 64-bit one of LAS 1.4.
+        0 => u64::from_le_bytes(las[247..255].try_into().unwrap()) as usize,
+        n => n as usize,
+    };
+    let base = [20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67][usize::from(format)];
+    let items =
+        LazItemRecordBuilder::default_for_point_format_id(format, (record_length - base) as u16)
+            .unwrap();
+    let vlr = LazVlr::from_laz_items(items);
+    let mut description = Vec::new();
+    vlr.write_to(&mut description).unwrap();
+    let mut out = las[..offset].to_vec();
+    out.extend([0u8; 2]);
+    let mut user_id = [0u8; 16];
+    user_id[..LazVlr::USER_ID.len()].copy_from_slice(LazVlr::USER_ID.as_bytes());
+    out.extend(user_id);
+    out.extend(LazVlr::RECORD_ID.to_le_bytes());
+    out.extend((description.len() as u16).to_le_bytes());
+    out.extend([0u8; 32]);
+    out.extend(&description);
+    let points_at = out.len() as u32;
+    out[96..100].copy_from_slice(&points_at.to_le_bytes());
+    out[100..104].copy_from_slice(&(u32_at(100) + 1).to_le_bytes());
+    out[104] = format | 0x80;
+    // The compressor writes the chunk table's offset from the start of its stream: the file.
+    let mut file = std::io::Cursor::new(out);
+    file.set_position(u64::from(points_at));
+    let mut compressor = LasZipCompressor::new(file, vlr).unwrap();
+    compressor
+        .compress_many(&las[offset..offset + count * record_length])
+        .unwrap();
+    compressor.done().unwrap();
+    compressor.into_inner().into_inner()
+}
+
+/// LAZ files read exactly as their LAS twins: the bundled urban LiDAR tile (point format 3,
+/// 13,511 points) and the files built here, through `.laz` paths too.
 #[test]
-fn refuses_laz_with_a_hint() {
-    let mut b = Las::new(2, 3, 34).bytes();
-    b[104] = 3 | 0x80;
-    let (at, p) = malformed(&b);
-    assert_eq!(at, Location::Byte(104));
-    assert!(
-        p.to_string()
-            .contains("LAZ is compressed; decompress with laszip"),
-        "{p}"
-    );
-    // The .laz extension reaches the LAS reader, which tells what is wrong.
+fn laz_reads_identically_to_its_las_twin() {
+    let urban =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/real/urban.las"))
+            .unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("scan.laz");
-    std::fs::write(&path, &b).unwrap();
-    let e = read_geometry(&path, &ReadOptions::default()).unwrap_err();
-    assert!(e.to_string().contains("scan.laz"), "{e}");
-    assert!(e.to_string().contains("laszip"), "{e}");
+    for (name, las) in [
+        ("urban", urban),
+        ("v12f0", Las::new(2, 0, 20).bytes()),
+        ("v12f3extra", Las::new(2, 3, 40).bytes()),
+        ("v14f6", Las::new(4, 6, 30).bytes()),
+    ] {
+        let laz = laz_twin(&las);
+        assert!(
+            laz.len() < las.len() || las.len() < 2000,
+            "{name}: {} vs {}",
+            laz.len(),
+            las.len()
+        );
+        let plain = parse_geometry(
+            &las,
+            Format::Las,
+            Path::new("a.las"),
+            &ReadOptions::default(),
+        )
+        .unwrap();
+        let path = dir.path().join(format!("{name}.laz"));
+        std::fs::write(&path, &laz).unwrap();
+        let compressed = read_geometry(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(compressed.points, plain.points, "{name}");
+        assert!(
+            compressed.info.variant.starts_with("LAZ 1."),
+            "{}",
+            compressed.info.variant
+        );
+        assert_eq!(compressed.info.elements, plain.info.elements, "{name}");
+    }
+}
+
+/// A LAZ header declaring more points than the limit allows is refused before anything is
+/// decompressed; compressed data that is cut or lacks its LASzip record is malformed.
+#[test]
+fn laz_counts_are_checked_and_broken_compression_is_refused() {
+    let las = Las::new(2, 3, 34).bytes();
+    let laz = laz_twin(&las);
+    let limited = ReadOptions {
+        max_bytes: Some(100),
+        ..ReadOptions::default()
+    };
+    match parse_geometry(&laz, Format::Las, Path::new("a.laz"), &limited) {
+        Err(IoError::OverMemoryLimit { declared, .. }) => {
+            assert_eq!(declared, "3 compressed records of 34 bytes")
+        }
+        other => panic!("{other:?}"),
+    }
+    let mut lying = laz.clone();
+    lying[107..111].copy_from_slice(&4_000_000_000u32.to_le_bytes());
+    assert!(matches!(
+        parse_geometry(&lying, Format::Las, Path::new("a.laz"), &limited),
+        Err(IoError::OverMemoryLimit { .. })
+    ));
+    let cut = &laz[..laz.len() - 10];
+    let (_, problem) = malformed(cut);
+    assert!(
+        problem.to_string().contains("chunk table offset"),
+        "{problem}"
+    );
+    // A chunk table declaring billions of chunks is refused before `laz` allocates them.
+    let mut swollen = laz.clone();
+    let data_at = u32::from_le_bytes(laz[96..100].try_into().unwrap()) as usize;
+    let table_at = i64::from_le_bytes(laz[data_at..data_at + 8].try_into().unwrap()) as usize;
+    swollen[table_at + 4..table_at + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+    let (_, problem) = malformed(&swollen);
+    assert!(
+        problem.to_string().contains("declares 4294967295 chunks"),
+        "{problem}"
+    );
+    // The compression bit without the record that describes it.
+    let mut bare = las.clone();
+    bare[104] |= 0x80;
+    let (at, problem) = malformed(&bare);
+    assert_eq!(at, Location::Byte(227));
+    assert!(
+        problem.to_string().contains("no `laszip encoded` record"),
+        "{problem}"
+    );
 }
 
 #[test]

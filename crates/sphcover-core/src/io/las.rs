@@ -12,8 +12,8 @@
 //!   legacy 32-bit count; it is checked against the bytes present before anything is
 //!   allocated.
 //! * Compressed LAZ files (the point format with bit 7 or 6 set, as LASzip writes it) are
-//!   refused with a hint to decompress them.
-//! * Variable length records are skipped.
+//!   decompressed first ([`super::laz`]) and then read as the same LAS file uncompressed.
+//! * Variable length records are skipped (but LAZ's, which describes the compression).
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -178,16 +178,8 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             ),
         ));
     }
-    let point_format_raw = bytes[104];
-    if point_format_raw & 0xC0 != 0 {
-        return Err(header(
-            104,
-            format!(
-                "point data format byte {point_format_raw} has the compression bits set: LAZ is compressed; decompress with laszip (laszip -i in.laz -o out.las)"
-            ),
-        ));
-    }
-    let point_format = point_format_raw;
+    let compressed = bytes[104] & 0xC0 != 0;
+    let point_format = bytes[104] & 0x3F;
     if point_format > 10 {
         return Err(header(
             104,
@@ -250,7 +242,7 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
     }
 
     let available = bytes.len().saturating_sub(offset) as u64 / record_length as u64;
-    if count > available {
+    if !compressed && count > available {
         let first_missing =
             (offset as u64 + available * record_length as u64).min(bytes.len() as u64);
         return Err(Failure::new(
@@ -272,12 +264,31 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             ),
         ));
     }
-    MemoryBudget::new(limit).reserve(count.saturating_mul(POINT_BYTES), || {
+    let mut budget = MemoryBudget::new(limit);
+    if compressed {
+        budget.reserve(count.saturating_mul(record_length as u64), || {
+            format!("{count} compressed records of {record_length} bytes")
+        })?;
+    }
+    budget.reserve(count.saturating_mul(POINT_BYTES), || {
         format!("{count} points")
     })?;
-    // `count ≤ available`, so this fits in `usize`: it is bounded by the file size.
-    let n = count as usize;
-    let data = &bytes[offset..offset + n * record_length];
+    let decompressed;
+    let data = if compressed {
+        let vlr_count = u32_at(bytes, 100);
+        decompressed = super::laz::decompress_records(
+            bytes,
+            header_size,
+            vlr_count,
+            offset,
+            count,
+            record_length,
+        )?;
+        &decompressed[..]
+    } else {
+        // `count ≤ available`, so this fits in `usize`: it is bounded by the file size.
+        &bytes[offset..offset + count as usize * record_length]
+    };
     let scale = DVec3::from_array(scale);
     let shift = DVec3::from_array(shift);
     let (positions, values): (Vec<DVec3>, Vec<f64>) = data
@@ -294,7 +305,10 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
 
     let mut info = FileInfo::new(
         Format::Las,
-        format!("LAS {major}.{minor}, point format {point_format}"),
+        format!(
+            "{} {major}.{minor}, point format {point_format}",
+            if compressed { "LAZ" } else { "LAS" }
+        ),
         bytes.len(),
     );
     let mut properties: Vec<PropertyInfo> = record_fields(point_format)

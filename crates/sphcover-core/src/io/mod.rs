@@ -21,7 +21,7 @@
 //! | `.xyz` `.pwn` | `x y z`, `x y z v`, `x y z nx ny nz`, `x y z nx ny nz v` per line | same |
 //! | `.txt` | as `.xyz`, except that 4 columns mean a sphere set `x y z r` | same |
 //! | `.sph` `.spheres` | sphere sets, `x y z r` per line | same |
-//! | `.las` | LAS 1.0–1.4, point formats 0–10: positions, intensity as per-vertex values (LAZ refused) | — |
+//! | `.las`, `.laz` | LAS 1.0–1.4, point formats 0–10, uncompressed or LASzip-compressed (LAZ): positions, intensity as per-vertex values | — |
 //!
 //! * Text records are one per line (every PLY, OFF and XYZ writer does that), so a record
 //!   with a missing or extra number is reported on its own line instead of shifting every
@@ -55,6 +55,7 @@ mod error;
 #[cfg(feature = "nifti")]
 mod inrimage;
 mod las;
+mod laz;
 #[cfg(feature = "nifti")]
 mod nifti;
 mod non_finite;
