@@ -64,7 +64,7 @@ pub struct TetraArgs {
     /// A sphere set (`x y z r` text, or PLY with a `radius` vertex property).
     #[arg(value_name = "SPHERES")]
     pub spheres: PathBuf,
-    /// Output: `.vtk` (VTK legacy unstructured grid, opens in ParaView) or `.txt`/`.tets`
+    /// Output: `.vtk` (VTK legacy unstructured grid, opens in ParaView), `.vtu` (VTK XML) or `.txt`/`.tets`
     /// (one tetrahedron per line as four ascending support indices, rows sorted).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
@@ -102,7 +102,7 @@ pub struct ReconArgs {
     #[arg(value_name = "INPUT")]
     pub input: PathBuf,
     /// Output mesh (PLY keeps the per-vertex confidence as `quality`, which MeshLab shows;
-    /// OBJ, OFF, STL).
+    /// `.vtp`/`.vtu` for ParaView; OBJ, OFF, STL).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Cover tolerance ε, relative to the longest bounding-box edge (default 2.5e-3).
@@ -258,7 +258,7 @@ pub struct SkeletonArgs {
     /// `--value-property`, a PLY file of scattered samples with values.
     #[arg(value_name = "CT")]
     pub input: PathBuf,
-    /// Output: the sheet as a triangle mesh (PLY, OBJ, OFF, STL) in world coordinates; with
+    /// Output: the sheet as a triangle mesh (PLY, VTK XML .vtu/.vtp, OBJ, OFF, STL) in world coordinates; with
     /// `--method nms`, a point set (PLY, XYZ).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,

@@ -15,11 +15,11 @@ struct Output<'a> {
     extensions: &'static [&'static str],
 }
 
-const MESH: &[&str] = &["ply", "obj", "off", "stl"];
+const MESH: &[&str] = &["ply", "obj", "off", "stl", "vtp", "vtu"];
 const PLY: &[&str] = &["ply"];
-const POINTS: &[&str] = &["ply", "xyz"];
+const POINTS: &[&str] = &["ply", "xyz", "vtp"];
 const JSON: &[&str] = &["json"];
-const TET_MESH: &[&str] = &["vtk", "txt", "tets"];
+const TET_MESH: &[&str] = &["vtk", "vtu", "txt", "tets"];
 const PNG: &[&str] = &["png"];
 
 /// Every output of `command`, with the inputs it must not overwrite.

@@ -20,12 +20,12 @@ fn bad_outputs_are_refused_before_the_input_is_read() {
         (
             &["recon", "in.ply", "-o", "out.nii"],
             2,
-            "must end in .ply, .obj, .off, .stl",
+            "must end in .ply, .obj, .off, .stl, .vtp, .vtu",
         ),
         (
             &["recon", "in.ply", "-o", "out"],
             2,
-            "must end in .ply, .obj, .off, .stl",
+            "must end in .ply, .obj, .off, .stl, .vtp, .vtu",
         ),
         (
             &["recon", "in.ply", "-o", "m.ply", "--report", "r.txt"],
@@ -72,12 +72,12 @@ fn bad_outputs_are_refused_before_the_input_is_read() {
         (
             &["skeleton", "in.nii", "-o", "sheet.xyz"],
             2,
-            "must end in .ply, .obj, .off, .stl",
+            "must end in .ply, .obj, .off, .stl, .vtp, .vtu",
         ),
         (
             &["skeleton", "in.nii", "--method", "nms", "-o", "pts.stl"],
             2,
-            "must end in .ply, .xyz",
+            "must end in .ply, .xyz, .vtp",
         ),
         (
             &["cover", "in.ply", "-o", "cover.nii"],
@@ -87,7 +87,7 @@ fn bad_outputs_are_refused_before_the_input_is_read() {
         (
             &["tetra", "in.sph", "-o", "mesh.ply"],
             2,
-            "must end in .vtk, .txt, .tets",
+            "must end in .vtk, .vtu, .txt, .tets",
         ),
         (
             &["render", "in.ply", "-o", "view.jpg"],

@@ -448,6 +448,69 @@ fn meshes_with_values_write_their_geometry_to_obj_off_and_stl() {
     }
 }
 
+/// The numbers of the `DataArray` named `name` in a VTK XML file.
+fn vtk_array(text: &str, name: &str) -> Vec<f64> {
+    let start = text
+        .find(&format!("Name=\"{name}\""))
+        .unwrap_or_else(|| panic!("no array {name}"));
+    let body = &text[start..];
+    let body = &body[body.find('>').unwrap() + 1..body.find("</DataArray>").unwrap()];
+    body.split_whitespace()
+        .map(|t| t.parse().unwrap())
+        .collect()
+}
+
+/// `.vtp` and `.vtu` hold a mesh's points, triangles, normals and values exactly (ParaView's
+/// `Normals`, the values as `quality`), and a point cloud as vertex cells; they are written,
+/// never read.
+#[test]
+fn vtk_xml_holds_meshes_and_points_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut mesh = tetra();
+    mesh.vertices[1] = v(0.1, 1.0 / 3.0, -2e-300);
+    mesh.normals = Some(vec![v(0.0, 0.0, 1.0); 4]);
+    for (name, grid) in [("m.vtp", "PolyData"), ("m.vtu", "UnstructuredGrid")] {
+        let path = dir.path().join(name);
+        write_mesh(&path, &mesh, &WriteOptions::default()).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            text.contains(&format!("<VTKFile type=\"{grid}\"")),
+            "{text}"
+        );
+        assert!(
+            text.contains("Normals=\"normals\" Scalars=\"quality\""),
+            "{text}"
+        );
+        let points: Vec<f64> = mesh.vertices.iter().flat_map(|p| p.to_array()).collect();
+        assert_eq!(vtk_array(&text, "Points"), points);
+        assert_eq!(vtk_array(&text, "quality"), mesh.values.clone().unwrap());
+        let corners: Vec<f64> = mesh
+            .triangles
+            .iter()
+            .flatten()
+            .map(|&c| f64::from(c))
+            .collect();
+        assert_eq!(vtk_array(&text, "connectivity"), corners);
+        assert_eq!(vtk_array(&text, "offsets"), [3.0, 6.0, 9.0, 12.0]);
+        if grid == "UnstructuredGrid" {
+            assert_eq!(vtk_array(&text, "types"), [5.0; 4]);
+        } else {
+            assert!(text.contains("NumberOfPolys=\"4\""), "{text}");
+        }
+        let err = read_mesh(&path, &ReadOptions::default()).unwrap_err();
+        assert!(
+            err.to_string().contains("VTK XML is written for viewers"),
+            "{err}"
+        );
+    }
+    let cloud = PointCloud::from_positions(vec![v(1.0, 2.0, 3.0), v(4.0, 5.0, 6.0)]);
+    let path = dir.path().join("c.vtp");
+    write_point_cloud(&path, &cloud, &WriteOptions::default()).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("NumberOfVerts=\"2\""), "{text}");
+    assert_eq!(vtk_array(&text, "connectivity"), [0.0, 1.0]);
+}
+
 #[test]
 fn read_spheres_needs_radii_and_read_mesh_keeps_attributes() {
     let dir = tempfile::tempdir().unwrap();

@@ -6,7 +6,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use sphcover_core::DVec3;
-use sphcover_core::io::{IoError, write_atomic};
+use sphcover_core::io::{IoError, VtkArray, VtkCells, write_atomic, write_vtk_xml};
 
 use crate::tet_mesh::TetMesh;
 
@@ -15,16 +15,19 @@ use crate::tet_mesh::TetMesh;
 pub enum TetMeshFormat {
     /// VTK legacy unstructured grid, binary.
     Vtk,
+    /// VTK XML unstructured grid, ascii.
+    Vtu,
     /// Sorted support-index quadruples, text.
     IndexText,
 }
 
 impl TetMeshFormat {
-    /// The layout named by the extension of `path` (`.vtk`, `.txt`, `.tets`).
+    /// The layout named by the extension of `path` (`.vtk`, `.vtu`, `.txt`, `.tets`).
     pub fn from_path(path: &Path) -> Option<TetMeshFormat> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
             "vtk" => Some(TetMeshFormat::Vtk),
+            "vtu" => Some(TetMeshFormat::Vtu),
             "txt" | "tets" => Some(TetMeshFormat::IndexText),
             _ => None,
         }
@@ -34,10 +37,11 @@ impl TetMeshFormat {
 /// Writes `mesh` (whose vertices index `centres` and `radii`) to `path` in the layout its
 /// extension names, refusing to overwrite any of `inputs`.
 ///
-/// Two layouts, chosen by the output's extension:
+/// Three layouts, chosen by the output's extension:
 /// - `.vtk`: a VTK legacy unstructured grid in binary (big-endian, as the legacy format
 ///   requires), which ParaView and VisIt open. Points are the centres of the supports that are
 ///   mesh vertices; point data carries each vertex's support index and radius.
+/// - `.vtu`: the same grid as VTK XML (ascii, exact reals), ParaView's native format.
 /// - `.txt`/`.tets`: one tetrahedron per line as four 0-based **support** indices in
 ///   ascending order, rows sorted — the layout of the CGAL reference files the tests compare
 ///   against, so the output can be diffed with any independent implementation.
@@ -55,7 +59,7 @@ pub fn write_tet_mesh(
         return Err(IoError::Unsupported {
             path: path.to_path_buf(),
             format: "this extension",
-            what: "a tetrahedral mesh (use .vtk or .txt/.tets)".to_owned(),
+            what: "a tetrahedral mesh (use .vtk, .vtu or .txt/.tets)".to_owned(),
         });
     };
     if let Some(&v) = mesh
@@ -73,6 +77,22 @@ pub fn write_tet_mesh(
     }
     write_atomic(path, inputs, |w| match format {
         TetMeshFormat::Vtk => write_vtk(w, mesh, centres, radii),
+        TetMeshFormat::Vtu => {
+            let points: Vec<DVec3> = mesh.vertices.iter().map(|&v| centres[v as usize]).collect();
+            let radii: Vec<f64> = mesh.vertices.iter().map(|&v| radii[v as usize]).collect();
+            let data = [
+                VtkArray::Indices("support_index", &mesh.vertices),
+                VtkArray::Scalars("radius", &radii),
+            ];
+            write_vtk_xml(
+                w,
+                true,
+                &points,
+                &data,
+                VtkCells::Tetrahedra(&mesh.tets),
+                true,
+            )
+        }
         TetMeshFormat::IndexText => write_index_text(w, mesh),
     })
 }
@@ -200,6 +220,39 @@ mod tests {
             + 32
             + 1;
         assert_eq!(bytes.len(), expected_len);
+    }
+
+    #[test]
+    fn vtu_holds_the_tetrahedra_support_indices_and_radii() {
+        let (centres, radii, mesh) = unit_tet();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("m.vtu");
+        write_tet_mesh(&out, &mesh, &centres, &radii, &[]).unwrap();
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(
+            text.contains("<VTKFile type=\"UnstructuredGrid\""),
+            "{text}"
+        );
+        assert!(
+            text.contains("NumberOfPoints=\"4\" NumberOfCells=\"1\""),
+            "{text}"
+        );
+        for array in [
+            "support_index",
+            "radius",
+            "connectivity",
+            "offsets",
+            "types",
+        ] {
+            assert!(
+                text.contains(&format!("Name=\"{array}\"")),
+                "{array}: {text}"
+            );
+        }
+        assert!(
+            text.contains("Name=\"types\" NumberOfComponents=\"1\" format=\"ascii\">\n10\n"),
+            "{text}"
+        );
     }
 
     #[test]

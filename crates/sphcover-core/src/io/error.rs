@@ -97,7 +97,7 @@ pub enum IoError {
     },
     /// The extension names no supported format.
     #[error(
-        "{}: unknown file format (extension must be one of .ply .obj .off .stl .xyz .pwn .txt .sph .spheres .las, or a volume: .nii .nii.gz .inr .inr.gz)",
+        "{}: unknown file format (extension must be one of .ply .obj .off .stl .xyz .pwn .txt .sph .spheres .las .laz, .vtp .vtu (written only), or a volume: .nii .nii.gz .inr .inr.gz)",
         path.display()
     )]
     UnknownFormat {

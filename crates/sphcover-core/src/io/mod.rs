@@ -67,6 +67,7 @@ mod text;
 mod vertex_property;
 #[cfg(feature = "nifti")]
 mod volume_file;
+mod vtk_xml;
 mod xyz;
 
 use std::path::{Path, PathBuf};
@@ -86,6 +87,7 @@ pub use nifti::{AffineSource, NiftiInfo, parse_nifti, read_nifti, read_nifti_inf
 pub use vertex_property::{parse_ply_with_vertex_property, read_geometry_with_vertex_property};
 #[cfg(feature = "nifti")]
 pub use volume_file::{SampleType, VolumeInfo, is_volume_path, read_volume, read_volume_info};
+pub use vtk_xml::{VtkArray, VtkCells, write_vtk_xml};
 
 /// A file format, named by the file's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -106,9 +108,13 @@ pub enum Format {
     Txt,
     /// Sphere sets `x y z r`, one per line (`.sph`, `.spheres`).
     Sph,
-    /// ASPRS LAS LiDAR point cloud (`.las`; read only). `.laz` names it too, so that a
-    /// compressed file is refused with a hint instead of as an unknown format.
+    /// ASPRS LAS LiDAR point cloud (`.las`, and LASzip-compressed `.laz`; read only).
     Las,
+    /// VTK XML PolyData (`.vtp`, write only): surfaces and point clouds for ParaView.
+    Vtp,
+    /// VTK XML UnstructuredGrid (`.vtu`, write only): triangle sheets (and, from
+    /// `sphcover-tetra`, tetrahedral meshes) for ParaView.
+    Vtu,
 }
 
 impl Format {
@@ -128,6 +134,8 @@ impl Format {
             Some("txt") => Ok(Format::Txt),
             Some("sph" | "spheres") => Ok(Format::Sph),
             Some("las" | "laz") => Ok(Format::Las),
+            Some("vtp") => Ok(Format::Vtp),
+            Some("vtu") => Ok(Format::Vtu),
             _ => Err(IoError::UnknownFormat {
                 path: path.to_path_buf(),
             }),
@@ -146,6 +154,8 @@ impl Format {
             Format::Txt => "TXT",
             Format::Sph => "sphere set",
             Format::Las => "LAS",
+            Format::Vtp => "VTK PolyData",
+            Format::Vtu => "VTK UnstructuredGrid",
         }
     }
 }
@@ -403,6 +413,10 @@ pub fn parse_geometry(
         Format::Off => off::read(bytes, limit),
         Format::Stl => stl::read(bytes, limit),
         Format::Las => las::read(bytes, limit),
+        Format::Vtp | Format::Vtu => Err(error::Failure::header(
+            Location::Byte(0),
+            "VTK XML is written for viewers, not read (read PLY instead)",
+        )),
         Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::read(bytes, format, limit),
     }
     .map_err(|failure| failure.into_io(path))?;
@@ -501,7 +515,7 @@ impl Export<'_> {
             Format::Las => {
                 Some("written data: sphcover reads LAS but does not write it (write PLY)")
             }
-            Format::Ply => None,
+            Format::Ply | Format::Vtp | Format::Vtu => None,
             Format::Obj | Format::Off => {
                 if self.confidence.is_some() {
                     Some("per-vertex confidence (write PLY, or clear the attribute)")
@@ -585,6 +599,7 @@ fn write_export(path: &Path, export: Export<'_>, options: &WriteOptions) -> Resu
             "LAS is read only",
         )),
         Format::Xyz | Format::Pwn | Format::Txt | Format::Sph => xyz::write(w, &export, double),
+        Format::Vtp | Format::Vtu => vtk_xml::write_export(w, &export, format, double),
     })
 }
 
@@ -606,7 +621,7 @@ pub fn write_point_cloud(
 }
 
 /// Writes a triangle mesh in the format named by the extension of `path`. Per-vertex values
-/// are written where the format has a place for them (PLY) and left out elsewhere; vertex
+/// are written where the format has a place for them (PLY, VTK XML) and left out elsewhere; vertex
 /// normals everywhere but STL (which stores one normal per triangle, computed).
 pub fn write_mesh(path: &Path, mesh: &TriMesh, options: &WriteOptions) -> Result<(), IoError> {
     let format = Format::from_path(path)?;
@@ -614,7 +629,10 @@ pub fn write_mesh(path: &Path, mesh: &TriMesh, options: &WriteOptions) -> Result
         positions: &mesh.vertices,
         normals: mesh.normals.as_deref().filter(|_| format != Format::Stl),
         confidence: None,
-        values: mesh.values.as_deref().filter(|_| format == Format::Ply),
+        values: mesh
+            .values
+            .as_deref()
+            .filter(|_| matches!(format, Format::Ply | Format::Vtp | Format::Vtu)),
         radii: None,
         triangles: &mesh.triangles,
     };
