@@ -260,9 +260,18 @@ fn laz_twin(las: &[u8]) -> Vec<u8> {
 }
 
 /// LAZ files read exactly as their LAS twins: the bundled urban LiDAR tile (point format 3,
-/// 13,511 points) and the files built here, through `.laz` paths too.
+/// 13,511 points) as another writer compressed it (`fixtures/real/urban.laz`, laspy with
+/// lazrs), that tile and the files built here as compressed here, through `.laz` paths too.
 #[test]
 fn laz_reads_identically_to_its_las_twin() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/real");
+    let las = read_geometry(&fixtures.join("urban.las"), &ReadOptions::default()).unwrap();
+    let laz = read_geometry(&fixtures.join("urban.laz"), &ReadOptions::default()).unwrap();
+    assert_eq!(laz.points, las.points);
+    assert_eq!(laz.points.len(), 13_511);
+    assert_eq!(laz.info.variant, "LAZ 1.2, point format 3");
+    assert_eq!(laz.info.elements, las.info.elements);
+
     let urban =
         std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/real/urban.las"))
             .unwrap();
@@ -322,6 +331,13 @@ fn laz_counts_are_checked_and_broken_compression_is_refused() {
         parse_geometry(&lying, Format::Las, Path::new("a.laz"), &limited),
         Err(IoError::OverMemoryLimit { .. })
     ));
+    // Without a limit, a count the compressed data does not hold fails where the data
+    // ends, having allocated only what was there.
+    let (_, problem) = malformed(&lying);
+    assert!(
+        problem.to_string().contains("compressed point data"),
+        "{problem}"
+    );
     let cut = &laz[..laz.len() - 10];
     let (_, problem) = malformed(cut);
     assert!(

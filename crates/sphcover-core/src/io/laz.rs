@@ -16,6 +16,8 @@ use super::error::{Failure, Location};
 
 /// Bytes of a variable length record's header.
 const VLR_HEADER: usize = 54;
+/// Points decompressed per call, the step by which the records grow.
+const BLOCK_POINTS: u64 = 1 << 16;
 
 /// The LASzip record among the `vlr_count` variable length records starting at byte `start`.
 fn laszip_vlr(bytes: &[u8], start: usize, vlr_count: u32) -> Result<LazVlr, Failure> {
@@ -57,7 +59,8 @@ fn laszip_vlr(bytes: &[u8], start: usize, vlr_count: u32) -> Result<LazVlr, Fail
 
 /// Decompresses the `count` records of `record_length` bytes that start at byte `offset`, as
 /// the variable length records (`vlr_count` of them from byte `vlr_start`) describe. The
-/// caller has checked `count · record_length` against the memory limit.
+/// caller has checked `count · record_length` against the memory limit; without one, the
+/// records take what the data really decompresses to.
 pub(crate) fn decompress_records(
     bytes: &[u8],
     vlr_start: usize,
@@ -76,21 +79,6 @@ pub(crate) fn decompress_records(
             ),
         ));
     }
-    let total = count
-        .checked_mul(record_length as u64)
-        .and_then(|t| usize::try_from(t).ok())
-        .ok_or_else(|| Failure::OutOfMemory {
-            what: format!("{count} decompressed point records"),
-            bytes: u64::MAX,
-        })?;
-    let mut records = Vec::new();
-    records
-        .try_reserve_exact(total)
-        .map_err(|_| Failure::OutOfMemory {
-            what: format!("{count} decompressed point records"),
-            bytes: total as u64,
-        })?;
-    records.resize(total, 0);
     check_chunk_table(bytes, offset, count)?;
     let mut source = Cursor::new(bytes);
     source.set_position(offset as u64);
@@ -100,12 +88,29 @@ pub(crate) fn decompress_records(
             format!("compressed point data: {e}"),
         )
     };
+    // The records grow block by block as the data yields them: a count the data does not
+    // hold fails at its end, having allocated no more than was really there.
+    let mut records: Vec<u8> = Vec::new();
     // `laz` is not written against hostile input: a panic inside it is a corrupt file here.
     let decompressed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let mut decompressor = LasZipDecompressor::new(source, vlr).map_err(|e| corrupt(&e))?;
-        decompressor
-            .decompress_many(&mut records)
-            .map_err(|e| corrupt(&e))
+        let mut remaining = count;
+        while remaining > 0 {
+            let block = remaining.min(BLOCK_POINTS) as usize * record_length;
+            let start = records.len();
+            records
+                .try_reserve(block)
+                .map_err(|_| Failure::OutOfMemory {
+                    what: format!("{count} decompressed point records"),
+                    bytes: count.saturating_mul(record_length as u64),
+                })?;
+            records.resize(start + block, 0);
+            decompressor
+                .decompress_many(&mut records[start..])
+                .map_err(|e| corrupt(&e))?;
+            remaining -= remaining.min(BLOCK_POINTS);
+        }
+        Ok(())
     }));
     match decompressed {
         Ok(result) => result.map(|()| records),
