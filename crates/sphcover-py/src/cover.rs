@@ -15,6 +15,9 @@ use crate::arrays::{points_from_py, points_to_py, vec_to_py};
 use crate::errors::{bad_input, failure, io_error};
 use crate::files::write_options;
 
+/// `f` at `m` points, `(m,)`, and its gradient, `(m, 3)`.
+type ValuesAndGradients<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
+
 /// A spherical cover: balls, each carrying a local function, blended by partition of unity
 /// into one implicit function `f` (positive inside, negative outside).
 ///
@@ -111,7 +114,7 @@ impl Cover {
         py: Python<'py>,
         x: PyReadonlyArray2<'py, f64>,
         sigma: Option<f64>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>)> {
+    ) -> PyResult<ValuesAndGradients<'py>> {
         let mut points = points_from_py(&x, "x")?;
         self.frame.points_to_unit(&mut points);
         let sigma = sigma.unwrap_or(self.expansion);

@@ -96,3 +96,9 @@ def test_an_exception_in_the_progress_callback_ends_the_call(fixtures):
 
     with pytest.raises(RuntimeError, match="stop at normalise"):
         sphcover.reconstruct(sphcover.read(fixtures / "sphere_2k.ply"), progress=fail)
+
+
+def test_progress_true_shows_the_stages_on_stderr(fixtures, capsys):
+    sphcover.reconstruct(sphcover.read(fixtures / "sphere_2k.ply"), progress=True)
+    # A tqdm bar when tqdm is installed, else one line per stage: both name the stages.
+    assert "normalise" in capsys.readouterr().err
