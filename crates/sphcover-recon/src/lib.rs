@@ -40,6 +40,7 @@
 //! defaults; set what you need and take the rest with `..ReconParams::default()`.
 #![deny(missing_docs)]
 
+mod allocator;
 mod angle;
 mod confidence;
 mod csr;
@@ -57,6 +58,7 @@ mod polygonise;
 mod scan_statistics;
 mod vertex_refinement;
 
+pub use allocator::keep_freed_memory;
 pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
     sample_confidence, support_confidence,
