@@ -14,6 +14,7 @@ use sphcover_core::{
 use crate::arrays::{points_from_py, points_to_py, vec_to_py};
 use crate::errors::{bad_input, failure, io_error};
 use crate::files::write_options;
+use crate::run::run;
 
 /// `f` at `m` points, `(m,)`, and its gradient, `(m, 3)`.
 type ValuesAndGradients<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
@@ -184,9 +185,9 @@ pub fn surface_cover(
         sampling_stop: true,
         ..SurfaceCoverParams::default()
     };
-    let (cover, frame, _stats) = py
-        .detach(|| build_surface_cover_from_cloud(&cloud, &params))
-        .map_err(|e| bad_input(e.to_string()))?;
+    let (cover, frame, _stats) = run(py, None, None, move |_| {
+        build_surface_cover_from_cloud(&cloud, &params).map_err(|e| bad_input(e.to_string()))
+    })?;
     if cover.is_empty() {
         return Err(failure("the cover has no support"));
     }

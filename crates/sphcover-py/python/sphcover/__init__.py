@@ -5,8 +5,8 @@ Covers of space by balls, each carrying a small local function, blended by parti
 2010): surface reconstruction from scanned points, skeletal sheets from CT volumes, discrete
 differential operators, regular triangulations. NumPy arrays in and out.
 
-Long calls (``reconstruct``, ``skeleton``, ``skeleton_from_samples``, ``operators``,
-``regular_triangulation``, ``dual_complex``) run with the GIL released, and Ctrl-C ends them
+Long calls (``reconstruct``, ``skeleton``, ``skeleton_from_samples``, ``cover``,
+``operators``, ``regular_triangulation``, ``dual_complex``) run with the GIL released, and Ctrl-C ends them
 within a twentieth of a second. Errors are :class:`BadInputError` (a ``ValueError``: what the
 command line exits with 2 for) and :class:`SphcoverError` (a ``RuntimeError``), with the
 command line's messages.
@@ -22,7 +22,7 @@ from typing import Any, Callable, NamedTuple, Optional, Union
 import numpy as np
 
 from . import _sphcover
-from ._sphcover import BadInputError, Cover, DualComplex, SphcoverError
+from ._sphcover import BadInputError, Cover, DualComplex, SphcoverError, keep_freed_memory
 from ._types import Mesh, PointCloud, Spheres, Volume
 
 __all__ = [
@@ -37,6 +37,7 @@ __all__ = [
     "Volume",
     "cover",
     "dual_complex",
+    "keep_freed_memory",
     "operators",
     "read",
     "reconstruct",

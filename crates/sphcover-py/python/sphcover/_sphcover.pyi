@@ -134,3 +134,7 @@ def regular_triangulation(
 def dual_complex(
     centres: F64, radii: F64, *, shrink: float = 0.75, seed: int = 0
 ) -> DualComplex: ...
+def keep_freed_memory() -> None:
+    """Keeps freed memory in the process for reuse, as ``sphcover recon`` does (glibc's mmap
+    threshold 32 MiB, trim threshold 1 GiB): faster reconstructions, a slightly higher peak
+    resident set, for the whole process. A no-op where the C library is not glibc."""
