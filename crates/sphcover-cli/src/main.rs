@@ -1,6 +1,5 @@
 //! The `sphcover` command: processing of scanned geometry with spherically supported functions.
 
-mod allocator;
 mod args;
 mod byte_size;
 mod commands;
@@ -35,7 +34,7 @@ fn main() -> ExitCode {
         }
     };
     if matches!(cli.command, Command::Recon(_)) {
-        allocator::keep_freed_memory();
+        sphcover_recon::keep_freed_memory();
     }
     let reporter = Reporter::new(cli.global.verbose, cli.global.quiet);
     if let Err(e) = configure_threads(cli.global.threads, &reporter) {

@@ -87,7 +87,9 @@ pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};
 pub use small_cholesky::SmallCholesky;
 pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph, balls_nested};
-pub use stages::{Stage, StageProgress, StageTimes, run_stages};
+pub use stages::{
+    Stage, StageProgress, StageTimes, StopRequest, Stopped, run_stages, run_stages_until,
+};
 pub use support_samples::SupportSamples;
 pub use surface_cover::{
     MAX_OCTREE_DEPTH, SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats,

@@ -4,6 +4,7 @@
 //! The method is described on [`run_stages()`].
 
 use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// One named step of a pipeline over the context `C`, failing with `E`.
@@ -92,8 +93,68 @@ pub fn run_stages<C, E>(
     stages: &[Stage<C, E>],
     progress: &(dyn Fn(StageProgress) + Sync),
 ) -> Result<StageTimes, E> {
+    run_checked(ctx, stages, progress, |_| Ok(()))
+}
+
+/// A request to stop a pipeline early, shared between the caller (another thread, a signal
+/// handler's flag watcher) and the pipeline. [`run_stages_until`] looks at it before every
+/// stage, so a pipeline stops at the next stage boundary: the stages themselves are not
+/// interrupted, which keeps every stage free of checks and its product whole.
+#[derive(Debug, Default)]
+pub struct StopRequest(AtomicBool);
+
+impl StopRequest {
+    /// A request not yet made.
+    pub const fn new() -> StopRequest {
+        StopRequest(AtomicBool::new(false))
+    }
+
+    /// Asks the pipeline to stop before its next stage.
+    pub fn request(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether a stop was asked for.
+    pub fn is_requested(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+/// A pipeline ended early at a stage boundary because a [`StopRequest`] was made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("stopped on request before the stage `{before}`")]
+pub struct Stopped {
+    /// The first stage that did not run.
+    pub before: &'static str,
+}
+
+/// [`run_stages`], stopping before the first stage that starts after `stop` was requested
+/// with [`Stopped`] (converted into the pipeline's error).
+pub fn run_stages_until<C, E: From<Stopped>>(
+    ctx: &mut C,
+    stages: &[Stage<C, E>],
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<StageTimes, E> {
+    run_checked(ctx, stages, progress, |before| {
+        if stop.is_requested() {
+            Err(Stopped { before }.into())
+        } else {
+            Ok(())
+        }
+    })
+}
+
+/// The loop of both runners: `check` may end the run before each stage.
+fn run_checked<C, E>(
+    ctx: &mut C,
+    stages: &[Stage<C, E>],
+    progress: &(dyn Fn(StageProgress) + Sync),
+    check: impl Fn(&'static str) -> Result<(), E>,
+) -> Result<StageTimes, E> {
     let mut times = Vec::with_capacity(stages.len());
     for (index, stage) in stages.iter().enumerate() {
+        check(stage.name)?;
         progress(StageProgress {
             name: stage.name,
             index,
@@ -142,5 +203,38 @@ mod tests {
         assert_eq!(ctx, [1, 1]);
         assert_eq!(times.iter().map(|t| t.0).collect::<Vec<_>>(), ["a", "b"]);
         assert_eq!(format!("{:?}", stages[0]), "Stage(\"a\")");
+    }
+
+    #[derive(Debug, PartialEq)]
+    enum StopOrFail {
+        Stopped(Stopped),
+    }
+
+    impl From<Stopped> for StopOrFail {
+        fn from(s: Stopped) -> Self {
+            StopOrFail::Stopped(s)
+        }
+    }
+
+    fn push_one_stoppable(ctx: &mut Vec<u32>) -> Result<(), StopOrFail> {
+        ctx.push(1);
+        Ok(())
+    }
+
+    #[test]
+    fn a_stop_request_ends_the_run_before_the_next_stage() {
+        let stop = StopRequest::new();
+        let stages = [
+            Stage::new("a", push_one_stoppable),
+            Stage::new("b", push_one_stoppable),
+        ];
+        let mut ctx = Vec::new();
+        // The request is made while stage "a" reports its start: "a" still runs, "b" not.
+        let result = run_stages_until(&mut ctx, &stages, &|_| stop.request(), &stop);
+        assert_eq!(result, Err(StopOrFail::Stopped(Stopped { before: "b" })));
+        assert_eq!(ctx, [1]);
+        let fresh = StopRequest::new();
+        let times = run_stages_until(&mut ctx, &stages, &|_| {}, &fresh).unwrap();
+        assert_eq!(times.len(), 2);
     }
 }

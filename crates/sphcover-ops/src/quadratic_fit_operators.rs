@@ -193,6 +193,11 @@ impl QuadraticFitOperators {
         &self.lap_coeff
     }
 
+    /// The rows' start offsets and the neighbour of every stored entry (the graph's).
+    pub(crate) fn structure(&self) -> (&[u32], &[u32]) {
+        (&self.offsets, &self.neighbours)
+    }
+
     /// Gradient coefficient of every stored entry: `Grad(u)_i = Σ_j G_ij (u_j − u_i)`.
     pub fn grad_coefficients(&self) -> &[DVec3] {
         &self.grad_coeff

@@ -67,6 +67,11 @@ impl<'g> ThesisOperators<'g> {
         self.mass
     }
 
+    /// The flux of `Div` and `Curl`.
+    pub fn flux_kind(&self) -> FluxKind {
+        self.flux
+    }
+
     /// The least-squares gradient.
     pub fn gradient(&self) -> &LeastSquaresGradient {
         &self.gradient

@@ -40,6 +40,7 @@
 //! defaults; set what you need and take the rest with `..ReconParams::default()`.
 #![deny(missing_docs)]
 
+mod allocator;
 mod angle;
 mod confidence;
 mod csr;
@@ -50,12 +51,14 @@ mod maxflow;
 mod memory_model;
 mod mesh_smoothing;
 mod normals;
+mod options;
 mod pca;
 mod pipeline;
 mod polygonise;
 mod scan_statistics;
 mod vertex_refinement;
 
+pub use allocator::keep_freed_memory;
 pub use confidence::{
     ConfidenceError, ConfidenceParams, ConfidenceStats, SampleConfidence, blend_over_supports,
     sample_confidence, support_confidence,
@@ -75,9 +78,10 @@ pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
 pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel};
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
+pub use options::{MAX_DEPTH, MAX_NORMAL_NEIGHBOURS, OptionError, ReconOptions, TrimOption};
 pub use pipeline::{
     Method, ReconError, ReconParams, ReconStats, Reconstruction, Trim, default_depth, reconstruct,
-    stage_names,
+    reconstruct_until, stage_names,
 };
 pub use polygonise::{
     GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,

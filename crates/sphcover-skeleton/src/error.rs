@@ -1,7 +1,7 @@
 //! Why a skeletal sheet could not be extracted.
 
 use sphcover_core::ParameterError;
-use sphcover_core::{CoverError, VolumeCoverError};
+use sphcover_core::{CoverError, Stopped, VolumeCoverError};
 use sphcover_tetra::TetraError;
 
 /// Why [`crate::extract_skeleton`] or [`crate::nms_skeleton`] failed. Every variant is a
@@ -63,4 +63,7 @@ pub enum SkeletonError {
     /// Smoothing the derivatives over the supports failed (graph or solver).
     #[error("derivative smoothing: {0}")]
     Smoothing(String),
+    /// The caller asked the pipeline to stop ([`crate::extract_skeleton_until`]).
+    #[error(transparent)]
+    Stopped(#[from] Stopped),
 }

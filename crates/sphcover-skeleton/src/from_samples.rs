@@ -5,8 +5,8 @@
 
 use rayon::prelude::*;
 use sphcover_core::{
-    Cover, DVec3, PointIndex, Stage, StageProgress, TriMesh, VolumeCoverError, VolumeCoverStats,
-    build_scattered_cover, median_nearest_distance, run_stages,
+    Cover, DVec3, PointIndex, Stage, StageProgress, StopRequest, TriMesh, VolumeCoverError,
+    VolumeCoverStats, build_scattered_cover, median_nearest_distance, run_stages_until,
 };
 
 use crate::error::SkeletonError;
@@ -77,6 +77,18 @@ pub fn extract_skeleton_from_samples(
     params: &SkeletonParams,
     progress: &(dyn Fn(StageProgress) + Sync),
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
+    extract_skeleton_from_samples_until(positions, values, params, progress, &StopRequest::new())
+}
+
+/// [`extract_skeleton_from_samples`], ending with [`SkeletonError::Stopped`] before the first
+/// stage that starts after `stop` was requested.
+pub fn extract_skeleton_from_samples_until(
+    positions: &[DVec3],
+    values: &[f64],
+    params: &SkeletonParams,
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     check_params(params)?;
     if positions.len() != values.len() {
         return Err(VolumeCoverError::SampleCountMismatch {
@@ -104,7 +116,7 @@ pub fn extract_skeleton_from_samples(
         object_mask: ObjectMaskStats::default(),
         cover: None,
     };
-    let times = run_stages(&mut ctx, &front, &offset(progress, 0, count))?;
+    let times = run_stages_until(&mut ctx, &front, &offset(progress, 0, count), stop)?;
     let (cover, cover_stats) = built(ctx.cover, "cover");
     let front = CoverStage {
         intensity: built(ctx.intensity, "intensity model"),
@@ -115,7 +127,7 @@ pub fn extract_skeleton_from_samples(
         cover_stats,
         cover,
     };
-    sheet_from_cover(front, times, params, progress)
+    sheet_from_cover(front, times, params, progress, stop)
 }
 
 /// What the front stages of scattered samples share.

@@ -80,14 +80,16 @@ mod symmetric_eigen;
 
 pub use derivative_smoothing::smoothed_vertex_derivatives;
 pub use error::SkeletonError;
-pub use from_samples::extract_skeleton_from_samples;
+pub use from_samples::{extract_skeleton_from_samples, extract_skeleton_from_samples_until};
 pub use intensity_model::{
     IntensityModel, estimate_intensity_model, estimate_sample_intensity_model, otsu_threshold,
 };
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};
 pub use patches::ridge_patches;
-pub use pipeline::{SkeletonParams, SkeletonStats, extract_skeleton, stage_names};
+pub use pipeline::{
+    SkeletonParams, SkeletonStats, extract_skeleton, extract_skeleton_until, stage_names,
+};
 pub use repair::SheetRepairs;
 pub use repair::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use repair::flaps::{FlapParams, collapse_misaligned_flaps, triangle_alignment};

@@ -4,11 +4,11 @@
 use std::path::Path;
 
 use serde_json::json;
+use sphcover_core::PointCloud;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions};
-use sphcover_core::{PointCloud, SurfaceCoverError, SurfaceCoverParams};
 use sphcover_recon::{
-    COARSEST_BUDGET_DEPTH, GraphCutParams, Method, RECON_MEMORY_MODEL, ReconError, ReconParams,
-    Reconstruction, Trim, default_depth, reconstruct,
+    COARSEST_BUDGET_DEPTH, Method, RECON_MEMORY_MODEL, ReconError, ReconOptions, ReconParams,
+    Reconstruction, TrimOption, default_depth, reconstruct,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -18,9 +18,6 @@ use crate::memory_limit::MemoryLimit;
 use crate::report::{Reporter, stage_message};
 
 /// Runs `sphcover recon`.
-/// The most neighbours `--normal-neighbours` takes.
-const MAX_NORMAL_NEIGHBOURS: usize = 500;
-
 pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut params = params(args)?;
     let stage = reporter.stage("read points");
@@ -47,19 +44,18 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         bar.set_message(stage_message(stage))
     });
     bar.finish_and_clear();
-    let recon = result.map_err(|e| match e {
-        ReconError::TooFewPoints { .. }
-        | ReconError::NoExtent(_)
-        | ReconError::Collinear
-        | ReconError::FarPoint { .. }
-        | ReconError::Empty(_)
-        | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. }) => {
-            anyhow::Error::from(BadInput(format!("{}: {e}", args.input.display())))
+    let recon = result.map_err(|e| {
+        let input = args.input.display();
+        if e.is_bad_input() {
+            let hint = if matches!(e, ReconError::Flat) {
+                " (--trim)"
+            } else {
+                ""
+            };
+            anyhow::Error::from(BadInput(format!("{input}: {e}{hint}")))
+        } else {
+            anyhow::Error::from(e).context(format!("{input}"))
         }
-        ReconError::Flat => {
-            anyhow::Error::from(BadInput(format!("{}: {e} (--trim)", args.input.display())))
-        }
-        other => anyhow::Error::from(other).context(format!("{}", args.input.display())),
     })?;
     for (name, time) in &recon.stats.stages {
         reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
@@ -231,29 +227,14 @@ fn fit_memory_budget(
     }
 }
 
+/// The library's parameters for the command line's options; an option out of range is bad
+/// input named by its flag.
 fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
-    let defaults = ReconParams::default();
-    let method = match args.method {
-        ReconMethodArg::Integrated => Method::Integrated,
-        ReconMethodArg::Graphcut => Method::GraphCut,
-        ReconMethodArg::Diffusion => Method::Diffusion,
-        ReconMethodArg::Pu => Method::PartitionOfUnity,
-    };
-    if let Some(eps) = args.eps
-        && !(eps.is_finite() && eps > 0.0 && eps < 1.0)
-    {
-        return Err(BadInput(format!("--eps {eps} must be in (0, 1)")).into());
-    }
-    if let Some(k) = args.k
-        && !(k.is_finite() && k > 0.0)
-    {
-        return Err(BadInput(format!("--k {k} must be a positive number")).into());
-    }
     let trim = match args.trim.as_deref() {
-        None => Trim::Off,
-        Some("auto") => Trim::SampleSpacings(3.0),
+        None => TrimOption::Off,
+        Some("auto") => TrimOption::Auto,
         Some(text) => match text.parse::<f64>() {
-            Ok(d) if d.is_finite() && d > 0.0 => Trim::Distance(d),
+            Ok(d) if d.is_finite() && d > 0.0 => TrimOption::Distance(d),
             _ => {
                 return Err(BadInput(format!(
                     "--trim {text} must be a positive number (or no value: 3 sample spacings)"
@@ -262,62 +243,32 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
             }
         },
     };
-    if let Some(d) = args.depth
-        && !(1..=14).contains(&d)
-    {
-        return Err(BadInput(format!("--depth {d} must be in 1..=14")).into());
-    }
-    // Normals come from a plane fit; beyond a few hundred neighbours the fit only blurs, and
-    // the neighbour lists cost n·k memory (100,000 neighbours on 5K points took 4 GB).
-    if !(3..=MAX_NORMAL_NEIGHBOURS).contains(&args.normal_neighbours) {
-        return Err(BadInput(format!(
-            "--normal-neighbours {} must be in 3..={MAX_NORMAL_NEIGHBOURS}",
-            args.normal_neighbours
-        ))
-        .into());
-    }
-    let mut params = ReconParams {
-        method,
-        cover: SurfaceCoverParams {
-            eps: args.eps.unwrap_or(defaults.cover.eps),
-            seed: args.seed,
-            ..defaults.cover.clone()
+    let options = ReconOptions {
+        method: match args.method {
+            ReconMethodArg::Integrated => Method::Integrated,
+            ReconMethodArg::Graphcut => Method::GraphCut,
+            ReconMethodArg::Diffusion => Method::Diffusion,
+            ReconMethodArg::Pu => Method::PartitionOfUnity,
         },
-        depth: args.depth,
+        eps: args.eps,
+        k: args.k,
         trim,
-        ..defaults
+        depth: args.depth,
+        normal_fit: args.normal_fit,
+        position_fit: args.position_fit,
+        normal_neighbours: args.normal_neighbours,
+        refine: !args.no_refine,
+        seed: args.seed,
     };
-    params.normals.k = args.normal_neighbours;
-    if args.no_refine {
-        params.refine = None;
-    }
-    for (name, value, slot) in [
-        (
-            "--normal-fit",
-            args.normal_fit,
-            &mut params.diffusion.normal_fit,
-        ),
-        (
-            "--position-fit",
-            args.position_fit,
-            &mut params.diffusion.position_fit,
-        ),
-    ] {
-        if let Some(v) = value {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(BadInput(format!("{name} {v} must be a non-negative number")).into());
-            }
-            *slot = v;
-        }
-    }
-    if let Some(k) = args.k {
-        params.graph_cut = GraphCutParams {
-            k,
-            ..params.graph_cut
-        };
-        params.graph_cut_only.k = k;
-    }
-    Ok(params)
+    options.params().map_err(|e| {
+        BadInput(format!(
+            "--{} {} must be {}",
+            e.option.replace('_', "-"),
+            e.value,
+            e.requirement
+        ))
+        .into()
+    })
 }
 
 /// With `-v`: the stage counts.

@@ -7,8 +7,8 @@ mod stages;
 
 use sphcover_core::{
     Cover, CoverError, DVec3, Normalisation, ParameterError, PointCloud, PointIndexError, SigError,
-    SmallComponentsError, StageProgress, SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats,
-    TriMesh, run_stages,
+    SmallComponentsError, StageProgress, StopRequest, Stopped, SurfaceCoverError,
+    SurfaceCoverParams, SurfaceCoverStats, TriMesh, run_stages_until,
 };
 use std::time::Duration;
 
@@ -245,6 +245,27 @@ pub enum ReconError {
     /// Nothing was left to mesh.
     #[error("the reconstruction is empty: {0}")]
     Empty(&'static str),
+    /// The caller asked the pipeline to stop ([`reconstruct_until`]).
+    #[error(transparent)]
+    Stopped(#[from] Stopped),
+}
+
+impl ReconError {
+    /// True when the error lies with the input (too few or degenerate points, nothing left
+    /// after outlier removal, flat points without trimming) rather than with the run: a
+    /// command line exits with its bad-input code for these.
+    pub fn is_bad_input(&self) -> bool {
+        matches!(
+            self,
+            ReconError::TooFewPoints { .. }
+                | ReconError::NoExtent(_)
+                | ReconError::Collinear
+                | ReconError::Flat
+                | ReconError::FarPoint { .. }
+                | ReconError::Empty(_)
+                | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. })
+        )
+    }
 }
 
 /// Counts and timings of [`reconstruct`].
@@ -346,10 +367,21 @@ pub fn reconstruct(
     params: &ReconParams,
     progress: &(dyn Fn(StageProgress) + Sync),
 ) -> Result<Reconstruction, ReconError> {
+    reconstruct_until(cloud, params, progress, &StopRequest::new())
+}
+
+/// [`reconstruct`], ending with [`ReconError::Stopped`] before the first stage that starts
+/// after `stop` was requested (for callers that cancel a run from another thread).
+pub fn reconstruct_until(
+    cloud: &PointCloud,
+    params: &ReconParams,
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<Reconstruction, ReconError> {
     check_params(params)?;
     let stages = stage_list(params, cloud.normals.is_some());
     let mut ctx = ReconContext::new(cloud, params);
-    let times = run_stages(&mut ctx, &stages, progress)?;
+    let times = run_stages_until(&mut ctx, &stages, progress, stop)?;
     let conf = built(ctx.confidence.take(), "sample confidence");
 
     // Per input point, in input order.

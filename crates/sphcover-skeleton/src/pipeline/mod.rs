@@ -10,8 +10,8 @@ mod front_stages;
 mod sheet_stages;
 
 use sphcover_core::{
-    Kernel, ParameterError, StageProgress, StageTimes, TriMesh, Volume, VolumeCoverStats,
-    run_stages,
+    Kernel, ParameterError, StageProgress, StageTimes, StopRequest, TriMesh, Volume,
+    VolumeCoverStats, run_stages_until,
 };
 
 use crate::error::SkeletonError;
@@ -160,12 +160,23 @@ pub fn extract_skeleton(
     params: &SkeletonParams,
     progress: &(dyn Fn(StageProgress) + Sync),
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
+    extract_skeleton_until(volume, params, progress, &StopRequest::new())
+}
+
+/// [`extract_skeleton`], ending with [`SkeletonError::Stopped`] before the first stage that
+/// starts after `stop` was requested (for callers that cancel a run from another thread).
+pub fn extract_skeleton_until(
+    volume: &Volume,
+    params: &SkeletonParams,
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     check_params(params)?;
     let front = volume_front_stages();
     let count = front.len() + sheet_stage_list(params).len();
     let mut ctx = VolumeFront::new(volume, params);
-    let times = run_stages(&mut ctx, &front, &offset(progress, 0, count))?;
-    sheet_from_cover(ctx.finish()?, times, params, progress)
+    let times = run_stages_until(&mut ctx, &front, &offset(progress, 0, count), stop)?;
+    sheet_from_cover(ctx.finish()?, times, params, progress, stop)
 }
 
 /// The names of the stages [`extract_skeleton`] (and
@@ -199,6 +210,7 @@ pub(crate) fn sheet_from_cover(
     mut times: StageTimes,
     params: &SkeletonParams,
     progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     let CoverStage {
         intensity,
@@ -217,10 +229,11 @@ pub(crate) fn sheet_from_cover(
         cover_stats.r_max,
         voxel,
     );
-    times.extend(run_stages(
+    times.extend(run_stages_until(
         &mut ctx,
         &stages,
         &offset(progress, times.len(), count),
+        stop,
     )?);
     let mesh = built(ctx.mesh.as_ref(), "tetrahedral mesh");
     let topology = built(ctx.topology.as_ref(), "topology");

@@ -1,0 +1,431 @@
+"""sphcover: processing of scanned geometry with spherically supported functions.
+
+Covers of space by balls, each carrying a small local function, blended by partition of unity
+(after Y. Nagai, "Processing of Scanned Geometry Using Spherically Supported Functions",
+2010): surface reconstruction from scanned points, skeletal sheets from CT volumes, discrete
+differential operators, regular triangulations. NumPy arrays in and out.
+
+Long calls (``reconstruct``, ``skeleton``, ``skeleton_from_samples``, ``cover``,
+``operators``, ``regular_triangulation``, ``dual_complex``) run with the GIL released, and Ctrl-C ends them
+within a twentieth of a second. Errors are :class:`BadInputError` (a ``ValueError``: what the
+command line exits with 2 for) and :class:`SphcoverError` (a ``RuntimeError``), with the
+command line's messages.
+
+See ``docs/python.md`` in the repository for a guide.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any, Callable, NamedTuple, Optional, Union
+
+import numpy as np
+
+from . import _sphcover
+from ._sphcover import BadInputError, Cover, DualComplex, SphcoverError, keep_freed_memory
+from ._types import Mesh, PointCloud, Spheres, Volume
+
+__all__ = [
+    "BadInputError",
+    "Cover",
+    "DualComplex",
+    "Mesh",
+    "Operators",
+    "PointCloud",
+    "SphcoverError",
+    "Spheres",
+    "Volume",
+    "cover",
+    "dual_complex",
+    "keep_freed_memory",
+    "operators",
+    "read",
+    "reconstruct",
+    "regular_triangulation",
+    "skeleton",
+    "skeleton_from_samples",
+    "write",
+]
+
+Progress = Union[None, bool, Callable[[str, int, int], Any]]
+
+
+def _points(a, name: str = "points") -> np.ndarray:
+    """An ``(n, 3)`` C-contiguous float64 array (no copy when ``a`` already is one)."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise BadInputError(f"{name} must have shape (n, 3), not {a.shape}")
+    return a
+
+
+def _vector(a, name: str) -> Optional[np.ndarray]:
+    return None if a is None else np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
+
+
+def _progress(progress: Progress):
+    """The callback for ``progress``: None or False (quiet), a callable ``(stage, index,
+    count)``, or True (a tqdm bar when tqdm is installed, else one line per stage on
+    stderr)."""
+    if progress is None or progress is False:
+        return None, None
+    if callable(progress):
+        return progress, None
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        def lines(name, index, count):
+            print(f"[{index + 1}/{count}] {name}", file=sys.stderr, flush=True)
+
+        return lines, None
+    bar = tqdm(total=None, unit="stage")
+
+    def advance(name, index, count):
+        bar.total = count
+        bar.n = index
+        bar.set_description(name)
+        bar.refresh()
+
+    return advance, bar
+
+
+def _with_progress(progress: Progress, call):
+    callback, bar = _progress(progress)
+    try:
+        return call(callback)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def read(path, *, drop_non_finite: bool = False):
+    """Reads any file the command line reads, the format from the extension.
+
+    Returns a :class:`Mesh` (a file with faces: PLY, OBJ, OFF, STL), a :class:`PointCloud`
+    (points: PLY, OBJ, OFF, XYZ/PWN, LAS), :class:`Spheres` (a sphere set: ``.sph``,
+    ``.spheres``, 4-column ``.txt``, PLY with ``radius``), a :class:`Cover` (a cover file) or
+    a :class:`Volume` (NIfTI-1/2 ``.nii``/``.nii.gz``, INRIMAGE ``.inr``/``.inr.gz``).
+
+    ``drop_non_finite`` drops vertices with NaN or infinite coordinates instead of refusing
+    the file (the command line's ``--drop-non-finite``).
+    """
+    d = _sphcover.read(str(path), drop_non_finite)
+    kind = d["kind"]
+    if kind == "volume":
+        return Volume(values=d["values"], affine=d["affine"], format=d["format"])
+    if kind == "cover":
+        return d["cover"]
+    if "radii" in d:
+        return Spheres(centres=d["points"], radii=d["radii"])
+    if len(d["triangles"]):
+        return Mesh(
+            vertices=d["points"],
+            faces=d["triangles"],
+            normals=d.get("normals"),
+            values=d.get("values"),
+        )
+    return PointCloud(
+        points=d["points"],
+        normals=d.get("normals"),
+        confidence=d.get("confidence"),
+        values=d.get("values"),
+    )
+
+
+def write(path, data, *, ascii: bool = False, single: bool = False) -> None:
+    """Writes ``data`` to ``path`` in the format its extension names, as the command line
+    writes it: PLY binary little-endian with float64 numbers (``ascii``, ``single`` for ascii
+    and float32), OBJ, OFF, STL, XYZ/PWN, sphere sets, cover files, and for a
+    :class:`DualComplex` ``.vtk`` or ``.txt``/``.tets``.
+
+    ``data`` is a :class:`Mesh`, :class:`PointCloud`, :class:`Spheres`, :class:`Cover` or
+    :class:`DualComplex`. The file appears whole or not at all.
+
+    A mesh keeps its per-vertex values in PLY only; as ``sphcover recon`` does, other formats
+    get the mesh without them (and STL, which has no per-vertex normals, without normals).
+    """
+    path = str(path)
+    if isinstance(data, (Cover, DualComplex)):
+        if isinstance(data, Cover):
+            data.write(path, ascii=ascii)
+        else:
+            data.write(path)
+        return
+    if isinstance(data, Mesh):
+        extension = path.lower().rsplit(".", 1)[-1]
+        values, normals = data.values, data.normals
+        if extension != "ply":
+            values = None
+        if extension == "stl":
+            normals = None
+        _sphcover.write_geometry(
+            path,
+            _points(data.vertices, "vertices"),
+            triangles=np.ascontiguousarray(data.faces, dtype=np.uint32),
+            normals=None if normals is None else _points(normals, "normals"),
+            values=_vector(values, "values"),
+            ascii=ascii,
+            single=single,
+        )
+        return
+    if isinstance(data, PointCloud):
+        _sphcover.write_geometry(
+            path,
+            _points(data.points),
+            normals=None if data.normals is None else _points(data.normals, "normals"),
+            confidence=_vector(data.confidence, "confidence"),
+            values=_vector(data.values, "values"),
+            ascii=ascii,
+            single=single,
+        )
+        return
+    if isinstance(data, Spheres):
+        _sphcover.write_geometry(
+            path, _points(data.centres, "centres"), radii=_vector(data.radii, "radii"),
+            ascii=ascii, single=single,
+        )
+        return
+    raise TypeError(
+        f"cannot write a {type(data).__name__}: give a Mesh, PointCloud, Spheres, Cover or DualComplex"
+    )
+
+
+def reconstruct(
+    points,
+    normals=None,
+    *,
+    confidence=None,
+    method: str = "integrated",
+    eps: Optional[float] = None,
+    k: Optional[float] = None,
+    trim: Union[None, bool, float] = None,
+    depth: Optional[int] = None,
+    normal_fit: Optional[float] = None,
+    position_fit: Optional[float] = None,
+    normal_neighbours: int = 12,
+    estimate_normals: bool = False,
+    refine: bool = True,
+    seed: int = 0,
+    threads: Optional[int] = None,
+    progress: Progress = None,
+) -> Mesh:
+    """Reconstructs a surface mesh from scanned points, as ``sphcover recon`` does.
+
+    ``points`` is an ``(n, 3)`` array (or a :class:`PointCloud`, whose normals and confidence
+    are then used); ``normals`` an ``(n, 3)`` array of outward normals, estimated when absent.
+    Keywords are the command line's options: ``method`` (``"integrated"``, ``"graphcut"``,
+    ``"diffusion"``, ``"pu"``), ``eps`` (cover tolerance relative to the longest bounding-box
+    edge), ``k`` (graph-cut ratio), ``trim`` (True: drop surface farther than 3 sample
+    spacings from every sample; a number: that distance relative to the longest edge),
+    ``depth``, ``normal_fit``, ``position_fit``, ``normal_neighbours``, ``estimate_normals``,
+    ``refine`` (False is ``--no-refine``), ``seed``; ``threads`` the worker threads (the
+    result does not depend on it); ``progress`` a callable ``(stage, index, count)`` or True
+    for a progress bar.
+
+    Returns a :class:`Mesh` with per-vertex normals, the per-vertex confidence of the surface
+    as ``values`` (``confidence``), the statistics, and ``point_confidence``, ``outliers``,
+    ``cover`` of the input points. Written with :func:`write` to PLY it is the command line's
+    file byte for byte.
+    """
+    if isinstance(points, PointCloud):
+        cloud = points
+        points = cloud.points
+        normals = cloud.normals if normals is None else normals
+        confidence = cloud.confidence if confidence is None else confidence
+    d = _with_progress(
+        progress,
+        lambda callback: _sphcover.reconstruct(
+            _points(points),
+            None if normals is None else _points(normals, "normals"),
+            _vector(confidence, "confidence"),
+            method_name=method,
+            eps=eps,
+            k=k,
+            trim_value=trim,
+            depth=depth,
+            normal_fit=normal_fit,
+            position_fit=position_fit,
+            normal_neighbours=normal_neighbours,
+            estimate_normals=estimate_normals,
+            refine=refine,
+            seed=seed,
+            threads=threads,
+            progress=callback,
+        ),
+    )
+    return Mesh(
+        vertices=d["vertices"],
+        faces=d["faces"],
+        normals=d.get("normals"),
+        values=d.get("confidence"),
+        stats=d["stats"],
+        point_confidence=d["point_confidence"],
+        outliers=d["outliers"],
+        cover=d["cover"],
+    )
+
+
+def skeleton(
+    volume,
+    affine=None,
+    *,
+    threshold: Optional[float] = None,
+    sigma: Optional[float] = None,
+    eps: Optional[float] = None,
+    method: str = "ridge",
+    seed: int = 0,
+    threads: Optional[int] = None,
+    progress: Progress = None,
+):
+    """The skeletal sheet (mid-surface) of a thin part in a CT volume, as ``sphcover
+    skeleton`` extracts it.
+
+    ``volume`` is a :class:`Volume` or an ``(nx, ny, nz)`` array indexed ``[i, j, k]`` with
+    ``affine`` the 4×4 voxel-to-world matrix (identity when omitted): what nibabel's
+    ``img.get_fdata()`` and ``img.affine`` give. The object is brighter than the background.
+    Keywords are the command line's: ``threshold`` (default: from the histogram), ``sigma``,
+    ``eps``, ``method`` (``"ridge"``, or ``"nms"`` for the baseline's ridge points), ``seed``.
+
+    Returns a :class:`Mesh` in world coordinates (per-vertex values: the ridge strength), or
+    for ``method="nms"`` a :class:`PointCloud`.
+    """
+    if isinstance(volume, Volume):
+        volume, affine = volume.values, volume.affine if affine is None else affine
+    values = np.asarray(volume, dtype=np.float64)
+    if values.ndim != 3:
+        raise BadInputError(f"volume must be a 3-D array, not {values.ndim}-D")
+    affine = np.eye(4) if affine is None else np.ascontiguousarray(affine, dtype=np.float64)
+    d = _with_progress(
+        progress,
+        lambda callback: _sphcover.skeleton_volume(
+            values, affine, threshold=threshold, sigma=sigma, eps=eps, method=method,
+            seed=seed, threads=threads, progress=callback,
+        ),
+    )
+    if method == "nms":
+        return PointCloud(points=d["points"], stats=d["stats"])
+    return _sheet(d)
+
+
+def skeleton_from_samples(
+    points,
+    values,
+    *,
+    threshold: Optional[float] = None,
+    sigma: Optional[float] = None,
+    eps: Optional[float] = None,
+    seed: int = 0,
+    threads: Optional[int] = None,
+    progress: Progress = None,
+) -> Mesh:
+    """The skeletal sheet of scattered samples with values (``(n, 3)`` points off any grid,
+    ``(n,)`` values), as ``sphcover skeleton --value-property`` extracts it; lengths in voxels
+    become multiples of the median distance between nearest samples."""
+    d = _with_progress(
+        progress,
+        lambda callback: _sphcover.skeleton_samples(
+            _points(points), _vector(values, "values"), threshold=threshold, sigma=sigma,
+            eps=eps, seed=seed, threads=threads, progress=callback,
+        ),
+    )
+    return _sheet(d)
+
+
+def _sheet(d) -> Mesh:
+    return Mesh(
+        vertices=d["vertices"],
+        faces=d["faces"],
+        normals=d.get("normals"),
+        values=d.get("values"),
+        stats=d["stats"],
+    )
+
+
+def cover(points, normals=None, *, eps: Optional[float] = None, seed: int = 0) -> Cover:
+    """The surface cover of oriented points (thesis §3.4.1), as ``sphcover cover`` builds
+    it: balls whose local functions fit the points to ``eps`` (relative to the longest
+    bounding-box edge, default 2.5e-3). ``points`` may be a :class:`PointCloud` with normals.
+
+    ``Cover.evaluate(x)`` gives the implicit function ``f`` (positive inside) and its
+    gradient at the rows of ``x``.
+    """
+    if isinstance(points, PointCloud):
+        points, normals = points.points, points.normals if normals is None else normals
+    if normals is None:
+        raise BadInputError(
+            "the points have no normals: the surface cover needs outward normals "
+            "(estimating them from unoriented points is part of reconstruct)"
+        )
+    return _sphcover.surface_cover(_points(points), _points(normals, "normals"), eps=eps, seed=seed)
+
+
+class Operators(NamedTuple):
+    """``Grad`` (``3n × n``), ``Div`` (``n × 3n``) and ``Lap`` (``n × n``) as
+    ``scipy.sparse.csr_matrix``; vector fields are ``(n, 3)`` arrays flattened row by row
+    (``v.reshape(-1)``), so ``(grad @ u).reshape(-1, 3)`` is the gradient at each centre."""
+
+    grad: Any
+    div: Any
+    lap: Any
+
+
+def operators(
+    centres,
+    radii=None,
+    *,
+    variant: str = "thesis",
+    mass: str = "thesis",
+    flux: str = "neighbour",
+    shrink: float = 1.0,
+) -> Operators:
+    """The discrete differential operators of a set of balls (thesis §4) as SciPy sparse
+    matrices, at the balls' centres.
+
+    ``centres`` is an ``(n, 3)`` array with ``radii`` ``(n,)``, or a :class:`Cover` (its
+    supports in input coordinates) or :class:`Spheres`. ``variant="thesis"`` is the thesis'
+    form (``mass`` ``"thesis"`` or ``"moment"``, ``flux`` ``"neighbour"`` or ``"central"``);
+    ``variant="consistent"`` the second-order least-squares family, exact on quadratics.
+    Neighbours are the balls that intersect after scaling the radii by ``shrink``.
+
+    Needs SciPy.
+    """
+    import scipy.sparse
+
+    if isinstance(centres, Cover):
+        centres, radii = centres.centres, centres.radii
+    elif isinstance(centres, Spheres):
+        centres, radii = centres.centres, centres.radii
+    if radii is None:
+        raise BadInputError("radii are needed with an array of centres")
+    d = _sphcover.operator_matrices(
+        _points(centres, "centres"), _vector(radii, "radii"),
+        variant=variant, mass=mass, flux=flux, shrink=shrink,
+    )
+
+    def csr(parts):
+        data, indices, indptr, shape = parts
+        return scipy.sparse.csr_matrix((data, indices, indptr), shape=shape)
+
+    return Operators(grad=csr(d["grad"]), div=csr(d["div"]), lap=csr(d["lap"]))
+
+
+def regular_triangulation(centres, radii, *, seed: Optional[int] = None) -> np.ndarray:
+    """The finite tetrahedra, ``(m, 4)`` uint32 indices, of the regular (weighted Delaunay)
+    triangulation of the balls with weights ``radii²``. Exact predicates; the result does
+    not depend on ``seed``."""
+    d = _sphcover.regular_triangulation(
+        _points(centres, "centres"), _vector(radii, "radii"), seed=seed
+    )
+    return d["tets"]
+
+
+def dual_complex(centres, radii=None, *, shrink: float = 0.75, seed: int = 0) -> DualComplex:
+    """The dual complex of a union of balls (thesis §3.5), as ``sphcover tetra`` builds it:
+    the tetrahedral mesh of a cover. ``centres`` may be a :class:`Cover` or
+    :class:`Spheres`; ``shrink`` scales the radii before triangulating (default 0.75)."""
+    if isinstance(centres, (Cover, Spheres)):
+        centres, radii = centres.centres, centres.radii
+    if radii is None:
+        raise BadInputError("radii are needed with an array of centres")
+    return _sphcover.dual_complex(
+        _points(centres, "centres"), _vector(radii, "radii"), shrink=shrink, seed=seed
+    )

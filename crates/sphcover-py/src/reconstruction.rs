@@ -1,0 +1,180 @@
+//! `reconstruct`: `sphcover recon` on arrays. The options are the command line's, checked by
+//! the same [`ReconOptions`]; the pipeline is the same [`sphcover_recon::reconstruct_until`],
+//! so the mesh written to PLY is the command line's byte for byte.
+
+use numpy::{PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use sphcover_core::PointCloud;
+use sphcover_recon::{Method, ReconOptions, Reconstruction, TrimOption, reconstruct_until};
+
+use crate::arrays::{points_from_py, points_to_py, values_from_py, vec_to_py};
+use crate::cover::Cover;
+use crate::errors::{bad_input, option_error, recon_error};
+use crate::run::run;
+
+/// The method named as on the command line.
+fn method(name: &str) -> PyResult<Method> {
+    Ok(match name {
+        "integrated" => Method::Integrated,
+        "graphcut" => Method::GraphCut,
+        "diffusion" => Method::Diffusion,
+        "pu" => Method::PartitionOfUnity,
+        other => {
+            return Err(bad_input(format!(
+                "method {other:?} is not one of 'integrated', 'graphcut', 'diffusion', 'pu'"
+            )));
+        }
+    })
+}
+
+/// `trim`: False/None (keep everything), True (3 sample spacings) or a distance.
+fn trim(value: Option<&Bound<'_, PyAny>>) -> PyResult<TrimOption> {
+    let Some(value) = value else {
+        return Ok(TrimOption::Off);
+    };
+    if value.is_none() {
+        return Ok(TrimOption::Off);
+    }
+    if let Ok(flag) = value.cast::<pyo3::types::PyBool>() {
+        return Ok(if flag.is_true() {
+            TrimOption::Auto
+        } else {
+            TrimOption::Off
+        });
+    }
+    Ok(TrimOption::Distance(value.extract::<f64>()?))
+}
+
+/// Reconstructs the surface of the points; returns a dict of the mesh's arrays, the per-point
+/// confidence and outlier labels, the final cover and the statistics.
+#[pyfunction]
+#[pyo3(signature = (
+    points, normals = None, confidence = None, *, method_name = "integrated", eps = None,
+    k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
+    normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
+    threads = None, progress = None,
+))]
+#[allow(clippy::too_many_arguments)]
+pub fn reconstruct<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    normals: Option<PyReadonlyArray2<'py, f64>>,
+    confidence: Option<PyReadonlyArray1<'py, f64>>,
+    method_name: &str,
+    eps: Option<f64>,
+    k: Option<f64>,
+    trim_value: Option<&Bound<'py, PyAny>>,
+    depth: Option<u32>,
+    normal_fit: Option<f64>,
+    position_fit: Option<f64>,
+    normal_neighbours: usize,
+    estimate_normals: bool,
+    refine: bool,
+    seed: u64,
+    threads: Option<usize>,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = ReconOptions {
+        method: method(method_name)?,
+        eps,
+        k,
+        trim: trim(trim_value)?,
+        depth,
+        normal_fit,
+        position_fit,
+        normal_neighbours,
+        refine,
+        seed,
+    };
+    let params = options.params().map_err(option_error)?;
+    let positions = points_from_py(&points, "points")?;
+    let n = Some(positions.len());
+    let normals = match (normals, estimate_normals) {
+        (Some(a), false) => Some(points_from_py(&a, "normals")?),
+        _ => None,
+    };
+    let confidence = confidence
+        .map(|a| values_from_py(&a, "confidence", n))
+        .transpose()?;
+    let cloud = PointCloud {
+        positions,
+        normals,
+        confidence,
+        values: None,
+    };
+    cloud.check().map_err(bad_input)?;
+    if threads == Some(0) {
+        return Err(bad_input("threads must be at least 1"));
+    }
+    let recon = run(py, progress, threads, move |context| {
+        reconstruct_until(&cloud, &params, &|s| context.stage(s), context.stop())
+            .map_err(recon_error)
+    })?;
+    into_dict(py, recon)
+}
+
+fn into_dict(py: Python<'_>, recon: Reconstruction) -> PyResult<Bound<'_, PyDict>> {
+    let stats = stats_dict(py, &recon)?;
+    let Reconstruction {
+        mesh,
+        confidence,
+        outliers,
+        cover,
+        normalisation,
+        ..
+    } = recon;
+    let out = PyDict::new(py);
+    out.set_item("vertices", points_to_py(py, mesh.vertices))?;
+    out.set_item("faces", crate::arrays::rows_to_py(py, mesh.triangles))?;
+    if let Some(n) = mesh.normals {
+        out.set_item("normals", points_to_py(py, n))?;
+    }
+    if let Some(v) = mesh.values {
+        out.set_item("confidence", vec_to_py(py, v))?;
+    }
+    out.set_item("point_confidence", vec_to_py(py, confidence))?;
+    out.set_item("outliers", vec_to_py(py, outliers))?;
+    out.set_item("cover", Cover::new(cover, normalisation, 1.0))?;
+    out.set_item("stats", stats)?;
+    Ok(out)
+}
+
+/// The statistics, with the names of the command line's `--report` JSON.
+fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'py, PyDict>> {
+    let s = &recon.stats;
+    let d = PyDict::new(py);
+    d.set_item("method", s.method.name())?;
+    d.set_item("points", s.points)?;
+    d.set_item("non_finite_points", s.non_finite_points)?;
+    d.set_item("normals_estimated", s.normals_estimated)?;
+    d.set_item("outliers", s.outliers)?;
+    d.set_item("supports", s.supports)?;
+    d.set_item("supports_over_eps", s.cover.supports_over_eps)?;
+    d.set_item("graph_mean_degree", s.graph_mean_degree)?;
+    d.set_item("inconsistent_supports", s.inconsistent_supports)?;
+    d.set_item("eps", s.eps)?;
+    d.set_item("spacing", s.scan.spacing)?;
+    d.set_item("noise", s.scan.noise)?;
+    d.set_item("depth", s.depth)?;
+    d.set_item("vertices", s.vertices)?;
+    d.set_item("triangles", s.triangles)?;
+    d.set_item("components", s.components)?;
+    d.set_item("dropped_components", s.dropped_components)?;
+    d.set_item("refined_vertices", s.refinement.as_ref().map(|r| r.moved))?;
+    d.set_item("watertight", s.watertight)?;
+    d.set_item("euler_characteristic", s.euler_characteristic)?;
+    let stages = PyList::empty(py);
+    for (name, time) in &s.stages {
+        let stage = PyDict::new(py);
+        stage.set_item("stage", *name)?;
+        stage.set_item("seconds", time.as_secs_f64())?;
+        stages.append(stage)?;
+    }
+    d.set_item("stages_seconds", stages)?;
+    d.set_item(
+        "total_seconds",
+        s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),
+    )?;
+    Ok(d)
+}

@@ -1,0 +1,104 @@
+"""`reconstruct` against `sphcover recon`: the same mesh, byte for byte, the same errors."""
+
+import numpy as np
+import pytest
+
+import sphcover
+
+
+def python_recon_bytes(tmp_path, scan, **options):
+    cloud = sphcover.read(scan)
+    mesh = sphcover.reconstruct(cloud, **options)
+    path = tmp_path / "python.ply"
+    sphcover.write(path, mesh)
+    return mesh, path.read_bytes()
+
+
+def test_kitten_matches_the_command_line_byte_for_byte(fixtures, run_cli, tmp_path):
+    scan = fixtures / "real" / "kitten.ply"
+    run_cli("recon", scan, "-o", tmp_path / "cli.ply")
+    mesh, written = python_recon_bytes(tmp_path, scan)
+    assert written == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["watertight"] and mesh.stats["points"] == 5210
+    assert len(mesh.point_confidence) == 5210 and mesh.outliers.dtype == np.bool_
+    assert mesh.confidence is mesh.values and len(mesh.values) == len(mesh.vertices)
+
+
+def test_options_match_the_command_line_flags(fixtures, run_cli, tmp_path):
+    scan = fixtures / "sphere_noisy_2k.ply"
+    run_cli(
+        "recon", scan, "-o", tmp_path / "cli.ply", "--method", "diffusion", "--eps", "0.004",
+        "--trim", "--depth", "7", "--no-refine", "--estimate-normals",
+        "--normal-neighbours", "15", "--position-fit", "2", "--seed", "3",
+    )
+    _, written = python_recon_bytes(
+        tmp_path, scan, method="diffusion", eps=0.004, trim=True, depth=7, refine=False,
+        estimate_normals=True, normal_neighbours=15, position_fit=2.0, seed=3,
+    )
+    assert written == (tmp_path / "cli.ply").read_bytes()
+
+
+def test_the_result_does_not_depend_on_the_thread_count(fixtures):
+    cloud = sphcover.read(fixtures / "sphere_2k.ply")
+    one = sphcover.reconstruct(cloud, threads=1)
+    two = sphcover.reconstruct(cloud, threads=2)
+    np.testing.assert_array_equal(one.vertices, two.vertices)
+    np.testing.assert_array_equal(one.faces, two.faces)
+
+
+@pytest.mark.parametrize(
+    "option, flag, value",
+    [
+        ("eps", "--eps", 2.0),
+        ("k", "--k", -1.0),
+        ("depth", "--depth", 20),
+        ("normal_neighbours", "--normal-neighbours", 2),
+        ("normal_fit", "--normal-fit", -0.5),
+    ],
+)
+def test_options_out_of_range_raise_the_command_line_message(
+    fixtures, run_cli, tmp_path, option, flag, value
+):
+    scan = fixtures / "sphere_2k.ply"
+    with pytest.raises(sphcover.BadInputError) as raised:
+        sphcover.reconstruct(sphcover.read(scan), **{option: value})
+    result = run_cli("recon", scan, "-o", tmp_path / "x.ply", f"{flag}={value}", expect_ok=False)
+    assert result.returncode == 2
+    # Same message, the option spelled as a keyword instead of a flag.
+    assert f"{flag} {str(raised.value).split(' ', 1)[1]}" in result.stderr
+
+
+def test_unusable_input_raises_the_command_line_message(run_cli, tmp_path):
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    normals = np.tile([0.0, 0.0, 1.0], (3, 1))
+    sphcover.write(tmp_path / "three.ply", sphcover.PointCloud(points=points, normals=normals))
+    with pytest.raises(sphcover.BadInputError) as raised:
+        sphcover.reconstruct(points, normals)
+    result = run_cli("recon", tmp_path / "three.ply", "-o", tmp_path / "x.ply", expect_ok=False)
+    assert result.returncode == 2
+    assert f"three.ply: {raised.value}" in result.stderr
+
+
+def test_progress_reports_every_stage_in_order(fixtures):
+    seen = []
+    sphcover.reconstruct(
+        sphcover.read(fixtures / "sphere_2k.ply"),
+        progress=lambda name, index, count: seen.append((name, index, count)),
+    )
+    assert [s[1] for s in seen] == list(range(len(seen)))
+    assert {s[2] for s in seen} == {len(seen)}
+    assert seen[0][0] == "normalise" and "polygonise" in [s[0] for s in seen]
+
+
+def test_an_exception_in_the_progress_callback_ends_the_call(fixtures):
+    def fail(name, index, count):
+        raise RuntimeError(f"stop at {name}")
+
+    with pytest.raises(RuntimeError, match="stop at normalise"):
+        sphcover.reconstruct(sphcover.read(fixtures / "sphere_2k.ply"), progress=fail)
+
+
+def test_progress_true_shows_the_stages_on_stderr(fixtures, capsys):
+    sphcover.reconstruct(sphcover.read(fixtures / "sphere_2k.ply"), progress=True)
+    # A tqdm bar when tqdm is installed, else one line per stage: both name the stages.
+    assert "normalise" in capsys.readouterr().err

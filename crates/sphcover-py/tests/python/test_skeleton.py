@@ -1,0 +1,65 @@
+"""`skeleton` of NumPy phantoms, and against `sphcover skeleton` on the bundled CT."""
+
+import numpy as np
+
+import sphcover
+
+
+def plate_phantom(n=32, half_thickness=2.0, half_width=10.0):
+    """A CT-like square plate at z = centre (between voxel centres), brighter than the
+    background, with soft faces and rims."""
+    centre = n / 2 - 0.7
+    i, j, k = np.meshgrid(*[np.arange(n, dtype=np.float64)] * 3, indexing="ij")
+    inside = np.minimum(
+        half_thickness - np.abs(k - centre),
+        np.minimum(half_width - np.abs(i - n / 2), half_width - np.abs(j - n / 2)),
+    )
+    return 1000.0 * (1.0 + np.tanh(inside / 0.8)), centre
+
+
+def test_the_sheet_of_a_plate_is_its_mid_plane():
+    values, centre = plate_phantom()
+    affine = np.diag([0.5, 0.5, 0.5, 1.0])
+    affine[:3, 3] = [1.0, 2.0, 3.0]
+    sheet = sphcover.skeleton(values, affine)
+    assert sheet.stats["components"] == 1 and len(sheet.faces) > 500
+    # World z of the mid-plane: 3 + 0.5·centre, within a tenth of a voxel on average.
+    assert np.mean(np.abs(sheet.vertices[:, 2] - (3.0 + 0.5 * centre))) < 0.05
+    # The sheet spans the plate: x from about 1 + 0.5·6 to 1 + 0.5·26.
+    assert sheet.vertices[:, 0].min() < 5.0 and sheet.vertices[:, 0].max() > 13.0
+
+
+def test_the_sheet_of_scattered_samples_is_its_mid_plane():
+    rng = np.random.default_rng(1)
+    grid = np.stack(np.meshgrid(*[np.arange(16.0)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    points = grid + rng.uniform(-0.3, 0.3, grid.shape)
+    values = 500.0 * (1.0 + np.tanh((2.0 - np.abs(points[:, 2] - 8.0)) / 0.8))
+    sheet = sphcover.skeleton_from_samples(points, values)
+    assert sheet.stats["components"] == 1
+    assert np.mean(np.abs(sheet.vertices[:, 2] - 8.0)) < 0.1
+
+
+def test_bundled_ct_matches_the_command_line_byte_for_byte(fixtures, run_cli, tmp_path):
+    ct = fixtures / "phantoms" / "t_junction_ct_n000.nii.gz"
+    run_cli("skeleton", ct, "-o", tmp_path / "cli.ply")
+    sheet = sphcover.skeleton(sphcover.read(ct))
+    sphcover.write(tmp_path / "python.ply", sheet)
+    assert (tmp_path / "python.ply").read_bytes() == (tmp_path / "cli.ply").read_bytes()
+
+
+def test_the_baseline_gives_ridge_points():
+    values, centre = plate_phantom()
+    points = sphcover.skeleton(values, method="nms")
+    assert isinstance(points, sphcover.PointCloud) and len(points) > 100
+    # The baseline's ridge points lie inside the plate (the sheet's accuracy is the ridge
+    # method's business).
+    assert np.all(np.abs(points.points[:, 2] - centre) < 2.0)
+
+
+def test_a_constant_volume_is_bad_input():
+    try:
+        sphcover.skeleton(np.full((8, 8, 8), 3.0))
+    except sphcover.BadInputError as e:
+        assert str(e) == "the volume is constant (every voxel is 3)"
+    else:
+        raise AssertionError("a constant volume was accepted")
