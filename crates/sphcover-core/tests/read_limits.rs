@@ -50,6 +50,14 @@ fn over_limit(result: Result<impl std::fmt::Debug, IoError>) -> (String, u64, u6
     }
 }
 
+/// `bytes` of `format` read within a limit of exactly `need` bytes, then refused one byte
+/// below it: the refusal's declared text, bytes, limit and message.
+fn needs_exactly(bytes: &[u8], format: Format, need: u64) -> (String, u64, u64, String) {
+    let path = Path::new("a").with_extension(format!("{format:?}").to_lowercase());
+    parse_geometry(bytes, format, &path, &limited(need)).unwrap();
+    over_limit(parse_geometry(bytes, format, &path, &limited(need - 1)))
+}
+
 #[test]
 fn the_zero_bomb_inflates_to_what_it_declares_at_about_a_thousand_to_one() {
     let head = b"head bytes".to_vec();
@@ -299,13 +307,7 @@ fn las_file(records: u32, declared: u32) -> Vec<u8> {
 fn las_stl_and_off_counts_are_checked_against_the_limit() {
     // LAS: 32 bytes a point (position and intensity).
     let las = las_file(1000, 1000);
-    parse_geometry(&las, Format::Las, Path::new("a.las"), &limited(32_000)).unwrap();
-    let (declared, bytes, _, _) = over_limit(parse_geometry(
-        &las,
-        Format::Las,
-        Path::new("a.las"),
-        &limited(31_999),
-    ));
+    let (declared, bytes, _, _) = needs_exactly(&las, Format::Las, 32_000);
     assert_eq!((declared.as_str(), bytes), ("1000 points", 32_000));
 
     // Binary STL: 44 bytes a triangle (the triangle and half a merged vertex).
@@ -319,13 +321,7 @@ fn las_stl_and_off_counts_are_checked_against_the_limit() {
         }
         stl.extend([0u8; 2]);
     }
-    parse_geometry(&stl, Format::Stl, Path::new("a.stl"), &limited(44_000)).unwrap();
-    let (declared, _, _, _) = over_limit(parse_geometry(
-        &stl,
-        Format::Stl,
-        Path::new("a.stl"),
-        &limited(43_999),
-    ));
+    let (declared, _, _, _) = needs_exactly(&stl, Format::Stl, 44_000);
     assert_eq!(declared, "1000 triangles");
 
     // OFF: position and line number, 32 bytes a vertex; 12 a face.
@@ -337,19 +333,7 @@ fn las_stl_and_off_counts_are_checked_against_the_limit() {
         off.push_str(&format!("3 {} {} {}\n", 3 * f, 3 * f + 1, 3 * f + 2));
     }
     let need = 300 * 32 + 100 * 12;
-    parse_geometry(
-        off.as_bytes(),
-        Format::Off,
-        Path::new("a.off"),
-        &limited(need),
-    )
-    .unwrap();
-    let (declared, _, _, _) = over_limit(parse_geometry(
-        off.as_bytes(),
-        Format::Off,
-        Path::new("a.off"),
-        &limited(need - 1),
-    ));
+    let (declared, _, _, _) = needs_exactly(off.as_bytes(), Format::Off, need);
     assert_eq!(declared, "300 vertices and 100 faces");
 }
 
@@ -371,12 +355,7 @@ fn text_records_are_counted_against_the_limit_as_they_are_read() {
     )
     .unwrap();
     assert_eq!(whole.points.len(), 1000);
-    let (declared, bytes, limit, message) = over_limit(parse_geometry(
-        xyz.as_bytes(),
-        Format::Xyz,
-        Path::new("a.xyz"),
-        &limited(need - 1),
-    ));
+    let (declared, bytes, limit, message) = needs_exactly(xyz.as_bytes(), Format::Xyz, need);
     assert_eq!(
         declared,
         "1000 points by line 1000 (text, with room for its arrays to grow)"
@@ -402,19 +381,7 @@ fn text_records_are_counted_against_the_limit_as_they_are_read() {
         ));
     }
     let need = 2 * (400 * 36 + 100 * 2 * 12);
-    parse_geometry(
-        obj.as_bytes(),
-        Format::Obj,
-        Path::new("a.obj"),
-        &limited(need),
-    )
-    .unwrap();
-    let (declared, _, _, _) = over_limit(parse_geometry(
-        obj.as_bytes(),
-        Format::Obj,
-        Path::new("a.obj"),
-        &limited(need - 1),
-    ));
+    let (declared, _, _, _) = needs_exactly(obj.as_bytes(), Format::Obj, need);
     assert_eq!(
         declared,
         "400 vertices and 100 faces by line 500 (text, with room for its arrays to grow)"

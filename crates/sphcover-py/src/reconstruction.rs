@@ -4,14 +4,14 @@
 
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 use sphcover_core::PointCloud;
 use sphcover_recon::{Method, ReconOptions, Reconstruction, TrimOption, reconstruct_until};
 
 use crate::arrays::{points_from_py, points_to_py, values_from_py, vec_to_py};
 use crate::cover::Cover;
 use crate::errors::{bad_input, option_error, recon_error};
-use crate::run::run;
+use crate::run::{run, stage_times};
 
 /// The method named as on the command line.
 fn method(name: &str) -> PyResult<Method> {
@@ -164,14 +164,7 @@ fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'p
     d.set_item("refined_vertices", s.refinement.as_ref().map(|r| r.moved))?;
     d.set_item("watertight", s.watertight)?;
     d.set_item("euler_characteristic", s.euler_characteristic)?;
-    let stages = PyList::empty(py);
-    for (name, time) in &s.stages {
-        let stage = PyDict::new(py);
-        stage.set_item("stage", *name)?;
-        stage.set_item("seconds", time.as_secs_f64())?;
-        stages.append(stage)?;
-    }
-    d.set_item("stages_seconds", stages)?;
+    d.set_item("stages_seconds", stage_times(py, &s.stages)?)?;
     d.set_item(
         "total_seconds",
         s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),

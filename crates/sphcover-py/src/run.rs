@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
 use sphcover_core::{StageProgress, StopRequest, on_threads};
 
 /// How long the calling thread waits for news before it looks at Python's signals.
@@ -107,4 +108,19 @@ where
             }
         }
     }
+}
+
+/// A pipeline's stage timings as the stats dicts hold them: `[{"stage", "seconds"}, …]`.
+pub fn stage_times<'py>(
+    py: Python<'py>,
+    stages: &[(&'static str, Duration)],
+) -> PyResult<Bound<'py, PyList>> {
+    let list = PyList::empty(py);
+    for (name, time) in stages {
+        let stage = PyDict::new(py);
+        stage.set_item("stage", *name)?;
+        stage.set_item("seconds", time.as_secs_f64())?;
+        list.append(stage)?;
+    }
+    Ok(list)
 }

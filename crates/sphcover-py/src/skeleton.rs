@@ -5,7 +5,7 @@
 use glam::DAffine3;
 use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 use sphcover_core::{DMat3, DVec3, TriMesh, Volume, VoxelValues};
 use sphcover_skeleton::{
     NmsParams, SkeletonParams, SkeletonStats, extract_skeleton_from_samples_until,
@@ -14,7 +14,7 @@ use sphcover_skeleton::{
 
 use crate::arrays::{points_from_py, points_to_py, rows_to_py, values_from_py, vec_to_py};
 use crate::errors::{bad_input, skeleton_error};
-use crate::run::run;
+use crate::run::{run, stage_times};
 
 /// The ridge pipeline's parameters: the library's defaults and the given options, as
 /// `sphcover skeleton` sets them.
@@ -176,14 +176,7 @@ fn sheet_dict<'py>(
     d.set_item("tunnels_closed", s.tunnels)?;
     d.set_item("flap_triangles_collapsed", s.flap_triangles)?;
     d.set_item("thickness_exceeds_r_max", s.thickness_exceeds_r_max())?;
-    let stages = PyList::empty(py);
-    for (name, time) in &s.stages {
-        let stage = PyDict::new(py);
-        stage.set_item("stage", *name)?;
-        stage.set_item("seconds", time.as_secs_f64())?;
-        stages.append(stage)?;
-    }
-    d.set_item("stages_seconds", stages)?;
+    d.set_item("stages_seconds", stage_times(py, &s.stages)?)?;
     out.set_item("stats", d)?;
     Ok(out)
 }

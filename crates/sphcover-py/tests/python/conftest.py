@@ -13,12 +13,12 @@ REPO = Path(__file__).resolve().parents[4]
 FIXTURES = REPO / "fixtures"
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def fixtures() -> Path:
     return FIXTURES
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def cli() -> str:
     """The `sphcover` command: $SPHCOVER_CLI (what tests/pytest.rs builds), else the one on
     PATH. The comparisons with the command line cannot run without it, so its absence fails
@@ -29,7 +29,7 @@ def cli() -> str:
     return path
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def run_cli(cli):
     def run(*args, expect_ok=True):
         result = subprocess.run(
