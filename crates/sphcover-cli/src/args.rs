@@ -340,6 +340,10 @@ pub struct RenderArgs {
     /// Leave out the colour bar drawn with --colour-by.
     #[arg(long, visible_alias = "no-color-bar")]
     pub no_colour_bar: bool,
+    /// Draw the surface grey even when the file has vertex colours (PLY red green blue, LAS
+    /// RGB), which are drawn otherwise unless --colour-by is given.
+    #[arg(long, visible_alias = "ignore-colors")]
+    pub ignore_colours: bool,
     /// Splat diameter of points, in pixels [default: from the point density].
     #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     pub point_size: Option<f64>,

@@ -28,6 +28,7 @@ fn cloud(n: usize) -> PointCloud {
         normals: Some(normals),
         confidence: None,
         values: None,
+        colors: None,
     }
 }
 

@@ -19,6 +19,8 @@ pub struct PointCloud {
     pub confidence: Option<Vec<f64>>,
     /// Per-point scalar value (for example a CT intensity sample or a PLY `quality`/`scalar`/`value`).
     pub values: Option<Vec<f64>>,
+    /// Per-point colour as 8-bit red, green, blue (PLY `red green blue`, LAS RGB).
+    pub colors: Option<Vec<[u8; 3]>>,
 }
 
 impl PointCloud {
@@ -52,6 +54,7 @@ impl PointCloud {
             ("normals", self.normals.as_ref().map(Vec::len)),
             ("confidence", self.confidence.as_ref().map(Vec::len)),
             ("values", self.values.as_ref().map(Vec::len)),
+            ("colors", self.colors.as_ref().map(Vec::len)),
         ];
         for (name, len) in lens {
             if let Some(len) = len
@@ -94,6 +97,9 @@ impl PointCloud {
         if let Some(v) = self.values.as_mut() {
             filter(v, &mask);
         }
+        if let Some(v) = self.colors.as_mut() {
+            filter(v, &mask);
+        }
     }
 }
 
@@ -105,9 +111,14 @@ mod tests {
     fn retain_keeps_attributes_aligned() {
         let mut pc = PointCloud::from_positions((0..5).map(|i| DVec3::splat(i as f64)).collect());
         pc.values = Some((0..5).map(|i| i as f64).collect());
+        pc.colors = Some((0..5).map(|i| [i, 0, 0]).collect());
         pc.retain_indices(|i| i % 2 == 0);
         assert_eq!(pc.len(), 3);
         assert_eq!(pc.values.as_deref(), Some(&[0.0, 2.0, 4.0][..]));
+        assert_eq!(
+            pc.colors.as_deref(),
+            Some(&[[0, 0, 0], [2, 0, 0], [4, 0, 0]][..])
+        );
         assert!(pc.check().is_ok());
         pc.values.as_mut().unwrap().pop();
         assert!(pc.check().is_err());

@@ -19,6 +19,7 @@ fn cloud(n: usize) -> PointCloud {
         normals: Some(normals),
         confidence: None,
         values: None,
+        colors: Some((0..n).map(|i| [i as u8, (i >> 8) as u8, 255]).collect()),
     }
 }
 
@@ -28,7 +29,8 @@ fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
 
 #[test]
 fn a_file_above_the_mapping_threshold_reads_back_identically_on_any_thread_count() {
-    // 3M points of 24 bytes: 72 MB, above the 64 MiB mapping threshold.
+    // 3M points of 27 bytes (f32 position and normal, 8-bit colour): 81 MB, above the
+    // 64 MiB mapping threshold.
     let mut pc = cloud(3_000_000);
     pc.positions[2_999_999].y = f64::NAN;
     let dir = tempfile::tempdir().unwrap();
@@ -46,7 +48,7 @@ fn a_file_above_the_mapping_threshold_reads_back_identically_on_any_thread_count
     let message = err.to_string();
     let expected = format!(
         "byte {}: vertex 2999999 is not finite",
-        body + 2_999_999 * 24
+        body + 2_999_999 * 27
     );
     assert!(message.contains(&expected), "{message}");
 
@@ -63,6 +65,8 @@ fn a_file_above_the_mapping_threshold_reads_back_identically_on_any_thread_count
     assert!(
         bits(one.points.normals.as_ref().unwrap()) == bits(three.points.normals.as_ref().unwrap())
     );
+    assert_eq!(one.points.colors, three.points.colors);
+    assert_eq!(one.points.colors, pc.colors);
     assert_eq!(one.info.non_finite.vertices, 1);
     let rounded = |v: DVec3| DVec3::new(v.x as f32 as f64, v.y as f32 as f64, v.z as f32 as f64);
     for i in [0, 1, 1_234_567, 2_999_998] {

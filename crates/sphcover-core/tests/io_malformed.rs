@@ -133,17 +133,20 @@ fn samples() -> &'static [(Format, Vec<u8>)] {
             .collect();
         let normals: Vec<DVec3> = positions.iter().map(|p| p.normalize_or_zero()).collect();
         let values: Vec<f64> = (0..6).map(|i| i as f64 / 7.0).collect();
+        let colors: Vec<[u8; 3]> = (0..6u8).map(|i| [40 * i, 255 - i, 7]).collect();
         let mesh = TriMesh {
             vertices: positions.clone(),
             triangles: vec![[0, 1, 2], [2, 3, 4], [4, 5, 0], [1, 3, 5]],
             normals: Some(normals.clone()),
             values: Some(values.clone()),
+            colors: Some(colors.clone()),
         };
         let cloud = PointCloud {
             positions: positions.clone(),
             normals: Some(normals.clone()),
             confidence: Some(values.clone()),
             values: Some(values.clone()),
+            colors: Some(colors),
         };
         let spheres = SphereSet {
             centres: positions.clone(),
@@ -179,6 +182,7 @@ fn samples() -> &'static [(Format, Vec<u8>)] {
         keep("m.stl");
         let mut xyz_cloud = cloud.clone();
         xyz_cloud.confidence = None;
+        xyz_cloud.colors = None;
         for name in ["c.xyz", "c.pwn", "c.txt"] {
             write_point_cloud(&dir.path().join(name), &xyz_cloud, &options).unwrap();
             keep(name);

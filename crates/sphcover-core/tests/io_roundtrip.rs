@@ -53,13 +53,17 @@ fn cloud(
             option::of(vec(vec3(c.clone()), n)),
             option::of(vec(c.clone(), n)),
             option::of(vec(c.clone(), n)),
+            option::of(vec(any::<[u8; 3]>(), n)),
         )
-            .prop_map(|(positions, normals, confidence, values)| PointCloud {
-                positions,
-                normals,
-                confidence,
-                values,
-            })
+            .prop_map(
+                |(positions, normals, confidence, values, colors)| PointCloud {
+                    positions,
+                    normals,
+                    confidence,
+                    values,
+                    colors,
+                },
+            )
     })
 }
 
@@ -71,6 +75,7 @@ fn mesh(c: impl Strategy<Value = f64> + Clone + 'static) -> impl Strategy<Value 
             triangles,
             normals: pc.normals.clone(),
             values: pc.values.clone(),
+            colors: pc.colors.clone(),
         })
     })
 }
@@ -92,6 +97,7 @@ fn round_cloud(pc: &PointCloud) -> PointCloud {
             .values
             .as_ref()
             .map(|c| c.iter().copied().map(round).collect()),
+        colors: pc.colors.clone(),
     }
 }
 
@@ -101,12 +107,14 @@ fn round_mesh(m: &TriMesh) -> TriMesh {
         normals: m.normals.clone(),
         confidence: None,
         values: m.values.clone(),
+        colors: m.colors.clone(),
     });
     TriMesh {
         vertices: pc.positions,
         triangles: m.triangles.clone(),
         normals: pc.normals,
         values: pc.values,
+        colors: pc.colors,
     }
 }
 
@@ -186,13 +194,24 @@ proptest! {
     #[test]
     fn obj_and_off_round_trip(m in mesh(coord64()), pc in cloud(coord64(), 0), m32 in mesh(coord32())) {
         let dir = tempfile::tempdir().unwrap();
+        // Values and colours are left out of meshes in these formats, refused for clouds.
         let mut m = m;
         m.values = None;
+        m.colors = None;
         let mut m32 = m32;
         m32.values = None;
+        m32.colors = None;
         let mut pc = pc;
         pc.confidence = None;
         pc.values = None;
+        if pc.colors.take().is_some() {
+            let refused = write_point_cloud(&dir.path().join("colours.obj"), &{
+                let mut coloured = pc.clone();
+                coloured.colors = Some(vec![[1, 2, 3]; pc.len()]);
+                coloured
+            }, &WriteOptions::default());
+            prop_assert!(matches!(refused, Err(IoError::Unsupported { .. })), "{:?}", refused);
+        }
         for name in ["m.obj", "m.off"] {
             let path = dir.path().join(name);
             write_mesh(&path, &m, &WriteOptions::default()).unwrap();
@@ -217,8 +236,10 @@ proptest! {
         let dir = tempfile::tempdir().unwrap();
         let mut pc = pc;
         pc.confidence = None;
+        pc.colors = None;
         let mut pc32 = pc32;
         pc32.confidence = None;
+        pc32.colors = None;
         for name in ["c.xyz", "c.pwn", "c.txt"] {
             let path = dir.path().join(name);
             let result = write_point_cloud(&path, &pc, &WriteOptions::default());

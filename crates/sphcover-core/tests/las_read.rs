@@ -152,6 +152,52 @@ fn reads_versions_and_point_formats() {
     }
 }
 
+/// `las` with the red, green, blue of record `i` set to `rgb(i)` at byte `at` of the record.
+fn with_colours(las: &Las, at: usize, rgb: impl Fn(usize) -> [u16; 3]) -> Vec<u8> {
+    let mut bytes = las.bytes();
+    let start = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+    for i in 0..las.points.len() {
+        let record = start + i * las.record_length as usize;
+        for (k, c) in rgb(i).into_iter().enumerate() {
+            bytes[record + at + 2 * k..record + at + 2 * k + 2].copy_from_slice(&c.to_le_bytes());
+        }
+    }
+    bytes
+}
+
+#[test]
+fn colours_are_read_as_bytes_whether_written_with_8_or_16_bits() {
+    let sixteen = |i: usize| [[0, 0, 0], [65535, 257 * 128, 256], [0x7F00, 0x80FF, 65280]][i];
+    let eight = |i: usize| [[0, 0, 0], [255, 128, 1], [12, 200, 255]][i];
+    for (minor, format, length, at) in [(2u8, 2u8, 26u16, 20), (2, 3, 34, 28), (4, 7, 36, 30)] {
+        let las = Las::new(minor, format, length);
+        let g = parse(&with_colours(&las, at, sixteen)).unwrap();
+        assert_eq!(
+            g.points.colors,
+            Some(vec![[0, 0, 0], [255, 128, 1], [127, 128, 254]]),
+            "16-bit, format {format}"
+        );
+        let g = parse(&with_colours(&las, at, eight)).unwrap();
+        assert_eq!(
+            g.points.colors,
+            Some(vec![[0, 0, 0], [255, 128, 1], [12, 200, 255]])
+        );
+        // Colour fields a writer zeroed are no colours.
+        let g = parse(&with_colours(&las, at, |_| [0; 3])).unwrap();
+        assert_eq!(g.points.colors, None, "black, format {format}");
+        let laz = laz_twin(&with_colours(&las, at, eight));
+        let g = parse(&laz).unwrap();
+        assert_eq!(
+            g.points.colors,
+            Some(vec![[0, 0, 0], [255, 128, 1], [12, 200, 255]])
+        );
+    }
+    for (minor, format, length) in [(2u8, 0u8, 20u16), (2, 1, 28), (4, 6, 30)] {
+        let g = parse(&Las::new(minor, format, length).bytes()).unwrap();
+        assert_eq!(g.points.colors, None, "format {format} has no colour");
+    }
+}
+
 #[test]
 fn skips_variable_length_records() {
     let mut las = Las::new(2, 3, 34);

@@ -56,6 +56,7 @@ mod pca;
 mod pipeline;
 mod polygonise;
 mod scan_statistics;
+mod vertex_colors;
 mod vertex_refinement;
 
 pub use allocator::keep_freed_memory;
@@ -87,6 +88,7 @@ pub use polygonise::{
     GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,
 };
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
+pub use vertex_colors::nearest_sample_colors;
 pub use vertex_refinement::{
     RefinementSamples, RefinementScale, VertexRefinementError, VertexRefinementParams,
     VertexRefinementStats, refine_vertices,

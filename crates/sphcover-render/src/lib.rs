@@ -21,6 +21,7 @@
 //!     normals: None,
 //!     radii: None,
 //!     scalars: None,
+//!     colors: None,
 //! };
 //! let options = RenderOptions {
 //!     width: 64,
@@ -108,6 +109,8 @@ pub struct Scene<'a> {
     pub radii: Option<&'a [f64]>,
     /// Per-vertex values to colour by.
     pub scalars: Option<&'a [f64]>,
+    /// Per-vertex sRGB colours (a scan's own), drawn when there are no `scalars`.
+    pub colors: Option<&'a [[u8; 3]]>,
 }
 
 /// How triangle normals are chosen.
@@ -249,6 +252,8 @@ struct Frame<'a> {
     normals: Option<Vec<DVec3>>,
     splats: Vec<Splat>,
     scale: Option<ColourScale>,
+    /// The scene's colours in linear light, when they are drawn.
+    colors: Option<Vec<[f32; 3]>>,
     surface: [f32; 3],
     background: [f32; 3],
     transparent: bool,
@@ -386,6 +391,12 @@ pub fn render(scene: &Scene<'_>, options: &RenderOptions) -> Result<Rendered, Re
         inv_distance,
         normals,
         splats,
+        colors: scene.colors.filter(|_| scale.is_none()).map(|colors| {
+            colors
+                .par_iter()
+                .map(|c| c.map(|v| srgb_to_linear(f64::from(v) / 255.0) as f32))
+                .collect()
+        }),
         scale,
         surface: SURFACE_SRGB.map(|c| srgb_to_linear(c) as f32),
         background,
@@ -499,6 +510,7 @@ fn check(scene: &Scene<'_>, options: &RenderOptions) -> Result<(), RenderError> 
         ("normals", scene.normals.map(<[_]>::len)),
         ("radii", scene.radii.map(<[_]>::len)),
         ("values", scene.scalars.map(<[_]>::len)),
+        ("colours", scene.colors.map(<[_]>::len)),
     ] {
         if let Some(len) = len
             && len != n
@@ -661,11 +673,16 @@ impl Frame<'_> {
             }
             None => face(),
         };
-        let base = match (&self.scale, self.scene.scalars) {
-            (Some(scale), Some(values)) => {
+        let base = match (&self.scale, self.scene.scalars, &self.colors) {
+            (Some(scale), Some(values), _) => {
                 let v = (0..3).fold(0.0, |acc, k| acc + w[k] * values[tri[k] as usize]);
                 scale.linear(v)
             }
+            // Blended in linear light, as the shading is.
+            (_, _, Some(colors)) => (0..3).fold([0.0; 3], |acc, k| {
+                let c = colors[tri[k] as usize];
+                std::array::from_fn(|j| acc[j] + w[k] as f32 * c[j])
+            }),
             _ => self.surface,
         };
         let light = shading::lambert(normal, self.light) as f32;
@@ -688,8 +705,9 @@ impl Frame<'_> {
             let q = (dx * dx + dy * dy).min(1.0);
             (dx * c.right - dy * c.up + (1.0 - q).sqrt() * c.toward_viewer).normalize_or_zero()
         });
-        let base = match (&self.scale, self.scene.scalars) {
-            (Some(scale), Some(values)) => scale.linear(values[k]),
+        let base = match (&self.scale, self.scene.scalars, &self.colors) {
+            (Some(scale), Some(values), _) => scale.linear(values[k]),
+            (_, _, Some(colors)) => colors[k],
             _ => self.surface,
         };
         let light = shading::lambert(normal, self.light) as f32;
@@ -734,6 +752,7 @@ mod tests {
             normals: None,
             radii: None,
             scalars: None,
+            colors: None,
         };
         let out = render(&scene, &options()).unwrap();
         let r = 0.5 * 160.0 * (1.0 - 2.0 * camera::MARGIN);
@@ -741,6 +760,71 @@ mod tests {
         let covered = coverage(&out.image);
         assert!((covered - disc).abs() < 0.01 * disc, "{covered} vs {disc}");
         assert!(out.triangles > triangles.len() / 2 && out.triangles <= triangles.len());
+    }
+
+    #[test]
+    fn vertex_colours_are_drawn_unless_values_are() {
+        // Red on the left half of the sphere, blue on the right, seen from the front (+z).
+        let (positions, triangles) = uv_sphere(1.0, 24, 48);
+        let colors: Vec<[u8; 3]> = positions
+            .iter()
+            .map(|p| {
+                if p.x < 0.0 {
+                    [230, 20, 20]
+                } else {
+                    [20, 20, 230]
+                }
+            })
+            .collect();
+        let scene = Scene {
+            positions: &positions,
+            triangles: &triangles,
+            normals: None,
+            radii: None,
+            scalars: None,
+            colors: Some(&colors),
+        };
+        let front = RenderOptions {
+            view: ViewAngles::parse("front").unwrap(),
+            ..options()
+        };
+        let image = render(&scene, &front).unwrap().image;
+        let (w, h) = (image.width, image.height);
+        let [r, g, b, _] = image.get(w / 2 - w / 8, h / 2);
+        assert!(r > 2 * b && r > 2 * g, "left {r} {g} {b}");
+        let [r, g, b, _] = image.get(w / 2 + w / 8, h / 2);
+        assert!(b > 2 * r && b > 2 * g, "right {r} {g} {b}");
+        let points = Scene {
+            triangles: &[],
+            ..scene
+        };
+        let [r, _, b, _] = render(&points, &front)
+            .unwrap()
+            .image
+            .get(w / 2 - w / 8, h / 2);
+        assert!(r > 2 * b, "splat {r} {b}");
+
+        let x: Vec<f64> = positions.iter().map(|p| p.x).collect();
+        let by_value = Scene {
+            scalars: Some(&x),
+            ..scene
+        };
+        let plain = Scene {
+            colors: None,
+            ..by_value
+        };
+        assert_eq!(
+            render(&by_value, &front).unwrap().image,
+            render(&plain, &front).unwrap().image
+        );
+        let short = Scene {
+            colors: Some(&colors[1..]),
+            ..scene
+        };
+        assert!(matches!(
+            render(&short, &front),
+            Err(RenderError::Inconsistent(_))
+        ));
     }
 
     #[test]
@@ -753,6 +837,7 @@ mod tests {
             normals: None,
             radii: None,
             scalars: Some(&scalars),
+            colors: None,
         };
         let opts = RenderOptions {
             view: ViewAngles::parse("iso").unwrap(),
@@ -785,6 +870,7 @@ mod tests {
             normals: None,
             radii: Some(&radii),
             scalars: None,
+            colors: None,
         };
         let opts = RenderOptions {
             width: 200,
@@ -810,6 +896,7 @@ mod tests {
             normals: None,
             radii: None,
             scalars: None,
+            colors: None,
         };
         assert!(matches!(
             render(&scene, &options()),

@@ -38,6 +38,7 @@ fn the_camera_of_a_picture_places_points_in_it() {
         normals: None,
         radii: None,
         scalars: None,
+        colors: None,
     };
     let opts = RenderOptions {
         view: ViewAngles::parse("30,20").unwrap(),
@@ -80,6 +81,7 @@ fn colouring_by_a_value_reports_its_range_and_draws_a_bar() {
         normals: None,
         radii: None,
         scalars: Some(&values),
+        colors: None,
     };
     let out = render(&scene, &options(600, 450)).unwrap();
     assert_eq!(out.colour_range, Some((0.0, 4.0)));
@@ -114,6 +116,7 @@ fn sphere_sets_are_balls_and_points_are_splats() {
         normals: None,
         radii: Some(&radii),
         scalars: None,
+        colors: None,
     };
     let opts = RenderOptions {
         up: UpAxis::Z,
@@ -151,6 +154,7 @@ fn refusals_say_what_is_wrong() {
         normals: None,
         radii: None,
         scalars: None,
+        colors: None,
     };
     let message = |opts: RenderOptions| render(&scene, &opts).unwrap_err().to_string();
     assert_eq!(
@@ -193,6 +197,7 @@ fn png_bytes_are_the_same_every_time() {
         normals: None,
         radii: None,
         scalars: None,
+        colors: None,
     };
     let encode = |background| {
         let opts = RenderOptions {

@@ -58,6 +58,8 @@ struct Summary {
     confidence: Option<RangeSummary>,
     values: Option<RangeSummary>,
     radii: Option<RangeSummary>,
+    /// Per-vertex colours: how many distinct ones.
+    distinct_colors: Option<usize>,
     mesh: Option<MeshSummary>,
     non_finite_vertices: u64,
     non_finite_values: u64,
@@ -193,6 +195,12 @@ fn summarise(path: &Path, limit: &MemoryLimit) -> anyhow::Result<Summary> {
         confidence: points.confidence.as_deref().and_then(summarise_range),
         values: points.values.as_deref().and_then(summarise_range),
         radii: geometry.radii.as_deref().and_then(summarise_range),
+        distinct_colors: points.colors.as_deref().map(|c| {
+            c.iter()
+                .copied()
+                .collect::<std::collections::HashSet<_>>()
+                .len()
+        }),
         mesh: (!geometry.triangles.is_empty())
             .then(|| summarise_mesh(points.len(), &geometry.triangles, &points.positions)),
         non_finite_vertices: info.non_finite.vertices,
@@ -464,6 +472,9 @@ fn render_text(s: &Summary) -> String {
                 }
             );
         }
+    }
+    if let Some(n) = s.distinct_colors {
+        let _ = writeln!(o, "  colours       {n} distinct");
     }
     if let Some(m) = &s.mesh {
         let _ = writeln!(

@@ -80,6 +80,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
                     .map(|&o| f64::from(u8::from(o)))
                     .collect(),
             ),
+            colors: cloud.colors.clone(),
         };
         io::write_point_cloud(path, &points, &options)?;
     }

@@ -31,6 +31,11 @@ pub fn run(args: &RenderArgs, reporter: &Reporter) -> anyhow::Result<()> {
         normals: geometry.points.normals.as_deref(),
         radii: geometry.radii.as_deref(),
         scalars: scalars.as_deref(),
+        colors: geometry
+            .points
+            .colors
+            .as_deref()
+            .filter(|_| !args.ignore_colours),
     };
 
     let stage = reporter.stage("render");

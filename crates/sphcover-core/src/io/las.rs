@@ -4,8 +4,14 @@
 //! * Positions are `raw · scale + offset` in `f64`, with the scale and offset of the public
 //!   header block; every point record format starts with the `i32` triple `X Y Z`.
 //! * The `u16` intensity, which every record format stores right after `X Y Z` (byte 12),
-//!   becomes [`PointCloud::values`]; the other fields (returns, classification, GPS time,
-//!   colours, waveforms, extra bytes) are not read.
+//!   becomes [`PointCloud::values`].
+//! * The `u16` red, green and blue of formats 2, 3, 5, 7, 8 and 10 become
+//!   [`PointCloud::colors`]. The specification scales them to 16 bits, but many writers
+//!   store 8-bit values as they are: when no channel of the file exceeds 255 the values are
+//!   taken as 8-bit, else divided down from 16 bits. A file whose colours are all black
+//!   declares colour fields it never filled (writers zero them): it gets no colours.
+//! * The other fields (returns, classification, GPS time, waveforms, extra bytes) are not
+//!   read.
 //! * Records are `point data record length` bytes apart, starting at `offset to point
 //!   data`; a length larger than the format's minimum (extra bytes) is allowed.
 //! * The point count is the 64-bit count of the 1.4 header when it is non-zero, else the
@@ -127,8 +133,42 @@ fn text_at(b: &[u8], at: usize, len: usize) -> String {
     String::from_utf8_lossy(&raw[..end]).trim().to_string()
 }
 
-/// Bytes of a point in memory: its position and its intensity.
+/// Bytes of a point in memory: its position and its intensity (and 3 of colour for the
+/// formats with RGB).
 const POINT_BYTES: u64 = 24 + 8;
+
+/// Byte offset of the red, green, blue `u16` triple in a record of `format`, if it has one.
+fn rgb_offset(format: u8) -> Option<usize> {
+    match format {
+        2 => Some(20),
+        3 | 5 => Some(28),
+        7 | 8 | 10 => Some(30),
+        _ => None,
+    }
+}
+
+/// The records' colours as bytes (see the module notes for the scaling), or `None` when the
+/// format has none or every colour is black.
+fn record_colors(data: &[u8], record_length: usize, at: usize) -> Option<Vec<[u8; 3]>> {
+    let rgb = |r: &[u8]| [0, 2, 4].map(|k| u16_at(r, at + k));
+    let records = || data.par_chunks_exact(record_length);
+    let brightest = records()
+        .map(|r| rgb(r).into_iter().max().unwrap_or(0))
+        .max()?;
+    if brightest == 0 {
+        return None;
+    }
+    let scale = if brightest > 255 {
+        255.0 / f64::from(u16::MAX)
+    } else {
+        1.0
+    };
+    let mut colors = Vec::new();
+    records()
+        .map(|r| rgb(r).map(|c| (f64::from(c) * scale).round() as u8))
+        .collect_into_vec(&mut colors);
+    Some(colors)
+}
 
 /// Reads a LAS file; the points must fit in `limit` bytes.
 pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
@@ -270,7 +310,8 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             format!("{count} compressed records of {record_length} bytes")
         })?;
     }
-    budget.reserve(count.saturating_mul(POINT_BYTES), || {
+    let point_bytes = POINT_BYTES + if rgb_offset(point_format).is_some() { 3 } else { 0 };
+    budget.reserve(count.saturating_mul(point_bytes), || {
         format!("{count} points")
     })?;
     let decompressed;
@@ -302,6 +343,7 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             (raw * scale + shift, f64::from(u16_at(r, 12)))
         })
         .unzip();
+    let colors = rgb_offset(point_format).and_then(|at| record_colors(data, record_length, at));
 
     let mut info = FileInfo::new(
         Format::Las,
@@ -341,6 +383,7 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             normals: None,
             confidence: None,
             values: Some(values),
+            colors,
         },
         triangles: Vec::new(),
         radii: None,

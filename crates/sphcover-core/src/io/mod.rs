@@ -436,6 +436,7 @@ pub fn read_mesh(path: &Path, options: &ReadOptions) -> Result<TriMesh, IoError>
         triangles: g.triangles,
         normals: g.points.normals,
         values: g.points.values,
+        colors: g.points.colors,
     })
 }
 
@@ -461,6 +462,7 @@ pub(crate) struct Export<'a> {
     pub confidence: Option<&'a [f64]>,
     pub values: Option<&'a [f64]>,
     pub radii: Option<&'a [f64]>,
+    pub colors: Option<&'a [[u8; 3]]>,
     pub triangles: &'a [[u32; 3]],
 }
 
@@ -476,6 +478,7 @@ impl Export<'_> {
             ("confidence", self.confidence.map(<[_]>::len)),
             ("values", self.values.map(<[_]>::len)),
             ("radii", self.radii.map(<[_]>::len)),
+            ("colors", self.colors.map(<[_]>::len)),
         ] {
             if let Some(len) = len
                 && len != n
@@ -511,7 +514,11 @@ impl Export<'_> {
             what: what.to_string(),
         };
         let has_faces = !self.triangles.is_empty();
+        let colours_kept = matches!(format, Format::Ply | Format::Vtp | Format::Vtu);
         let problem = match format {
+            _ if self.colors.is_some() && !colours_kept => {
+                Some("per-vertex colours (write PLY or VTK XML, or clear the attribute)")
+            }
             Format::Las => {
                 Some("written data: sphcover reads LAS but does not write it (write PLY)")
             }
@@ -615,25 +622,26 @@ pub fn write_point_cloud(
         confidence: cloud.confidence.as_deref(),
         values: cloud.values.as_deref(),
         radii: None,
+        colors: cloud.colors.as_deref(),
         triangles: &[],
     };
     write_export(path, export, options)
 }
 
 /// Writes a triangle mesh in the format named by the extension of `path`. Per-vertex values
-/// are written where the format has a place for them (PLY, VTK XML) and left out elsewhere; vertex
-/// normals everywhere but STL (which stores one normal per triangle, computed).
+/// and colours are written where the format has a place for them (PLY, VTK XML) and left out
+/// elsewhere; vertex normals everywhere but STL (which stores one normal per triangle,
+/// computed).
 pub fn write_mesh(path: &Path, mesh: &TriMesh, options: &WriteOptions) -> Result<(), IoError> {
     let format = Format::from_path(path)?;
+    let attributes_kept = matches!(format, Format::Ply | Format::Vtp | Format::Vtu);
     let export = Export {
         positions: &mesh.vertices,
         normals: mesh.normals.as_deref().filter(|_| format != Format::Stl),
         confidence: None,
-        values: mesh
-            .values
-            .as_deref()
-            .filter(|_| matches!(format, Format::Ply | Format::Vtp | Format::Vtu)),
+        values: mesh.values.as_deref().filter(|_| attributes_kept),
         radii: None,
+        colors: mesh.colors.as_deref().filter(|_| attributes_kept),
         triangles: &mesh.triangles,
     };
     write_export(path, export, options)
@@ -651,6 +659,7 @@ pub fn write_spheres(
         confidence: None,
         values: None,
         radii: Some(&spheres.radii),
+        colors: None,
         triangles: &[],
     };
     write_export(path, export, options)

@@ -267,6 +267,7 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             normals: per_vertex_normals,
             confidence: None,
             values: None,
+            colors: None,
         },
         triangles,
         radii: None,

@@ -260,6 +260,7 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             normals,
             confidence: None,
             values: None,
+            colors: None,
         },
         triangles,
         radii: None,

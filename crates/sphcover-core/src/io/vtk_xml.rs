@@ -20,6 +20,8 @@ pub enum VtkArray<'a> {
     Indices(&'a str, &'a [u32]),
     /// Three reals per point (ParaView's `Normals` when named `normals`).
     Vectors(&'a str, &'a [DVec3]),
+    /// An 8-bit red, green, blue triple per point (`UInt8`, 3 components).
+    Colors(&'a str, &'a [[u8; 3]]),
 }
 
 /// The cells of a VTK XML file.
@@ -80,7 +82,9 @@ pub fn write_vtk_xml(
     for array in point_data {
         match array {
             VtkArray::Vectors(name, _) if *name == "normals" => write!(w, " Normals=\"normals\"")?,
-            VtkArray::Scalars(name, _) => {
+            // The first scalar array is the one a viewer colours by: the colours themselves
+            // when the writer put them first.
+            VtkArray::Scalars(name, _) | VtkArray::Colors(name, _) => {
                 write!(w, " Scalars=\"{name}\"")?;
                 break;
             }
@@ -103,6 +107,16 @@ pub fn write_vtk_xml(
             VtkArray::Vectors(name, values) => {
                 data_array(w, real, name, 3, values.len(), |i, b| {
                     push_vector(b, values[i], double)
+                })?
+            }
+            VtkArray::Colors(name, values) => {
+                data_array(w, "UInt8", name, 3, values.len(), |i, b| {
+                    for (k, c) in values[i].into_iter().enumerate() {
+                        if k > 0 {
+                            b.push(b' ');
+                        }
+                        push_uint(b, u64::from(c));
+                    }
                 })?
             }
         }
@@ -176,9 +190,9 @@ fn data_array(
     w.write_all(b"</DataArray>\n")
 }
 
-/// Writes what a mesh or point writer was given: normals as ParaView's `Normals`, the values
-/// as `quality` (the PLY name), confidence and radii under their names; the triangles, or
-/// every point as a vertex cell.
+/// Writes what a mesh or point writer was given: normals as ParaView's `Normals`, colours as
+/// `rgb` (the array a viewer shows first), the values as `quality` (the PLY name), confidence
+/// and radii under their names; the triangles, or every point as a vertex cell.
 pub(crate) fn write_export(
     w: &mut dyn Write,
     e: &Export<'_>,
@@ -188,6 +202,9 @@ pub(crate) fn write_export(
     let mut arrays = Vec::new();
     if let Some(normals) = e.normals {
         arrays.push(VtkArray::Vectors("normals", normals));
+    }
+    if let Some(colors) = e.colors {
+        arrays.push(VtkArray::Colors("rgb", colors));
     }
     for (name, values) in [
         ("quality", e.values),

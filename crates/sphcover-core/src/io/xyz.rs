@@ -211,6 +211,7 @@ pub(crate) fn read(bytes: &[u8], format: Format, limit: Option<u64>) -> Result<P
             normals,
             confidence: None,
             values,
+            colors: None,
         },
         triangles: Vec::new(),
         radii,

@@ -29,6 +29,8 @@ pub struct TriMesh {
     pub normals: Option<Vec<DVec3>>,
     /// A per-vertex scalar, if any.
     pub values: Option<Vec<f64>>,
+    /// Per-vertex colour as 8-bit red, green, blue, if any.
+    pub colors: Option<Vec<[u8; 3]>>,
 }
 
 impl TriMesh {
@@ -63,6 +65,7 @@ impl TriMesh {
         for (name, len) in [
             ("normals", self.normals.as_ref().map(Vec::len)),
             ("values", self.values.as_ref().map(Vec::len)),
+            ("colors", self.colors.as_ref().map(Vec::len)),
         ] {
             if let Some(len) = len
                 && len != n

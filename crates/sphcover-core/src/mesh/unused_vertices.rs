@@ -4,7 +4,7 @@
 use super::TriMesh;
 
 /// Removes the vertices no triangle refers to, keeping the order of the others and their
-/// normals and values; returns how many were removed.
+/// normals, values and colours; returns how many were removed.
 ///
 /// Triangles referring to a vertex out of range are left as they are (and keep no vertex
 /// alive); [`TriMesh::check`] reports them.
@@ -41,6 +41,11 @@ pub fn remove_unused_vertices(mesh: &mut TriMesh) -> usize {
     {
         retain_used(values, &used);
     }
+    if let Some(colors) = &mut mesh.colors
+        && colors.len() == n
+    {
+        retain_used(colors, &used);
+    }
     for t in &mut mesh.triangles {
         for v in t.iter_mut() {
             if let Some(&r) = remap.get(*v as usize) {
@@ -69,12 +74,14 @@ mod tests {
         );
         mesh.normals = Some((0..6).map(|i| DVec3::X * i as f64).collect());
         mesh.values = Some((0..6).map(f64::from).collect());
+        mesh.colors = Some((0..6).map(|i| [i, 2 * i, 255]).collect());
         assert_eq!(remove_unused_vertices(&mut mesh), 2);
         assert_eq!(mesh.triangles, vec![[0, 1, 3], [3, 1, 2]]);
         let xs: Vec<f64> = mesh.vertices.iter().map(|v| v.x).collect();
         assert_eq!(xs, vec![1.0, 3.0, 4.0, 5.0]);
         assert_eq!(mesh.values.as_deref(), Some(&[1.0, 3.0, 4.0, 5.0][..]));
         assert_eq!(mesh.normals.as_ref().map(|n| n[3].x), Some(5.0));
+        assert_eq!(mesh.colors.as_ref().map(|c| c[1]), Some([3, 6, 255]));
         mesh.check().unwrap();
         assert_eq!(remove_unused_vertices(&mut mesh), 0);
     }

@@ -355,6 +355,8 @@ pub struct Reconstruction {
 /// 6. polygonisation by surface nets from the confident samples, so a sheet that no
 ///    confident sample touches (floating outlier surfaces) is never meshed; components far
 ///    smaller than the largest are dropped;
+/// 7. when the points have colours, the colour of the nearest inlier sample at every vertex
+///    ([`nearest_sample_colors`](crate::nearest_sample_colors));
 ///
 /// and maps the mesh back to input coordinates. [`Method::Diffusion`] skips the cut,
 /// [`Method::PartitionOfUnity`] polygonises the cover as built, and [`Method::GraphCut`] is
@@ -379,7 +381,7 @@ pub fn reconstruct_until(
     stop: &StopRequest,
 ) -> Result<Reconstruction, ReconError> {
     check_params(params)?;
-    let stages = stage_list(params, cloud.normals.is_some());
+    let stages = stage_list(params, cloud);
     let mut ctx = ReconContext::new(cloud, params);
     let times = run_stages_until(&mut ctx, &stages, progress, stop)?;
     let conf = built(ctx.confidence.take(), "sample confidence");
@@ -406,13 +408,11 @@ pub fn reconstruct_until(
     })
 }
 
-/// The names of the stages [`reconstruct`] runs for `params`, in order; `has_normals`: the
-/// input carries normals (otherwise they are estimated).
-pub fn stage_names(params: &ReconParams, has_normals: bool) -> Vec<&'static str> {
-    stage_list(params, has_normals)
-        .iter()
-        .map(|s| s.name)
-        .collect()
+/// The names of the stages [`reconstruct`] runs for `params` on `cloud`, in order (normals
+/// are estimated when the cloud has none; colours are carried to the surface when it has
+/// them).
+pub fn stage_names(params: &ReconParams, cloud: &PointCloud) -> Vec<&'static str> {
+    stage_list(params, cloud).iter().map(|s| s.name).collect()
 }
 
 fn check_params(params: &ReconParams) -> Result<(), ReconError> {
@@ -474,13 +474,17 @@ mod tests {
 
     #[test]
     fn each_method_runs_its_own_stages() {
-        let names = |method, refine: bool, has_normals| {
+        let oriented = PointCloud {
+            normals: Some(Vec::new()),
+            ..PointCloud::default()
+        };
+        let names = |method, refine: bool, cloud: &PointCloud| {
             let params = ReconParams {
                 method,
                 refine: refine.then(VertexRefinementParams::default),
                 ..ReconParams::default()
             };
-            stage_names(&params, has_normals)
+            stage_names(&params, cloud)
         };
         let front = ["normalise", "scan statistics", "cover"];
         let back = ["clean", "refine", "topology"];
@@ -488,7 +492,7 @@ mod tests {
             front.iter().chain(middle).chain(&back).copied().collect()
         };
         assert_eq!(
-            names(Method::Integrated, true, true),
+            names(Method::Integrated, true, &oriented),
             with(&[
                 "graph",
                 "graph cut",
@@ -498,20 +502,26 @@ mod tests {
             ])
         );
         assert_eq!(
-            names(Method::Diffusion, true, true),
+            names(Method::Diffusion, true, &oriented),
             with(&["graph", "confidence", "diffusion", "polygonise"])
         );
         assert_eq!(
-            names(Method::PartitionOfUnity, true, true),
+            names(Method::PartitionOfUnity, true, &oriented),
             with(&["confidence", "polygonise"])
         );
         assert_eq!(
-            names(Method::GraphCut, true, true),
+            names(Method::GraphCut, true, &oriented),
             with(&["graph cut", "confidence"])
         );
-        let unoriented = names(Method::Integrated, false, false);
+        let unoriented = names(Method::Integrated, false, &PointCloud::default());
         assert_eq!(unoriented[2], "normals");
         assert!(!unoriented.contains(&"refine"));
+        let coloured = PointCloud {
+            colors: Some(Vec::new()),
+            ..oriented.clone()
+        };
+        let back = ["clean", "refine", "colours", "topology"];
+        assert!(names(Method::GraphCut, true, &coloured).ends_with(&back));
     }
 
     #[test]
@@ -538,7 +548,7 @@ mod tests {
                     .push((stage.name, stage.index, stage.count));
             })
             .unwrap_or_else(|e| panic!("{}: {e}", method.name()));
-            let names = stage_names(&params, true);
+            let names = stage_names(&params, &cloud);
             let expected: Vec<_> = names
                 .iter()
                 .enumerate()

@@ -24,6 +24,7 @@ use crate::graphcut_reconstruction::reconstruct_graphcut;
 use crate::normals::estimate_normals;
 use crate::polygonise::{GridStep, PolygoniseParams, polygonise_blending};
 use crate::scan_statistics::{ScanStatistics, scan_statistics};
+use crate::vertex_colors::nearest_sample_colors;
 use crate::vertex_refinement::{RefinementSamples, RefinementScale, refine_vertices};
 
 /// A stage of the reconstruction.
@@ -125,12 +126,12 @@ pub(super) fn built<T>(slot: Option<T>, what: &str) -> T {
 }
 
 /// The stages `params` asks for, in order. `has_normals`: the input carries normals.
-pub(super) fn stage_list<'a>(params: &ReconParams, has_normals: bool) -> Vec<ReconStage<'a>> {
+pub(super) fn stage_list<'a>(params: &ReconParams, cloud: &PointCloud) -> Vec<ReconStage<'a>> {
     let mut stages = vec![
         Stage::new("normalise", normalise),
         Stage::new("scan statistics", measure_scan),
     ];
-    if !has_normals {
+    if cloud.normals.is_none() {
         stages.push(Stage::new("normals", estimate_sample_normals));
     }
     stages.push(Stage::new("cover", build_cover));
@@ -160,6 +161,9 @@ pub(super) fn stage_list<'a>(params: &ReconParams, has_normals: bool) -> Vec<Rec
     stages.push(Stage::new("clean", clean));
     if params.refine.is_some() {
         stages.push(Stage::new("refine", refine));
+    }
+    if cloud.colors.is_some() {
+        stages.push(Stage::new("colours", transfer_colors));
     }
     stages.push(Stage::new("topology", topology));
     stages
@@ -548,6 +552,22 @@ fn refine(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         noise_ratio: ctx.stats.eps / ctx.params.cover.eps,
     };
     ctx.stats.refinement = Some(refine_vertices(&mut ctx.mesh, &samples, &scale, refine)?);
+    Ok(())
+}
+
+/// The colour of the nearest inlier sample at every vertex.
+fn transfer_colors(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let Some(colors) = &ctx.cloud.colors else {
+        return Ok(());
+    };
+    let sample_colors: Vec<[u8; 3]> = ctx.kept.iter().map(|&i| colors[i]).collect();
+    let outliers = &built(ctx.confidence.as_ref(), "sample confidence").outliers;
+    ctx.mesh.colors = Some(nearest_sample_colors(
+        &ctx.mesh.vertices,
+        ctx.index(),
+        &sample_colors,
+        outliers,
+    ));
     Ok(())
 }
 

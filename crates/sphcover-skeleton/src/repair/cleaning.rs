@@ -149,6 +149,7 @@ fn weld_coincident(mesh: &TriMesh, stats: &mut CleaningStats) -> TriMesh {
         triangles,
         normals: mesh.normals.clone(),
         values: mesh.values.clone(),
+        colors: mesh.colors.clone(),
     }
 }
 

@@ -199,13 +199,43 @@ pub(crate) struct Header {
 }
 
 /// Property indices of the vertex attributes this crate reads.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct VertexRoles {
     pub xyz: [usize; 3],
     pub normal: Option<[usize; 3]>,
     pub confidence: Option<usize>,
     pub value: Option<usize>,
     pub radius: Option<usize>,
+    pub color: Option<ColorChannels>,
+}
+
+/// The red, green and blue properties of a vertex and how their values map to 8 bits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ColorChannels {
+    pub channels: [usize; 3],
+    /// Factor to the 0–255 range: 8-bit integers are taken as they are, wider integers
+    /// over their whole range (16-bit colours as LAS and some PLY writers store them), reals
+    /// from `[0, 1]` (Open3D's float colours).
+    pub scale: f64,
+}
+
+impl ColorChannels {
+    fn new(channels: [usize; 3], ty: Scalar) -> ColorChannels {
+        let scale = match ty {
+            Scalar::I8 | Scalar::U8 => 1.0,
+            Scalar::I16 | Scalar::U16 => 255.0 / f64::from(u16::MAX),
+            Scalar::I32 | Scalar::U32 => 255.0 / f64::from(u32::MAX),
+            Scalar::F32 | Scalar::F64 => 255.0,
+        };
+        ColorChannels { channels, scale }
+    }
+
+    /// One channel's value as a byte (rounded, clamped; NaN is 0).
+    #[inline]
+    pub fn byte(&self, value: f64) -> u8 {
+        // `as` saturates and maps NaN to 0.
+        (value * self.scale).round() as u8
+    }
 }
 
 pub(crate) fn parse_header(bytes: &[u8]) -> Result<Header, Failure> {
@@ -407,7 +437,36 @@ pub(crate) fn vertex_roles(element: &Element) -> Result<VertexRoles, Failure> {
             matches!(p, "quality" | "value" | "scalar" | "intensity") || p.starts_with("scalar_")
         })?,
         radius: find(&named("radius"))?,
+        color: color_channels(element, &|name: &str| find(&|p: &str| p == name))?,
     })
+}
+
+/// The colour properties under the names writers use: `red green blue` (MeshLab, Open3D,
+/// PCL), `r g b`, `diffuse_red …` (older scanners' exports). All three or none.
+fn color_channels(
+    element: &Element,
+    find_named: &dyn Fn(&str) -> Result<Option<usize>, Failure>,
+) -> Result<Option<ColorChannels>, Failure> {
+    for names in [
+        ["red", "green", "blue"],
+        ["r", "g", "b"],
+        ["diffuse_red", "diffuse_green", "diffuse_blue"],
+    ] {
+        let mut channels = [0; 3];
+        let mut found = 0;
+        for (slot, name) in channels.iter_mut().zip(names) {
+            if let Some(k) = find_named(name)? {
+                *slot = k;
+                found += 1;
+            }
+        }
+        if found == 3
+            && let Property::Scalar { ty, .. } = element.properties[channels[0]]
+        {
+            return Ok(Some(ColorChannels::new(channels, ty)));
+        }
+    }
+    Ok(None)
 }
 
 /// Finds the face list of vertex indices.

@@ -24,6 +24,7 @@ struct Vertices {
     confidence: Option<Vec<f64>>,
     values: Option<Vec<f64>>,
     radii: Option<Vec<f64>>,
+    colors: Option<Vec<[u8; 3]>>,
 }
 
 impl Vertices {
@@ -34,7 +35,8 @@ impl Vertices {
             .filter(|r| r.is_some())
             .count() as u64;
         let normals = if roles.normal.is_some() { 24 } else { 0 };
-        24 + normals + 8 * scalars + origin
+        let colors = if roles.color.is_some() { 3 } else { 0 };
+        24 + normals + 8 * scalars + colors + origin
     }
 
     fn with_capacity(roles: &VertexRoles, n: usize) -> Vertices {
@@ -44,6 +46,7 @@ impl Vertices {
             confidence: roles.confidence.map(|_| Vec::with_capacity(n)),
             values: roles.value.map(|_| Vec::with_capacity(n)),
             radii: roles.radius.map(|_| Vec::with_capacity(n)),
+            colors: roles.color.map(|_| Vec::with_capacity(n)),
         }
     }
 
@@ -64,6 +67,9 @@ impl Vertices {
             if let (Some(v), Some(k)) = (v, k) {
                 v.push(value(k));
             }
+        }
+        if let (Some(v), Some(color)) = (self.colors.as_mut(), &roles.color) {
+            v.push(color.channels.map(|k| color.byte(value(k))));
         }
     }
 }
@@ -223,6 +229,7 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             normals: vertices.normals,
             confidence: vertices.confidence,
             values: vertices.values,
+            colors: vertices.colors,
         },
         triangles: faces.triangles,
         radii: vertices.radii,
@@ -513,12 +520,21 @@ fn decode_fixed_vertices(
             .collect_into_vec(&mut out);
         out
     };
+    let colors = roles.color.map(|color| {
+        let channels = color.channels.map(field);
+        let mut out = Vec::new();
+        records()
+            .map(|r| channels.map(|(o, t)| color.byte(t.read(&r[o..], big))))
+            .collect_into_vec(&mut out);
+        out
+    });
     Vertices {
         positions,
         normals,
         confidence: roles.confidence.map(scalar),
         values: roles.value.map(scalar),
         radii: roles.radius.map(scalar),
+        colors,
     }
 }
 
@@ -547,10 +563,12 @@ fn read_ascii(
             *vertices = reserve_vertices(budget, element, roles, capacity)?;
             lines = Vec::with_capacity(capacity);
             let normal = roles.normal.unwrap_or(roles.xyz);
+            let color = roles.color.map_or(roles.xyz, |c| c.channels);
             for k in roles
                 .xyz
                 .iter()
                 .chain(&normal)
+                .chain(&color)
                 .chain(&roles.confidence)
                 .chain(&roles.value)
                 .chain(&roles.radius)
@@ -673,4 +691,89 @@ fn walk_ascii(
         visit(i, line_no, &scalars, &items)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn colors(bytes: &[u8]) -> Option<Vec<[u8; 3]>> {
+        read(bytes, None).unwrap().points.colors
+    }
+
+    #[test]
+    fn colours_are_scaled_by_their_type() {
+        let ascii = |ty: &str, names: [&str; 3], rows: &str| {
+            let [r, g, b] = names;
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                 property float z\nproperty {ty} {r}\nproperty {ty} {g}\nproperty {ty} {b}\n\
+                 end_header\n{rows}"
+            )
+        };
+        let rgb = ["red", "green", "blue"];
+        let uchar = ascii("uchar", rgb, "0 0 0 255 0 17\n1 1 1 3 128 90\n");
+        assert_eq!(
+            colors(uchar.as_bytes()),
+            Some(vec![[255, 0, 17], [3, 128, 90]])
+        );
+        let float = ascii("float", ["r", "g", "b"], "0 0 0 1 0 0.5\n1 1 1 -1 2 nan\n");
+        assert_eq!(
+            colors(float.as_bytes()),
+            Some(vec![[255, 0, 128], [0, 255, 0]])
+        );
+        let diffuse = ["diffuse_red", "diffuse_green", "diffuse_blue"];
+        let ushort = ascii(
+            "ushort",
+            diffuse,
+            "0 0 0 65535 257 0\n1 1 1 32768 0 65535\n",
+        );
+        assert_eq!(
+            colors(ushort.as_bytes()),
+            Some(vec![[255, 1, 0], [128, 0, 255]])
+        );
+        let partial = ascii(
+            "uchar",
+            ["red", "green", "alpha"],
+            "0 0 0 1 2 3\n1 1 1 4 5 6\n",
+        );
+        assert_eq!(colors(partial.as_bytes()), None);
+    }
+
+    #[test]
+    fn binary_colours_decode_on_both_paths() {
+        // Fixed-size records decode in parallel; a list property makes the walked path.
+        for (big, list) in [(false, false), (true, false), (false, true), (true, true)] {
+            let format = if big { "big" } else { "little" };
+            let mut bytes = format!(
+                "ply\nformat binary_{format}_endian 1.0\nelement vertex 3\nproperty double x\n\
+                 property double y\nproperty double z\nproperty uchar red\nproperty uchar green\n\
+                 property uchar blue\n{}end_header\n",
+                if list {
+                    "property list uchar int tags\n"
+                } else {
+                    ""
+                }
+            )
+            .into_bytes();
+            for i in 0..3u8 {
+                for c in [1.0f64, 2.0, f64::from(i)] {
+                    bytes.extend(if big {
+                        c.to_be_bytes()
+                    } else {
+                        c.to_le_bytes()
+                    });
+                }
+                bytes.extend([i, 10 * i, 255 - i]);
+                if list {
+                    bytes.push(0);
+                }
+            }
+            assert_eq!(
+                colors(&bytes),
+                Some(vec![[0, 0, 255], [1, 10, 254], [2, 20, 253]]),
+                "{format} endian, list {list}"
+            );
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! PLY output: `vertex` with x y z and whichever of nx ny nz, confidence, quality (the
-//! values), radius are present, then `face` lists of 3 indices when there are triangles.
+//! values), radius are present, as reals, then `uchar` red green blue when there are
+//! colours; then `face` lists of 3 indices when there are triangles.
 
 use std::io::Write;
 
@@ -69,6 +70,9 @@ pub(crate) fn write(
     for name in names {
         header.push_str(&format!("property {real} {name}\n"));
     }
+    if e.colors.is_some() {
+        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
     if !e.triangles.is_empty() {
         header.push_str(&format!(
             "element face {}\nproperty list uchar {} vertex_indices\n",
@@ -89,6 +93,12 @@ pub(crate) fn write(
                         buf.push(b' ');
                     }
                     push_real(buf, v, double);
+                }
+                if let Some(colors) = e.colors {
+                    for c in colors[i] {
+                        buf.push(b' ');
+                        push_uint(buf, u64::from(c));
+                    }
                 }
                 buf.push(b'\n');
             })?;
@@ -113,6 +123,9 @@ pub(crate) fn write(
                         (false, false) => buf.extend_from_slice(&(v as f32).to_le_bytes()),
                         (false, true) => buf.extend_from_slice(&(v as f32).to_be_bytes()),
                     }
+                }
+                if let Some(colors) = e.colors {
+                    buf.extend_from_slice(&colors[i]);
                 }
             })?;
             write_records(w, e.triangles.len(), |t, buf| {
