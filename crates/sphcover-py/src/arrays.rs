@@ -58,8 +58,11 @@ pub fn points_from_py(a: &PyReadonlyArray2<'_, f64>, name: &str) -> PyResult<Vec
     })
 }
 
-/// The rows of an `(m, 3)` array of vertex indices as triangles.
-pub fn triangles_from_py(a: &PyReadonlyArray2<'_, u32>, name: &str) -> PyResult<Vec<[u32; 3]>> {
+/// The rows of an `(m, 3)` array (triangles' vertex indices, colours) as triples.
+pub fn rows_from_py<T: numpy::Element + Copy>(
+    a: &PyReadonlyArray2<'_, T>,
+    name: &str,
+) -> PyResult<Vec<[T; 3]>> {
     let shape = a.shape();
     if shape[1] != 3 {
         return Err(PyValueError::new_err(format!(
@@ -72,6 +75,18 @@ pub fn triangles_from_py(a: &PyReadonlyArray2<'_, u32>, name: &str) -> PyResult<
         .into_iter()
         .map(|r| [r[0], r[1], r[2]])
         .collect())
+}
+
+/// An `(n, 3)` uint8 array of red, green, blue as colours of `n` points.
+pub fn colors_from_py(a: &PyReadonlyArray2<'_, u8>, n: usize) -> PyResult<Vec<[u8; 3]>> {
+    let colors = rows_from_py(a, "colors")?;
+    if colors.len() != n {
+        return Err(PyValueError::new_err(format!(
+            "colors has {} rows for {n} points",
+            colors.len()
+        )));
+    }
+    Ok(colors)
 }
 
 /// A one-dimensional array as a vector of `expected` entries (when given).

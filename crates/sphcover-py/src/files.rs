@@ -13,15 +13,16 @@ use sphcover_core::io::{
 use sphcover_core::{PointCloud, TriMesh, VoxelValues};
 
 use crate::arrays::{
-    points_from_py, points_to_py, rows_to_py, triangles_from_py, values_from_py, vec_to_py,
+    colors_from_py, points_from_py, points_to_py, rows_from_py, rows_to_py, values_from_py,
+    vec_to_py,
 };
 use crate::cover::Cover;
 use crate::errors::{bad_input, io_error};
 
 /// Reads `path` into a dict: a volume (`kind` `"volume"`, `values` as an `(nx, ny, nz)`
 /// array indexed `[i, j, k]`, `affine` 4×4), a cover file (`"cover"`, `cover`), or geometry
-/// (`"geometry"`: `points` and, when present, `normals`, `confidence`, `values`, `radii`,
-/// `triangles`).
+/// (`"geometry"`: `points` and, when present, `normals`, `confidence`, `values`, `colors`
+/// (`(n, 3)` uint8), `radii`, `triangles`).
 #[pyfunction]
 #[pyo3(signature = (path, drop_non_finite = false))]
 pub fn read<'py>(
@@ -95,6 +96,7 @@ pub fn read<'py>(
         normals,
         confidence,
         values,
+        colors,
     } = geometry.points;
     out.set_item("points", points_to_py(py, positions))?;
     if let Some(n) = normals {
@@ -105,6 +107,9 @@ pub fn read<'py>(
     }
     if let Some(v) = values {
         out.set_item("values", vec_to_py(py, v))?;
+    }
+    if let Some(c) = colors {
+        out.set_item("colors", rows_to_py(py, c))?;
     }
     if let Some(r) = geometry.radii {
         out.set_item("radii", vec_to_py(py, r))?;
@@ -118,7 +123,7 @@ pub fn read<'py>(
 /// unless `ascii` or `single` say otherwise. A format that cannot hold part of the data is
 /// refused, as the command line refuses it.
 #[pyfunction]
-#[pyo3(signature = (path, points, triangles = None, normals = None, confidence = None, values = None, radii = None, ascii = false, single = false))]
+#[pyo3(signature = (path, points, triangles = None, normals = None, confidence = None, values = None, radii = None, colors = None, ascii = false, single = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn write_geometry(
     py: Python<'_>,
@@ -129,6 +134,7 @@ pub fn write_geometry(
     confidence: Option<PyReadonlyArray1<'_, f64>>,
     values: Option<PyReadonlyArray1<'_, f64>>,
     radii: Option<PyReadonlyArray1<'_, f64>>,
+    colors: Option<PyReadonlyArray2<'_, u8>>,
     ascii: bool,
     single: bool,
 ) -> PyResult<()> {
@@ -142,8 +148,11 @@ pub fn write_geometry(
         .map(|a| values_from_py(&a, "values", n))
         .transpose()?;
     let radii = radii.map(|a| values_from_py(&a, "radii", n)).transpose()?;
+    let colors = colors
+        .map(|a| colors_from_py(&a, positions.len()))
+        .transpose()?;
     let triangles = triangles
-        .map(|a| triangles_from_py(&a, "triangles"))
+        .map(|a| rows_from_py(&a, "triangles"))
         .transpose()?;
     let options = WriteOptions {
         ply_encoding: if ascii {
@@ -175,11 +184,12 @@ pub fn write_geometry(
                 triangles,
                 normals,
                 values,
+                colors,
             };
             py.detach(|| io::write_mesh(&path, &mesh, &options))
         }
         (None, Some(radii)) => {
-            if normals.is_some() || confidence.is_some() || values.is_some() {
+            if normals.is_some() || confidence.is_some() || values.is_some() || colors.is_some() {
                 return Err(bad_input("a sphere set holds centres and radii only"));
             }
             let spheres = SphereSet {
@@ -194,6 +204,7 @@ pub fn write_geometry(
                 normals,
                 confidence,
                 values,
+                colors,
             };
             py.detach(|| io::write_point_cloud(&path, &cloud, &options))
         }

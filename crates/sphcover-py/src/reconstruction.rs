@@ -8,7 +8,7 @@ use pyo3::types::PyDict;
 use sphcover_core::PointCloud;
 use sphcover_recon::{Method, ReconOptions, Reconstruction, TrimOption, reconstruct_until};
 
-use crate::arrays::{points_from_py, points_to_py, values_from_py, vec_to_py};
+use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
 use crate::cover::Cover;
 use crate::errors::{bad_input, option_error, recon_error};
 use crate::run::{run, stage_times};
@@ -50,7 +50,7 @@ fn trim(value: Option<&Bound<'_, PyAny>>) -> PyResult<TrimOption> {
 /// confidence and outlier labels, the final cover and the statistics.
 #[pyfunction]
 #[pyo3(signature = (
-    points, normals = None, confidence = None, *, method_name = "integrated", eps = None,
+    points, normals = None, confidence = None, colors = None, *, method_name = "integrated", eps = None,
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
     normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
     threads = None, progress = None,
@@ -61,6 +61,7 @@ pub fn reconstruct<'py>(
     points: PyReadonlyArray2<'py, f64>,
     normals: Option<PyReadonlyArray2<'py, f64>>,
     confidence: Option<PyReadonlyArray1<'py, f64>>,
+    colors: Option<PyReadonlyArray2<'py, u8>>,
     method_name: &str,
     eps: Option<f64>,
     k: Option<f64>,
@@ -97,11 +98,15 @@ pub fn reconstruct<'py>(
     let confidence = confidence
         .map(|a| values_from_py(&a, "confidence", n))
         .transpose()?;
+    let colors = colors
+        .map(|a| colors_from_py(&a, positions.len()))
+        .transpose()?;
     let cloud = PointCloud {
         positions,
         normals,
         confidence,
         values: None,
+        colors,
     };
     cloud.check().map_err(bad_input)?;
     if threads == Some(0) {
@@ -132,6 +137,9 @@ fn into_dict(py: Python<'_>, recon: Reconstruction) -> PyResult<Bound<'_, PyDict
     }
     if let Some(v) = mesh.values {
         out.set_item("confidence", vec_to_py(py, v))?;
+    }
+    if let Some(c) = mesh.colors {
+        out.set_item("colors", crate::arrays::rows_to_py(py, c))?;
     }
     out.set_item("point_confidence", vec_to_py(py, confidence))?;
     out.set_item("outliers", vec_to_py(py, outliers))?;

@@ -62,6 +62,21 @@ def _vector(a, name: str) -> Optional[np.ndarray]:
     return None if a is None else np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
 
 
+def _colors(a) -> Optional[np.ndarray]:
+    """An ``(n, 3)`` C-contiguous uint8 array of colours; floats in [0, 1] (Open3D's
+    convention) are scaled to 0–255."""
+    if a is None:
+        return None
+    a = np.asarray(a)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise BadInputError(f"colors must have shape (n, 3), not {a.shape}")
+    if np.issubdtype(a.dtype, np.floating):
+        a = np.round(np.clip(a, 0.0, 1.0) * 255.0)
+    elif a.size and (a.min() < 0 or a.max() > 255):
+        raise BadInputError("colors must be 0–255 integers or floats in [0, 1]")
+    return np.ascontiguousarray(a, dtype=np.uint8)
+
+
 def _progress(progress: Progress):
     """The callback for ``progress``: None or False (quiet), a callable ``(stage, index,
     count)``, or True (a tqdm bar when tqdm is installed, else one line per stage on
@@ -122,12 +137,14 @@ def read(path, *, drop_non_finite: bool = False):
             faces=d["triangles"],
             normals=d.get("normals"),
             values=d.get("values"),
+            colors=d.get("colors"),
         )
     return PointCloud(
         points=d["points"],
         normals=d.get("normals"),
         confidence=d.get("confidence"),
         values=d.get("values"),
+        colors=d.get("colors"),
     )
 
 
@@ -140,8 +157,10 @@ def write(path, data, *, ascii: bool = False, single: bool = False) -> None:
     ``data`` is a :class:`Mesh`, :class:`PointCloud`, :class:`Spheres`, :class:`Cover` or
     :class:`DualComplex`. The file appears whole or not at all.
 
-    A mesh keeps its per-vertex values in PLY only; as ``sphcover recon`` does, other formats
-    get the mesh without them (and STL, which has no per-vertex normals, without normals).
+    A mesh keeps its per-vertex values and colours in PLY and VTK XML only; as ``sphcover
+    recon`` does, other formats get the mesh without them (and STL, which has no per-vertex
+    normals, without normals). A point cloud's attributes that the format cannot hold are
+    refused.
     """
     path = str(path)
     if isinstance(data, (Cover, DualComplex)):
@@ -151,18 +170,13 @@ def write(path, data, *, ascii: bool = False, single: bool = False) -> None:
             data.write(path)
         return
     if isinstance(data, Mesh):
-        extension = path.lower().rsplit(".", 1)[-1]
-        values, normals = data.values, data.normals
-        if extension != "ply":
-            values = None
-        if extension == "stl":
-            normals = None
         _sphcover.write_geometry(
             path,
             _points(data.vertices, "vertices"),
             triangles=np.ascontiguousarray(data.faces, dtype=np.uint32),
-            normals=None if normals is None else _points(normals, "normals"),
-            values=_vector(values, "values"),
+            normals=None if data.normals is None else _points(data.normals, "normals"),
+            values=_vector(data.values, "values"),
+            colors=_colors(data.colors),
             ascii=ascii,
             single=single,
         )
@@ -174,6 +188,7 @@ def write(path, data, *, ascii: bool = False, single: bool = False) -> None:
             normals=None if data.normals is None else _points(data.normals, "normals"),
             confidence=_vector(data.confidence, "confidence"),
             values=_vector(data.values, "values"),
+            colors=_colors(data.colors),
             ascii=ascii,
             single=single,
         )
@@ -194,6 +209,7 @@ def reconstruct(
     normals=None,
     *,
     confidence=None,
+    colors=None,
     method: str = "integrated",
     eps: Optional[float] = None,
     k: Optional[float] = None,
@@ -210,8 +226,10 @@ def reconstruct(
 ) -> Mesh:
     """Reconstructs a surface mesh from scanned points, as ``sphcover recon`` does.
 
-    ``points`` is an ``(n, 3)`` array (or a :class:`PointCloud`, whose normals and confidence
-    are then used); ``normals`` an ``(n, 3)`` array of outward normals, estimated when absent.
+    ``points`` is an ``(n, 3)`` array (or a :class:`PointCloud`, whose normals, confidence
+    and colours are then used); ``normals`` an ``(n, 3)`` array of outward normals, estimated
+    when absent; ``colors`` ``(n, 3)`` red, green, blue (uint8, or floats in [0, 1]), carried
+    to the vertices (the colour of the nearest inlier sample).
     Keywords are the command line's options: ``method`` (``"integrated"``, ``"graphcut"``,
     ``"diffusion"``, ``"pu"``), ``eps`` (cover tolerance relative to the longest bounding-box
     edge), ``k`` (graph-cut ratio), ``trim`` (True: drop surface farther than 3 sample
@@ -231,12 +249,14 @@ def reconstruct(
         points = cloud.points
         normals = cloud.normals if normals is None else normals
         confidence = cloud.confidence if confidence is None else confidence
+        colors = cloud.colors if colors is None else colors
     d = _with_progress(
         progress,
         lambda callback: _sphcover.reconstruct(
             _points(points),
             None if normals is None else _points(normals, "normals"),
             _vector(confidence, "confidence"),
+            _colors(colors),
             method_name=method,
             eps=eps,
             k=k,
@@ -257,6 +277,7 @@ def reconstruct(
         faces=d["faces"],
         normals=d.get("normals"),
         values=d.get("confidence"),
+        colors=d.get("colors"),
         stats=d["stats"],
         point_confidence=d["point_confidence"],
         outliers=d["outliers"],

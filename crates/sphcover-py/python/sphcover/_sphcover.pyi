@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 F64 = npt.NDArray[np.float64]
 U32 = npt.NDArray[np.uint32]
+U8 = npt.NDArray[np.uint8]
 ProgressCallback = Optional[Callable[[str, int, int], Any]]
 Path = Union[str, "PathLike[str]"]
 
@@ -71,6 +72,7 @@ def write_geometry(
     confidence: Optional[F64] = None,
     values: Optional[F64] = None,
     radii: Optional[F64] = None,
+    colors: Optional[U8] = None,
     ascii: bool = False,
     single: bool = False,
 ) -> None: ...
@@ -78,6 +80,7 @@ def reconstruct(
     points: F64,
     normals: Optional[F64] = None,
     confidence: Optional[F64] = None,
+    colors: Optional[U8] = None,
     *,
     method_name: str = "integrated",
     eps: Optional[float] = None,

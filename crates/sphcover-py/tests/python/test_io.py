@@ -49,11 +49,37 @@ def test_text_mesh_formats_round_trip(tmp_path, extension):
     np.testing.assert_array_equal(back.faces, mesh.faces)
 
 
-def test_mesh_values_stay_in_ply_only(tmp_path):
+def test_mesh_values_and_colours_stay_in_ply_only(tmp_path):
     mesh = tetrahedron_mesh()
     mesh.values = np.arange(4.0)
+    mesh.colors = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [7, 8, 9]], dtype=np.uint8)
     sphcover.write(tmp_path / "mesh.obj", mesh)
-    assert sphcover.read(tmp_path / "mesh.obj").values is None
+    back = sphcover.read(tmp_path / "mesh.obj")
+    assert back.values is None and back.colors is None
+    sphcover.write(tmp_path / "mesh.ply", mesh)
+    np.testing.assert_array_equal(sphcover.read(tmp_path / "mesh.ply").colors, mesh.colors)
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_colours_round_trip_through_ply_as_uchar_red_green_blue(tmp_path, ascii):
+    points, normals = fibonacci_sphere(40)
+    colors = np.stack([np.arange(40) * 6, 255 - np.arange(40), np.full(40, 17)], axis=1)
+    cloud = sphcover.PointCloud(points=points, normals=normals, colors=colors.astype(np.uint8))
+    path = tmp_path / "coloured.ply"
+    sphcover.write(path, cloud, ascii=ascii)
+    header = path.read_bytes().split(b"end_header")[0].decode()
+    assert "property uchar red\nproperty uchar green\nproperty uchar blue" in header
+    back = sphcover.read(path)
+    assert back.colors.dtype == np.uint8
+    np.testing.assert_array_equal(back.colors, cloud.colors)
+    # Open3D's float colours in [0, 1] are taken too.
+    cloud.colors = colors / 255.0
+    sphcover.write(path, cloud)
+    np.testing.assert_array_equal(sphcover.read(path).colors, colors)
+    with pytest.raises(sphcover.BadInputError, match="colours"):
+        sphcover.write(tmp_path / "coloured.xyz", cloud)
+    with pytest.raises(sphcover.BadInputError, match="shape"):
+        sphcover.write(path, sphcover.PointCloud(points=points, colors=colors[:, :2]))
 
 
 def test_stl_round_trip_in_float32(tmp_path):
@@ -171,14 +197,15 @@ def test_inrimage_volume_reads_voxels_in_index_order(tmp_path):
     np.testing.assert_allclose(np.diag(volume.affine)[:3], [0.5, 0.5, 0.5])
 
 
-def write_las(path, xyz, intensity, scale=0.001):
-    """A minimal LAS 1.2 file, point format 0."""
+def write_las(path, xyz, intensity, scale=0.001, rgb=None):
+    """A minimal LAS 1.2 file, point format 0, or 2 with 16-bit colours `rgb`."""
     n = len(xyz)
+    point_format, length = (0, 20) if rgb is None else (2, 26)
     offset = xyz.min(axis=0)
     header = bytearray(227)
     header[0:4] = b"LASF"
     struct.pack_into("<BB", header, 24, 1, 2)
-    struct.pack_into("<HIIBHI", header, 94, 227, 227, 0, 0, 20, n)
+    struct.pack_into("<HIIBHI", header, 94, 227, 227, 0, point_format, length, n)
     struct.pack_into("<3d", header, 131, scale, scale, scale)
     struct.pack_into("<3d", header, 155, *offset)
     struct.pack_into(
@@ -187,9 +214,11 @@ def write_las(path, xyz, intensity, scale=0.001):
         xyz[:, 2].max(), xyz[:, 2].min(),
     )
     records = bytearray()
-    for p, i in zip(xyz, intensity):
+    for k, (p, i) in enumerate(zip(xyz, intensity)):
         q = np.round((p - offset) / scale).astype(np.int64)
         records += struct.pack("<3iHBBbBH", *q, int(i), 0, 0, 0, 0, 0)
+        if rgb is not None:
+            records += struct.pack("<3H", *(int(c) for c in rgb[k]))
     path.write_bytes(bytes(header) + bytes(records))
 
 
@@ -199,3 +228,13 @@ def test_las_points_read_with_intensity_as_values(tmp_path):
     cloud = sphcover.read(tmp_path / "tile.las")
     np.testing.assert_allclose(cloud.points, xyz, atol=1e-9)
     np.testing.assert_array_equal(cloud.values, [100, 200, 300])
+
+
+def test_las_colours_read_as_bytes(tmp_path):
+    xyz = np.array([[10.0, 20.0, 1.5], [10.5, 20.25, 2.0], [11.0, 21.0, 0.125]])
+    rgb8 = np.array([[255, 0, 10], [128, 64, 32], [0, 0, 1]])
+    write_las(tmp_path / "rgb.las", xyz, [1, 2, 3], rgb=rgb8 * 257)
+    cloud = sphcover.read(tmp_path / "rgb.las")
+    np.testing.assert_array_equal(cloud.colors, rgb8)
+    write_las(tmp_path / "plain.las", xyz, [1, 2, 3])
+    assert sphcover.read(tmp_path / "plain.las").colors is None

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import sphcover
+from conftest import fibonacci_sphere
 
 
 def python_recon_bytes(tmp_path, scan, **options):
@@ -22,6 +23,25 @@ def test_kitten_matches_the_command_line_byte_for_byte(fixtures, run_cli, tmp_pa
     assert mesh.stats["watertight"] and mesh.stats["points"] == 5210
     assert len(mesh.point_confidence) == 5210 and mesh.outliers.dtype == np.bool_
     assert mesh.confidence is mesh.values and len(mesh.values) == len(mesh.vertices)
+
+
+def test_colours_reach_the_vertices_as_the_command_line_carries_them(run_cli, tmp_path):
+    # The upper half of a sphere red, the lower blue: every vertex takes its side's colour.
+    points, normals = fibonacci_sphere(3000)
+    colors = np.where(points[:, 2:3] > 0, [[220, 30, 30]], [[30, 30, 220]]).astype(np.uint8)
+    scan = tmp_path / "coloured.ply"
+    sphcover.write(scan, sphcover.PointCloud(points=points, normals=normals, colors=colors))
+    run_cli("recon", scan, "-o", tmp_path / "cli.ply")
+    mesh, written = python_recon_bytes(tmp_path, scan)
+    assert written == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.colors.shape == (len(mesh.vertices), 3)
+    away = np.abs(mesh.vertices[:, 2]) > 0.02
+    upper = mesh.vertices[away, 2] > 0
+    np.testing.assert_array_equal(mesh.colors[away][upper], [[220, 30, 30]] * upper.sum())
+    np.testing.assert_array_equal(mesh.colors[away][~upper], [[30, 30, 220]] * (~upper).sum())
+    plain = sphcover.reconstruct(points, normals)
+    assert plain.colors is None
+    np.testing.assert_array_equal(plain.vertices, mesh.vertices)
 
 
 def test_options_match_the_command_line_flags(fixtures, run_cli, tmp_path):
