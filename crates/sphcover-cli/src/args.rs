@@ -162,7 +162,7 @@ pub struct ReconArgs {
     /// point count and depth; over budget, use the finest coarser depth that fits (without
     /// --depth), or refuse with the estimate (exit 2). Reading the points is held to it too
     /// (default: 60% of the machine's memory).
-    #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
+    #[arg(long, value_name = "SIZE", value_parser = sphcover_core::io::parse_byte_size)]
     pub max_memory: Option<u64>,
     #[command(flatten)]
     pub read: InputArgs,
@@ -295,7 +295,7 @@ pub struct SkeletonArgs {
     /// before reading its voxels, with the estimate when the predicted peak for its size
     /// exceeds it (ridge method). Reading the input is held to it too (default: 60% of the
     /// machine's memory).
-    #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
+    #[arg(long, value_name = "SIZE", value_parser = sphcover_core::io::parse_byte_size)]
     pub max_memory: Option<u64>,
     /// Write the PLY as ascii instead of binary little-endian.
     #[arg(long)]
@@ -386,7 +386,7 @@ pub struct ReadMemoryArgs {
     /// Most memory the data an input declares may take (e.g. 2G, 500M): a file declaring
     /// more is refused from its header, before anything is read (exit 2). Default: 60% of the
     /// machine's memory.
-    #[arg(long, value_name = "SIZE", value_parser = crate::byte_size::parse_byte_size)]
+    #[arg(long, value_name = "SIZE", value_parser = sphcover_core::io::parse_byte_size)]
     pub max_memory: Option<u64>,
 }
 

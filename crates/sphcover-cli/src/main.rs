@@ -1,7 +1,6 @@
 //! The `sphcover` command: processing of scanned geometry with spherically supported functions.
 
 mod args;
-mod byte_size;
 mod commands;
 mod exit;
 mod interrupt;

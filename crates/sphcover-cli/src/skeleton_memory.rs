@@ -6,10 +6,10 @@
 //! failed allocation deep in the pipeline.
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
-use crate::byte_size::format_byte_size;
 use crate::exit::BadInput;
-use crate::memory_limit::{ProcessMemory, process_memory};
 use crate::report::Reporter;
+use sphcover_core::io::format_byte_size;
+use sphcover_core::{ProcessMemory, process_memory};
 
 /// Peak memory of `sphcover skeleton` (ridge method, default parameters): bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]

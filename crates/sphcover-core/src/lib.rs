@@ -56,6 +56,7 @@ mod parameter_error;
 mod partition_of_unity;
 mod point_cloud;
 mod point_index;
+mod process_memory;
 pub mod random;
 mod small_cholesky;
 mod spatial_order;
@@ -85,6 +86,7 @@ pub use parameter_error::{LengthMismatch, ParameterError};
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;
 pub use point_index::{PointIndex, PointIndexError};
+pub use process_memory::{MemorySource, ProcessMemory, READ_LIMIT_PERCENT, process_memory};
 pub use small_cholesky::SmallCholesky;
 pub use sphere_intersection_graph::{SigError, SphereIntersectionGraph, balls_nested};
 pub use stages::{

@@ -48,6 +48,7 @@ mod diffusion;
 mod graph_cut;
 mod graphcut_reconstruction;
 mod maxflow;
+mod memory_budget;
 mod memory_model;
 mod mesh_smoothing;
 mod normals;
@@ -76,6 +77,7 @@ pub use graphcut_reconstruction::{
     reconstruct_graphcut,
 };
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
+pub use memory_budget::{BudgetError, BudgetFit, fit_memory_budget};
 pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel};
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};

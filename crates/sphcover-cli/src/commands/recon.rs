@@ -5,14 +5,13 @@ use std::path::Path;
 
 use serde_json::json;
 use sphcover_core::PointCloud;
-use sphcover_core::io::{self, CoverFileMeta, WriteOptions};
+use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
-    COARSEST_BUDGET_DEPTH, Method, RECON_MEMORY_MODEL, ReconError, ReconOptions, ReconParams,
-    Reconstruction, TrimOption, default_depth, reconstruct,
+    BudgetFit, Method, ReconError, ReconOptions, ReconParams, Reconstruction, TrimOption,
+    fit_memory_budget, reconstruct,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
-use crate::byte_size::format_byte_size;
 use crate::exit::BadInput;
 use crate::memory_limit::MemoryLimit;
 use crate::report::{Reporter, stage_message};
@@ -29,13 +28,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         cloud.normals = None;
     }
     let memory = match args.max_memory {
-        Some(budget) => Some(fit_memory_budget(
-            args,
-            &cloud,
-            budget,
-            &mut params,
-            reporter,
-        )?),
+        Some(budget) => Some(fit_budget(&cloud, budget, &mut params, reporter)?),
         None => None,
     };
 
@@ -136,96 +129,31 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// What `--max-memory` decided.
-#[derive(Debug)]
-struct MemoryBudget {
-    /// The budget, in bytes.
-    budget: u64,
-    /// The predicted peak at the depth the run uses.
-    estimate: u64,
-    /// The depth the budget replaced, when it chose a coarser one.
-    lowered_from: Option<u32>,
-}
-
 /// Checks the predicted peak of the run against `budget` before any heavy work (the points
-/// are read: their count decides the default depth and the per-point cost). Over budget,
-/// a coarser depth that fits replaces the default one, with a warning; when the depth was
-/// given, or even the coarsest does not fit, the run is refused as bad usage with the
-/// estimate (nothing is written).
-fn fit_memory_budget(
-    args: &ReconArgs,
+/// are read: their count decides the default depth and the per-point cost). Over budget, a
+/// coarser depth that fits replaces the default one, with a warning; a refusal is bad usage
+/// with the estimate (nothing is written).
+fn fit_budget(
     cloud: &PointCloud,
     budget: u64,
     params: &mut ReconParams,
     reporter: &Reporter,
-) -> anyhow::Result<MemoryBudget> {
-    if params.method == Method::GraphCut {
-        return Err(BadInput(
-            "--max-memory: the memory model covers the cover-based methods (integrated, \
-             diffusion, pu), not --method graphcut"
-                .to_owned(),
-        )
-        .into());
-    }
-    let model = RECON_MEMORY_MODEL;
-    let points = cloud.positions.iter().filter(|p| p.is_finite()).count();
-    let depth = params.depth.unwrap_or_else(|| default_depth(points));
-    let estimate = model.peak_bytes(cloud.len(), depth);
-    let size = format_byte_size;
-    if estimate <= budget {
-        reporter.detail(&format!(
-            "  memory: predicted peak {} at depth {depth}, within --max-memory {}",
-            size(estimate),
-            size(budget)
-        ));
-        return Ok(MemoryBudget {
-            budget,
-            estimate,
-            lowered_from: None,
-        });
-    }
-    let refuse = |why: String| -> anyhow::Error {
-        BadInput(format!(
-            "--max-memory {}: reconstructing {} points at depth {depth} needs about {}; {why}",
-            size(budget),
-            cloud.len(),
-            size(estimate)
-        ))
-        .into()
-    };
-    if args.depth.is_some() {
-        let hint = match model.finest_depth_within(cloud.len(), depth, budget) {
-            Some(d) => format!(
-                "--depth {d} would fit (about {})",
-                size(model.peak_bytes(cloud.len(), d))
-            ),
-            None => "no depth fits".to_owned(),
-        };
-        return Err(refuse(format!("{hint}; raise the budget or lower --depth")));
-    }
-    match model.finest_depth_within(cloud.len(), depth, budget) {
-        Some(coarser) => {
-            let coarser_estimate = model.peak_bytes(cloud.len(), coarser);
-            reporter.warn(&format!(
-                "--max-memory {}: depth {depth} would need about {}; using depth {coarser} \
-                 (about {}, grid step 2^{} of the longest edge)",
-                size(budget),
-                size(estimate),
-                size(coarser_estimate),
-                -i64::from(coarser)
-            ));
-            params.depth = Some(coarser);
-            Ok(MemoryBudget {
-                budget,
-                estimate: coarser_estimate,
-                lowered_from: Some(depth),
-            })
+) -> anyhow::Result<BudgetFit> {
+    let fit = fit_memory_budget(cloud, params, budget)
+        .map_err(|e| BadInput(e.message("--max-memory", "--depth")))?;
+    match fit.lowering_message("--max-memory") {
+        Some(warning) => {
+            reporter.warn(&warning);
+            params.depth = Some(fit.depth);
         }
-        None => Err(refuse(format!(
-            "even depth {COARSEST_BUDGET_DEPTH} needs about {}; raise the budget or thin the scan",
-            size(model.peak_bytes(cloud.len(), COARSEST_BUDGET_DEPTH))
-        ))),
+        None => reporter.detail(&format!(
+            "  memory: predicted peak {} at depth {}, within --max-memory {}",
+            format_byte_size(fit.estimate),
+            fit.depth,
+            format_byte_size(budget)
+        )),
     }
+    Ok(fit)
 }
 
 /// The library's parameters for the command line's options; an option out of range is bad
@@ -316,14 +244,14 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
 fn report_json(
     args: &ReconArgs,
     recon: &Reconstruction,
-    memory: Option<&MemoryBudget>,
+    memory: Option<&BudgetFit>,
 ) -> serde_json::Value {
     let s = &recon.stats;
     json!({
         "memory": memory.map(|m| json!({
             "budget_bytes": m.budget,
             "estimated_peak_bytes": m.estimate,
-            "depth_lowered_from": m.lowered_from,
+            "depth_lowered_from": m.lowered_from.map(|(depth, _)| depth),
         })),
         "input": args.input.display().to_string(),
         "output": args.output.display().to_string(),

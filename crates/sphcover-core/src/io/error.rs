@@ -4,6 +4,8 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use super::byte_size::format_byte_size;
+
 /// Where in a file a problem was found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Location {
@@ -410,25 +412,6 @@ impl GrowingBudget {
             _ => Ok(()),
         }
     }
-}
-
-/// A size for people: `1.2 GiB`, `456.7 MiB`, `12.0 KiB`, `800 B` (powers of 1024, one
-/// decimal; TiB is the largest unit).
-pub fn format_byte_size(bytes: u64) -> String {
-    const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
-    if bytes < 1024 {
-        return format!("{bytes} B");
-    }
-    let mut value = bytes as f64;
-    let mut unit = "B";
-    for name in UNITS {
-        if value < 1024.0 {
-            break;
-        }
-        value /= 1024.0;
-        unit = name;
-    }
-    format!("{value:.1} {unit}")
 }
 
 /// Cuts a token for an error message so a megabyte of garbage does not end up in it.

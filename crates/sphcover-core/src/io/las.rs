@@ -310,7 +310,12 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             format!("{count} compressed records of {record_length} bytes")
         })?;
     }
-    let point_bytes = POINT_BYTES + if rgb_offset(point_format).is_some() { 3 } else { 0 };
+    let point_bytes = POINT_BYTES
+        + if rgb_offset(point_format).is_some() {
+            3
+        } else {
+            0
+        };
     budget.reserve(count.saturating_mul(point_bytes), || {
         format!("{count} points")
     })?;

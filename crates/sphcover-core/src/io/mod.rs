@@ -49,6 +49,7 @@
 //! * Every writer goes through [`write_atomic`]: the output appears complete or not at all.
 
 mod atomic;
+mod byte_size;
 mod cover_file;
 mod encode;
 mod error;
@@ -78,8 +79,9 @@ use crate::mesh::TriMesh;
 use crate::point_cloud::PointCloud;
 
 pub use atomic::write_atomic;
+pub use byte_size::{format_byte_size, parse_byte_size};
 pub use cover_file::{CoverFileMeta, parse_cover, read_cover, write_cover};
-pub use error::{IoError, Location, Problem, format_byte_size};
+pub use error::{IoError, Location, Problem};
 #[cfg(feature = "nifti")]
 pub use inrimage::{InrimageInfo, parse_inrimage, read_inrimage, read_inrimage_info};
 #[cfg(feature = "nifti")]

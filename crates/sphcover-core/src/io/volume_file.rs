@@ -24,7 +24,8 @@ use std::path::Path;
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::ReadOptions;
-use super::error::{Failure, IoError, Location, MemoryBudget, format_byte_size};
+use super::byte_size::format_byte_size;
+use super::error::{Failure, IoError, Location, MemoryBudget};
 use super::inrimage::{InrimageInfo, read_inrimage, read_inrimage_info};
 use super::nifti::{NiftiInfo, read_nifti, read_nifti_info};
 use crate::volume::{Volume, VoxelValues};

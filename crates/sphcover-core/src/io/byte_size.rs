@@ -1,4 +1,5 @@
-//! Sizes in bytes as people write them on a command line: `2G`, `500M`, `1.5GiB`, `800000`.
+//! Sizes in bytes as people write and read them: `2G`, `500M`, `1.5GiB`, `800000` in,
+//! `1.2 GiB` out (powers of 1024, as `free -h` and `/usr/bin/time` count).
 
 /// Parses a size: a non-negative number, then optionally a unit `K`, `M`, `G` or `T`
 /// (powers of 1024, as `free -h` and `/usr/bin/time` count), with or without `B`/`iB`;
@@ -31,9 +32,24 @@ pub fn parse_byte_size(text: &str) -> Result<u64, String> {
     Ok(bytes.round() as u64)
 }
 
-/// A size for people: `1.2 GiB`, `456.7 MiB`, `12.0 KiB`, `800 B`; the readers' messages
-/// use the same form.
-pub use sphcover_core::io::format_byte_size;
+/// A size for people: `1.2 GiB`, `456.7 MiB`, `12.0 KiB`, `800 B` (powers of 1024, one
+/// decimal; TiB is the largest unit).
+pub fn format_byte_size(bytes: u64) -> String {
+    const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
+    if bytes < 1024 {
+        return format!("{bytes} B");
+    }
+    let mut value = bytes as f64;
+    let mut unit = "B";
+    for name in UNITS {
+        if value < 1024.0 {
+            break;
+        }
+        value /= 1024.0;
+        unit = name;
+    }
+    format!("{value:.1} {unit}")
+}
 
 #[cfg(test)]
 mod tests {
