@@ -18,24 +18,35 @@ use crate::arrays::{
 };
 use crate::cover::Cover;
 use crate::errors::{bad_input, io_error};
+use crate::memory::{ReadLimit, byte_size};
 
 /// Reads `path` into a dict: a volume (`kind` `"volume"`, `values` as an `(nx, ny, nz)`
 /// array indexed `[i, j, k]`, `affine` 4×4), a cover file (`"cover"`, `cover`), or geometry
 /// (`"geometry"`: `points` and, when present, `normals`, `confidence`, `values`, `colors`
 /// (`(n, 3)` uint8), `radii`, `triangles`).
 #[pyfunction]
-#[pyo3(signature = (path, drop_non_finite = false))]
+#[pyo3(signature = (path, drop_non_finite = false, max_memory = None))]
 pub fn read<'py>(
     py: Python<'py>,
     path: PathBuf,
     drop_non_finite: bool,
+    max_memory: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let limit = ReadLimit::new(byte_size(max_memory)?);
+    let options = limit.apply(ReadOptions {
+        non_finite: if drop_non_finite {
+            NonFinitePolicy::Drop
+        } else {
+            NonFinitePolicy::Refuse
+        },
+        ..ReadOptions::default()
+    });
     let out = PyDict::new(py);
     out.set_item("path", path.display().to_string())?;
     if io::is_volume_path(&path) {
         let (volume, info) = py
-            .detach(|| io::read_volume(&path, &ReadOptions::default()))
-            .map_err(io_error)?;
+            .detach(|| io::read_volume(&path, &options))
+            .map_err(|e| limit.error(e))?;
         let [nx, ny, nz] = volume.dims();
         let affine = volume.affine();
         // x fastest: the column-major (Fortran) layout of an (nx, ny, nz) array.
@@ -66,17 +77,9 @@ pub fn read<'py>(
         out.set_item("format", info.format_description())?;
         return Ok(out);
     }
-    let options = ReadOptions {
-        non_finite: if drop_non_finite {
-            NonFinitePolicy::Drop
-        } else {
-            NonFinitePolicy::Refuse
-        },
-        ..ReadOptions::default()
-    };
     let geometry = py
         .detach(|| io::read_geometry(&path, &options))
-        .map_err(io_error)?;
+        .map_err(|e| limit.error(e))?;
     if geometry.info.format == Format::Ply
         && geometry.radii.is_some()
         && let Ok((cover, meta)) = py.detach(|| io::read_cover(&path))

@@ -15,6 +15,7 @@ mod arrays;
 mod cover;
 mod errors;
 mod files;
+mod memory;
 mod operators;
 mod reconstruction;
 mod run;

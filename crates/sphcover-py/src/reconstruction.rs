@@ -6,11 +6,15 @@ use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sphcover_core::PointCloud;
-use sphcover_recon::{Method, ReconOptions, Reconstruction, TrimOption, reconstruct_until};
+use sphcover_recon::{
+    BudgetFit, Method, ReconOptions, Reconstruction, TrimOption, fit_memory_budget,
+    reconstruct_until,
+};
 
 use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
 use crate::cover::Cover;
 use crate::errors::{bad_input, option_error, recon_error};
+use crate::memory::byte_size;
 use crate::run::{run, stage_times};
 
 /// The method named as on the command line.
@@ -53,7 +57,7 @@ fn trim(value: Option<&Bound<'_, PyAny>>) -> PyResult<TrimOption> {
     points, normals = None, confidence = None, colors = None, *, method_name = "integrated", eps = None,
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
     normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
-    threads = None, progress = None,
+    threads = None, progress = None, max_memory = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct<'py>(
@@ -75,7 +79,9 @@ pub fn reconstruct<'py>(
     seed: u64,
     threads: Option<usize>,
     progress: Option<&Bound<'py, PyAny>>,
+    max_memory: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let budget = byte_size(max_memory)?;
     let options = ReconOptions {
         method: method(method_name)?,
         eps,
@@ -88,7 +94,7 @@ pub fn reconstruct<'py>(
         refine,
         seed,
     };
-    let params = options.params().map_err(option_error)?;
+    let mut params = options.params().map_err(option_error)?;
     let positions = points_from_py(&points, "points")?;
     let n = Some(positions.len());
     let normals = match (normals, estimate_normals) {
@@ -112,15 +118,40 @@ pub fn reconstruct<'py>(
     if threads == Some(0) {
         return Err(bad_input("threads must be at least 1"));
     }
+    // Checked before any heavy work, as the command line checks `--max-memory`.
+    let memory = match budget {
+        Some(budget) => {
+            let fit =
+                fit_memory_budget(&cloud, &params, budget).map_err(|e| bad_input(e.to_string()))?;
+            if let Some(warning) = fit.lowering_message("max_memory") {
+                let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+                PyErr::warn(py, &category, &std::ffi::CString::new(warning)?, 1)?;
+                params.depth = Some(fit.depth);
+            }
+            Some(fit)
+        }
+        None => None,
+    };
     let recon = run(py, progress, threads, move |context| {
         reconstruct_until(&cloud, &params, &|s| context.stage(s), context.stop())
             .map_err(recon_error)
     })?;
-    into_dict(py, recon)
+    into_dict(py, recon, memory)
 }
 
-fn into_dict(py: Python<'_>, recon: Reconstruction) -> PyResult<Bound<'_, PyDict>> {
+fn into_dict(
+    py: Python<'_>,
+    recon: Reconstruction,
+    memory: Option<BudgetFit>,
+) -> PyResult<Bound<'_, PyDict>> {
     let stats = stats_dict(py, &recon)?;
+    if let Some(m) = memory {
+        let d = PyDict::new(py);
+        d.set_item("budget_bytes", m.budget)?;
+        d.set_item("estimated_peak_bytes", m.estimate)?;
+        d.set_item("depth_lowered_from", m.lowered_from.map(|(depth, _)| depth))?;
+        stats.set_item("memory", d)?;
+    }
     let Reconstruction {
         mesh,
         confidence,

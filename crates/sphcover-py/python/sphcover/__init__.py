@@ -112,7 +112,7 @@ def _with_progress(progress: Progress, call):
             bar.close()
 
 
-def read(path, *, drop_non_finite: bool = False):
+def read(path, *, drop_non_finite: bool = False, max_memory: Union[None, int, str] = None):
     """Reads any file the command line reads, the format from the extension.
 
     Returns a :class:`Mesh` (a file with faces: PLY, OBJ, OFF, STL), a :class:`PointCloud`
@@ -121,9 +121,13 @@ def read(path, *, drop_non_finite: bool = False):
     a :class:`Volume` (NIfTI-1/2 ``.nii``/``.nii.gz``, INRIMAGE ``.inr``/``.inr.gz``).
 
     ``drop_non_finite`` drops vertices with NaN or infinite coordinates instead of refusing
-    the file (the command line's ``--drop-non-finite``).
+    the file, and sets non-finite voxels of a volume to its lowest finite value (the command
+    line's ``--drop-non-finite``). ``max_memory`` (bytes, or a size such as ``"4G"``) bounds
+    what the file may declare; by default 60% of the memory this process may use (the least
+    of the machine's, its cgroup's and ``ulimit -v``), so that a decompression bomb or a lying
+    header raises :class:`BadInputError` naming the file instead of exhausting memory.
     """
-    d = _sphcover.read(str(path), drop_non_finite)
+    d = _sphcover.read(str(path), drop_non_finite, max_memory)
     kind = d["kind"]
     if kind == "volume":
         return Volume(values=d["values"], affine=d["affine"], format=d["format"])
@@ -223,6 +227,7 @@ def reconstruct(
     seed: int = 0,
     threads: Optional[int] = None,
     progress: Progress = None,
+    max_memory: Union[None, int, str] = None,
 ) -> Mesh:
     """Reconstructs a surface mesh from scanned points, as ``sphcover recon`` does.
 
@@ -237,7 +242,10 @@ def reconstruct(
     ``depth``, ``normal_fit``, ``position_fit``, ``normal_neighbours``, ``estimate_normals``,
     ``refine`` (False is ``--no-refine``), ``seed``; ``threads`` the worker threads (the
     result does not depend on it); ``progress`` a callable ``(stage, index, count)`` or True
-    for a progress bar.
+    for a progress bar; ``max_memory`` (bytes, or a size such as ``"4G"``) the budget of the
+    run's predicted peak memory: over it, a coarser default depth that fits is used (with a
+    ``UserWarning``), and a given ``depth`` that does not fit, or no depth at all, raises
+    :class:`BadInputError` before any work (``stats["memory"]`` records the decision).
 
     Returns a :class:`Mesh` with per-vertex normals, the per-vertex confidence of the surface
     as ``values`` (``confidence``), the statistics, and ``point_confidence``, ``outliers``,
@@ -270,6 +278,7 @@ def reconstruct(
             seed=seed,
             threads=threads,
             progress=callback,
+            max_memory=max_memory,
         ),
     )
     return Mesh(

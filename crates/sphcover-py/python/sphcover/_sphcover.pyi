@@ -63,7 +63,9 @@ class DualComplex:
     def write(self, path: Path) -> None:
         """Writes ``.vtk`` (VTK legacy unstructured grid) or ``.txt``/``.tets``."""
 
-def read(path: Path, drop_non_finite: bool = False) -> Dict[str, Any]: ...
+def read(
+    path: Path, drop_non_finite: bool = False, max_memory: Union[None, int, str] = None
+) -> Dict[str, Any]: ...
 def write_geometry(
     path: Path,
     points: F64,
@@ -95,6 +97,7 @@ def reconstruct(
     seed: int = 0,
     threads: Optional[int] = None,
     progress: ProgressCallback = None,
+    max_memory: Union[None, int, str] = None,
 ) -> Dict[str, Any]: ...
 def skeleton_volume(
     values: npt.NDArray[np.float64],

@@ -1,6 +1,10 @@
 """Arrays through every reader and writer: what is written reads back as it was."""
 
+import gzip
 import struct
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -238,3 +242,61 @@ def test_las_colours_read_as_bytes(tmp_path):
     np.testing.assert_array_equal(cloud.colors, rgb8)
     write_las(tmp_path / "plain.las", xyz, [1, 2, 3])
     assert sphcover.read(tmp_path / "plain.las").colors is None
+
+
+def write_nifti_bomb(path, dims):
+    """A gzip NIfTI-1 file of float32 voxels, all zero: a decompression bomb, about a
+    thousandth of what it declares."""
+    header = bytearray(348)
+    struct.pack_into("<i", header, 0, 348)
+    struct.pack_into("<8h", header, 40, 3, *dims, 1, 1, 1, 1)
+    struct.pack_into("<hh", header, 70, 16, 32)
+    struct.pack_into("<8f", header, 76, 1, 1, 1, 1, 1, 1, 1, 1)
+    struct.pack_into("<f", header, 108, 352.0)
+    header[344:348] = b"n+1\0"
+    with gzip.open(path, "wb", compresslevel=9) as out:
+        out.write(bytes(header) + bytes(4))
+        zeros = bytes(1 << 24)
+        for _ in range(4 * dims[0] * dims[1] * dims[2] // len(zeros)):
+            out.write(zeros)
+
+
+BOMB_UNDER_ULIMIT = textwrap.dedent(
+    """
+    import resource, sys
+    limit = 3 << 29  # 1.5 GiB of address space: the default read limit is 60% of it
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    import sphcover
+    try:
+        sphcover.read(sys.argv[1])
+    except sphcover.BadInputError as e:
+        print(e)
+    """
+)
+
+
+def test_a_file_declaring_more_than_memory_is_refused_from_its_header(tmp_path, run_cli):
+    bomb = tmp_path / "bomb.nii.gz"
+    write_nifti_bomb(bomb, (1024, 1024, 256))  # 1 GiB of float32
+    child = subprocess.run(
+        [sys.executable, "-c", BOMB_UNDER_ULIMIT, str(bomb)], capture_output=True, text=True
+    )
+    message = child.stdout.strip()
+    assert child.returncode == 0, child.stderr
+    assert "bomb.nii.gz" in message, message
+    assert "(60% of the 1.5 GiB address-space limit (ulimit -v); max_memory sets it)" in message
+    # The command line with the same limit: the same refusal, but for where it came from.
+    cli = run_cli("info", bomb, "--max-memory", str((3 << 29) // 100 * 60), expect_ok=False)
+    assert cli.returncode == 2
+    assert message.split(" (60%")[0] in cli.stderr, (message, cli.stderr)
+
+
+def test_max_memory_bounds_what_read_may_allocate(fixtures):
+    kitten = fixtures / "real" / "kitten.ply"
+    for limit in ["100K", 100_000]:
+        with pytest.raises(sphcover.BadInputError, match=r"kitten\.ply.*\(max_memory\)"):
+            sphcover.read(kitten, max_memory=limit)
+    assert len(sphcover.read(kitten, max_memory="1G")) == 5210
+    for bad in ["lots", -1, 1.5j]:
+        with pytest.raises(sphcover.BadInputError, match="max_memory"):
+            sphcover.read(kitten, max_memory=bad)

@@ -44,6 +44,28 @@ def test_colours_reach_the_vertices_as_the_command_line_carries_them(run_cli, tm
     np.testing.assert_array_equal(plain.vertices, mesh.vertices)
 
 
+def test_max_memory_decides_as_the_command_line_does(fixtures, run_cli, tmp_path):
+    scan = fixtures / "real" / "kitten.ply"
+    # Between the predicted peaks of depth 5 and of the default depth 6 for 5,210 points.
+    budget = 123_000_000
+    run_cli("recon", scan, "-o", tmp_path / "cli.ply", "--max-memory", str(budget))
+    with pytest.warns(UserWarning, match="max_memory .*using depth 5"):
+        mesh, written = python_recon_bytes(tmp_path, scan, max_memory=budget)
+    assert written == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["depth"] == 5
+    assert mesh.stats["memory"]["depth_lowered_from"] == 6
+    assert mesh.stats["memory"]["budget_bytes"] == budget
+
+    cli = run_cli("recon", scan, "-o", tmp_path / "no.ply", "--max-memory", "1M", expect_ok=False)
+    assert cli.returncode == 2
+    with pytest.raises(sphcover.BadInputError) as raised:
+        sphcover.reconstruct(sphcover.read(scan), max_memory="1M")
+    assert str(raised.value).replace("max_memory", "--max-memory") in cli.stderr
+    with pytest.raises(sphcover.BadInputError, match="; depth 5 would fit .* lower depth$"):
+        sphcover.reconstruct(sphcover.read(scan), max_memory=budget, depth=7)
+    assert "memory" not in sphcover.reconstruct(sphcover.read(scan), depth=5).stats
+
+
 def test_options_match_the_command_line_flags(fixtures, run_cli, tmp_path):
     scan = fixtures / "sphere_noisy_2k.ply"
     run_cli(
