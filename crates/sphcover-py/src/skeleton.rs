@@ -8,8 +8,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sphcover_core::{DMat3, DVec3, TriMesh, Volume, VoxelValues};
 use sphcover_skeleton::{
-    NmsParams, SkeletonParams, SkeletonStats, extract_skeleton_from_samples_until,
-    extract_skeleton_until, nms_skeleton,
+    NmsParams, SkeletonParams, SkeletonStats, check_voxel_grid,
+    extract_skeleton_from_samples_until, extract_skeleton_until, nms_skeleton,
 };
 
 use crate::arrays::{points_from_py, points_to_py, rows_to_py, values_from_py, vec_to_py};
@@ -80,6 +80,19 @@ pub fn skeleton_volume<'py>(
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let volume = volume(&values, &affine)?;
+    let size = volume.voxel_size();
+    match check_voxel_grid(size, volume.affine().matrix3) {
+        Ok(true) => {}
+        Ok(false) => {
+            let warning = format!(
+                "voxels of {:.6} x {:.6} x {:.6} are not cubic; the sheet is computed in world coordinates, lengths given in voxels use their geometric mean",
+                size.x, size.y, size.z
+            );
+            let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+            PyErr::warn(py, &category, &std::ffi::CString::new(warning)?, 1)?;
+        }
+        Err(e) => return Err(bad_input(e.to_string())),
+    }
     match method {
         "ridge" => {
             let params = ridge_params(threshold, eps, sigma, seed)?;

@@ -77,6 +77,7 @@ mod pipeline;
 mod repair;
 mod ridge_points;
 mod symmetric_eigen;
+mod voxel_grid;
 
 pub use derivative_smoothing::smoothed_vertex_derivatives;
 pub use error::SkeletonError;
@@ -106,3 +107,4 @@ pub use ridge_points::{
     RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
 };
 pub use symmetric_eigen::SmallestEigen;
+pub use voxel_grid::{MAX_ANISOTROPY, VoxelGridError, check_voxel_grid};

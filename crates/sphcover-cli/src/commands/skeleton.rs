@@ -5,23 +5,14 @@
 use sphcover_core::io::{self, VolumeInfo};
 use sphcover_core::{PointCloud, TriMesh};
 use sphcover_skeleton::{
-    NmsParams, SkeletonError, SkeletonParams, SkeletonStats, extract_skeleton,
-    extract_skeleton_from_samples, nms_skeleton,
+    NmsParams, SkeletonError, SkeletonParams, SkeletonStats, VoxelGridError, check_voxel_grid,
+    extract_skeleton, extract_skeleton_from_samples, nms_skeleton,
 };
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
 use crate::memory_limit::MemoryLimit;
 use crate::report::{Reporter, stage_message};
-
-/// Relative difference of voxel edge lengths accepted as cubic voxels without a warning.
-const CUBIC_TOLERANCE: f64 = 1e-3;
-/// Largest ratio of voxel edge lengths processed: the cover works in world coordinates, so
-/// mildly anisotropic voxels (a CT's slice spacing a little off its pixel size) are fine,
-/// but beyond this a voxel is a needle and the local quadratic fits lose the thin direction.
-const MAX_ANISOTROPY: f64 = 2.0;
-/// Largest off-axis component (relative to the column length) of an axis-aligned affine.
-const AXIS_TOLERANCE: f64 = 1e-6;
 
 /// Runs `sphcover skeleton`.
 pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
@@ -211,36 +202,20 @@ fn check_volume(args: &SkeletonArgs, info: &VolumeInfo, reporter: &Reporter) -> 
         .into());
     }
     let size = info.voxel_size();
-    let (lo, hi) = (size.min_element(), size.max_element());
-    if hi > MAX_ANISOTROPY * lo {
-        return Err(BadInput(format!(
-            "{name}: voxels of {:.6} x {:.6} x {:.6} are too anisotropic (more than {MAX_ANISOTROPY}:1); resample to near-cubic voxels first",
-            size.x, size.y, size.z
-        ))
-        .into());
-    }
-    if hi - lo > CUBIC_TOLERANCE * hi {
-        reporter.warn(&format!(
+    match check_voxel_grid(size, info.affine().matrix3) {
+        Ok(true) => {}
+        Ok(false) => reporter.warn(&format!(
             "{name}: voxels of {:.6} x {:.6} x {:.6} are not cubic; the sheet is computed in world coordinates, lengths given in voxels use their geometric mean",
             size.x, size.y, size.z
-        ));
-    }
-    let m = info.affine().matrix3;
-    for col in [m.x_axis, m.y_axis, m.z_axis] {
-        let big = col.abs().max_element();
-        let off_axis = col
-            .abs()
-            .to_array()
-            .iter()
-            .filter(|&&c| c > AXIS_TOLERANCE * big)
-            .count();
-        if off_axis != 1 {
+        )),
+        Err(VoxelGridError::Oblique) => {
             return Err(BadInput(format!(
                 "{name}: the voxel axes are oblique to the world axes ({} affine); resample to an axis-aligned grid first",
                 info.axes_source()
             ))
             .into());
         }
+        Err(e) => return Err(BadInput(format!("{name}: {e}")).into()),
     }
     Ok(())
 }

@@ -314,6 +314,9 @@ def skeleton(
     ``img.get_fdata()`` and ``img.affine`` give. The object is brighter than the background.
     Keywords are the command line's: ``threshold`` (default: from the histogram), ``sigma``,
     ``eps``, ``method`` (``"ridge"``, or ``"nms"`` for the baseline's ridge points), ``seed``.
+    As the command line does, the grid is checked first: voxels more than 2:1 anisotropic or
+    axes oblique to the world's raise :class:`BadInputError` (resample first), several frames
+    too; voxels that are not cubic give a ``UserWarning``.
 
     Returns a :class:`Mesh` in world coordinates (per-vertex values: the ridge strength), or
     for ``method="nms"`` a :class:`PointCloud`.
@@ -321,6 +324,13 @@ def skeleton(
     if isinstance(volume, Volume):
         volume, affine = volume.values, volume.affine if affine is None else affine
     values = np.asarray(volume, dtype=np.float64)
+    if values.ndim == 4 and values.shape[3] > 1:
+        raise BadInputError(
+            f"a 4D volume with {values.shape[3]} frames; extract the frame to process first "
+            "(volume[..., 0])"
+        )
+    if values.ndim == 4:
+        values = values[..., 0]
     if values.ndim != 3:
         raise BadInputError(f"volume must be a 3-D array, not {values.ndim}-D")
     affine = np.eye(4) if affine is None else np.ascontiguousarray(affine, dtype=np.float64)

@@ -1,6 +1,7 @@
 """`skeleton` of NumPy phantoms, and against `sphcover skeleton` on the bundled CT."""
 
 import numpy as np
+import pytest
 
 import sphcover
 
@@ -63,3 +64,20 @@ def test_a_constant_volume_is_bad_input():
         assert str(e) == "the volume is constant (every voxel is 3)"
     else:
         raise AssertionError("a constant volume was accepted")
+
+
+def test_grids_the_pipeline_cannot_treat_are_refused_as_the_command_line_refuses_them():
+    values, _ = plate_phantom(16)
+    needle = np.diag([0.5, 0.5, 1.2, 1.0])
+    with pytest.raises(sphcover.BadInputError, match=r"too anisotropic \(more than 2:1\)"):
+        sphcover.skeleton(values, needle)
+    turned = np.eye(4)
+    c, s = np.cos(0.1), np.sin(0.1)
+    turned[:2, :2] = [[c, -s], [s, c]]
+    with pytest.raises(sphcover.BadInputError, match="oblique to the world axes"):
+        sphcover.skeleton(values, turned)
+    with pytest.raises(sphcover.BadInputError, match="a 4D volume with 2 frames"):
+        sphcover.skeleton(np.stack([values, values], axis=3))
+    with pytest.warns(UserWarning, match="not cubic"):
+        sheet = sphcover.skeleton(values, np.diag([0.5, 0.5, 0.6, 1.0]))
+    assert len(sheet.faces) > 0
