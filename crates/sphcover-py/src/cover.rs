@@ -1,17 +1,19 @@
-//! `Cover`: a spherical cover with its unit frame, evaluated at NumPy points; and the surface
-//! cover of oriented points (what `sphcover cover` builds from a point file).
+//! `Cover`: a spherical cover with its unit frame, evaluated at NumPy points; and the covers
+//! `sphcover cover` builds: of oriented points, of a voxel volume, of scattered samples with
+//! values.
 
 use std::path::PathBuf;
 
-use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 use sphcover_core::io::{self, CoverFileMeta};
 use sphcover_core::{
-    Cover as CoreCover, Normalisation, PointCloud, PuEvaluator, SurfaceCoverParams,
-    build_surface_cover_from_cloud,
+    CentreOrder, Cover as CoreCover, Elimination, Normalisation, PointCloud, PuEvaluator,
+    SurfaceCoverParams, Threshold, VolumeCoverParams, VolumeCoverVariant, build_scattered_cover,
+    build_surface_cover_from_cloud, build_volume_cover,
 };
 
-use crate::arrays::{points_from_py, points_to_py, vec_to_py};
+use crate::arrays::{points_from_py, points_to_py, values_from_py, vec_to_py};
 use crate::errors::{bad_input, failure, io_error};
 use crate::files::write_options;
 use crate::run::run;
@@ -192,4 +194,101 @@ pub fn surface_cover(
         return Err(failure("the cover has no support"));
     }
     Ok(Cover::new(cover, frame, 1.0))
+}
+
+/// The volume builders' parameters, as `sphcover cover` sets them from its flags.
+fn volume_params(
+    threshold: Option<f64>,
+    eps: Option<f64>,
+    linear: bool,
+    centre_order: &str,
+    elimination: &str,
+    seed: u64,
+) -> PyResult<VolumeCoverParams> {
+    if let Some(eps) = eps
+        && !(eps.is_finite() && eps > 0.0)
+    {
+        return Err(bad_input(format!("eps {eps} must be a positive number")));
+    }
+    let defaults = VolumeCoverParams::default();
+    Ok(VolumeCoverParams {
+        threshold: threshold.map_or(defaults.threshold, Threshold::Raw),
+        tolerance: eps.unwrap_or(defaults.tolerance),
+        variant: if linear {
+            VolumeCoverVariant::BoundingBoxLinear
+        } else {
+            VolumeCoverVariant::ObjectQuadratic
+        },
+        centre_order: match centre_order {
+            "random" => CentreOrder::Random,
+            "deepest" => CentreOrder::DeepestFirst,
+            "greedy" => CentreOrder::MostUncovered,
+            other => {
+                return Err(bad_input(format!(
+                    "centre_order {other:?} is not one of \"random\", \"deepest\", \"greedy\""
+                )));
+            }
+        },
+        elimination: match elimination {
+            "off" => Elimination::Off,
+            "centres" => Elimination::VoxelCentres,
+            "corners" => Elimination::CellCorners,
+            other => {
+                return Err(bad_input(format!(
+                    "elimination {other:?} is not one of \"off\", \"centres\", \"corners\""
+                )));
+            }
+        },
+        seed,
+        ..defaults
+    })
+}
+
+/// The volume cover of a voxel volume (thesis §3.4.2) in world coordinates, as `sphcover
+/// cover` builds it from a NIfTI or INRIMAGE file.
+#[pyfunction]
+#[pyo3(signature = (values, affine, *, threshold = None, eps = None, linear = false, centre_order = "random", elimination = "corners", seed = 0))]
+#[allow(clippy::too_many_arguments)]
+pub fn volume_cover(
+    py: Python<'_>,
+    values: PyReadonlyArray3<'_, f64>,
+    affine: PyReadonlyArray2<'_, f64>,
+    threshold: Option<f64>,
+    eps: Option<f64>,
+    linear: bool,
+    centre_order: &str,
+    elimination: &str,
+    seed: u64,
+) -> PyResult<Cover> {
+    let params = volume_params(threshold, eps, linear, centre_order, elimination, seed)?;
+    let volume = crate::skeleton::volume(&values, &affine)?;
+    let (cover, _stats) = run(py, None, None, move |_| {
+        build_volume_cover(&volume, &params).map_err(|e| bad_input(e.to_string()))
+    })?;
+    Ok(Cover::new(cover, Normalisation::IDENTITY, 1.0))
+}
+
+/// The volume cover of scattered samples with values (points off any grid), as `sphcover
+/// cover --value-property` builds it.
+#[pyfunction]
+#[pyo3(signature = (points, values, *, threshold = None, eps = None, linear = false, centre_order = "random", elimination = "corners", seed = 0))]
+#[allow(clippy::too_many_arguments)]
+pub fn scattered_cover(
+    py: Python<'_>,
+    points: PyReadonlyArray2<'_, f64>,
+    values: PyReadonlyArray1<'_, f64>,
+    threshold: Option<f64>,
+    eps: Option<f64>,
+    linear: bool,
+    centre_order: &str,
+    elimination: &str,
+    seed: u64,
+) -> PyResult<Cover> {
+    let params = volume_params(threshold, eps, linear, centre_order, elimination, seed)?;
+    let positions = points_from_py(&points, "points")?;
+    let values = values_from_py(&values, "values", Some(positions.len()))?;
+    let (cover, _stats) = run(py, None, None, move |_| {
+        build_scattered_cover(&positions, &values, &params).map_err(|e| bad_input(e.to_string()))
+    })?;
+    Ok(Cover::new(cover, Normalisation::IDENTITY, 1.0))
 }

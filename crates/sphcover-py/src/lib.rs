@@ -41,6 +41,8 @@ fn sphcover_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(skeleton::skeleton_volume, m)?)?;
     m.add_function(wrap_pyfunction!(skeleton::skeleton_samples, m)?)?;
     m.add_function(wrap_pyfunction!(cover::surface_cover, m)?)?;
+    m.add_function(wrap_pyfunction!(cover::volume_cover, m)?)?;
+    m.add_function(wrap_pyfunction!(cover::scattered_cover, m)?)?;
     m.add_function(wrap_pyfunction!(operators::operator_matrices, m)?)?;
     m.add_function(wrap_pyfunction!(triangulation::regular_triangulation, m)?)?;
     m.add_function(wrap_pyfunction!(triangulation::dual_complex, m)?)?;

@@ -38,7 +38,7 @@ fn ridge_params(
 }
 
 /// The volume of `values[i, j, k]` at `affine · (i, j, k, 1)`.
-fn volume(
+pub fn volume(
     values: &PyReadonlyArray3<'_, f64>,
     affine: &PyReadonlyArray2<'_, f64>,
 ) -> PyResult<Volume> {

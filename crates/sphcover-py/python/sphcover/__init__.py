@@ -380,14 +380,58 @@ def _sheet(d) -> Mesh:
     )
 
 
-def cover(points, normals=None, *, eps: Optional[float] = None, seed: int = 0) -> Cover:
-    """The surface cover of oriented points (thesis §3.4.1), as ``sphcover cover`` builds
-    it: balls whose local functions fit the points to ``eps`` (relative to the longest
-    bounding-box edge, default 2.5e-3). ``points`` may be a :class:`PointCloud` with normals.
+def cover(
+    points,
+    normals=None,
+    *,
+    eps: Optional[float] = None,
+    seed: int = 0,
+    values=None,
+    affine=None,
+    threshold: Optional[float] = None,
+    linear: bool = False,
+    centre_order: str = "random",
+    elimination: str = "corners",
+) -> Cover:
+    """A spherical cover, as ``sphcover cover`` builds it, of one of three inputs:
+
+    * oriented points (thesis §3.4.1): ``points`` ``(n, 3)`` and outward ``normals`` (or a
+      :class:`PointCloud` with normals); balls whose local functions fit the points to ``eps``
+      (relative to the longest bounding-box edge, default 2.5e-3);
+    * a voxel volume (thesis §3.4.2): ``points`` a :class:`Volume` or an ``(nx, ny, nz)``
+      array with ``affine`` (identity when omitted), in world coordinates;
+    * scattered samples with values: ``points`` ``(n, 3)`` and ``values`` ``(n,)``
+      (``sphcover cover --value-property``).
+
+    The volume covers take the command line's ``threshold`` (in the values' units; default
+    from the histogram), ``eps`` (RMS tolerance as a fraction of the value range, default
+    0.05), ``linear`` (the thesis' linear functions over the bounding box), ``centre_order``
+    (``"random"``, ``"deepest"``, ``"greedy"``) and ``elimination`` (``"off"``,
+    ``"centres"``, ``"corners"``).
 
     ``Cover.evaluate(x)`` gives the implicit function ``f`` (positive inside) and its
     gradient at the rows of ``x``.
     """
+    volume_options = dict(
+        threshold=threshold, eps=eps, linear=linear, centre_order=centre_order,
+        elimination=elimination, seed=seed,
+    )
+    if isinstance(points, Volume):
+        points, affine = points.values, points.affine if affine is None else affine
+    if isinstance(points, np.ndarray) and points.ndim == 3:
+        affine = np.eye(4) if affine is None else np.ascontiguousarray(affine, dtype=np.float64)
+        return _sphcover.volume_cover(
+            np.asarray(points, dtype=np.float64), affine, **volume_options
+        )
+    if values is not None:
+        return _sphcover.scattered_cover(
+            _points(points), _vector(values, "values"), **volume_options
+        )
+    if threshold is not None or linear or centre_order != "random" or elimination != "corners":
+        raise BadInputError(
+            "threshold, linear, centre_order and elimination apply to volumes and to "
+            "scattered samples (values=...) only"
+        )
     if isinstance(points, PointCloud):
         points, normals = points.points, points.normals if normals is None else normals
     if normals is None:

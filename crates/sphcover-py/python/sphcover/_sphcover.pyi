@@ -125,6 +125,28 @@ def skeleton_samples(
 def surface_cover(
     points: F64, normals: F64, eps: Optional[float] = None, seed: int = 0
 ) -> Cover: ...
+def volume_cover(
+    values: npt.NDArray[np.float64],
+    affine: F64,
+    *,
+    threshold: Optional[float] = None,
+    eps: Optional[float] = None,
+    linear: bool = False,
+    centre_order: str = "random",
+    elimination: str = "corners",
+    seed: int = 0,
+) -> Cover: ...
+def scattered_cover(
+    points: F64,
+    values: F64,
+    *,
+    threshold: Optional[float] = None,
+    eps: Optional[float] = None,
+    linear: bool = False,
+    centre_order: str = "random",
+    elimination: str = "corners",
+    seed: int = 0,
+) -> Cover: ...
 def operator_matrices(
     centres: F64,
     radii: F64,
