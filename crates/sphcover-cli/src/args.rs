@@ -105,9 +105,15 @@ pub struct ReconArgs {
     /// `.vtp`/`.vtu` for ParaView; OBJ, OFF, STL).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
-    /// Cover tolerance ε, relative to the longest bounding-box edge (default 2.5e-3).
+    /// Cover tolerance ε, relative to the longest bounding-box edge (default 2.5e-3). A given
+    /// ε is used as given (with a warning when it lies below 4× the measured noise).
     #[arg(long, value_name = "E")]
     pub eps: Option<f64>,
+    /// How ε follows the scan's noise: auto (at least 4× the measured noise; the default
+    /// without --eps), off (ε as given; the default with --eps), or the noise σ relative to
+    /// the longest bounding-box edge (at least 4× that).
+    #[arg(long, value_name = "auto|off|SIGMA", allow_hyphen_values = true)]
+    pub noise: Option<String>,
     /// Pipeline.
     #[arg(long, value_enum, default_value_t = ReconMethodArg::Integrated)]
     pub method: ReconMethodArg,

@@ -64,6 +64,14 @@ impl Reporter {
         }
     }
 
+    /// A note on what the run decided for the user (an automatic setting and its reason),
+    /// printed unless `--quiet`.
+    pub fn note(&self, message: &str) {
+        if !self.quiet {
+            eprintln!("note: {message}");
+        }
+    }
+
     /// A warning, printed unless `--quiet`.
     pub fn warn(&self, message: &str) {
         if !self.quiet {

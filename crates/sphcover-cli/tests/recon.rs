@@ -273,3 +273,86 @@ fn colours_survive_las_to_recon_to_ply() {
     }
     assert!(header.contains("quality"), "{header}");
 }
+
+#[test]
+fn a_given_eps_is_used_as_given_and_every_override_says_why() {
+    let scan = fixture("sphere_noisy_2k.ply");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(format!("{name}.ply"));
+        let report = dir.path().join(format!("{name}.json"));
+        let mut args = vec![
+            "recon",
+            scan.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let result = sphcover(&args);
+        assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        let eps = report["eps"].as_f64().unwrap();
+        (text(&result.stderr), eps, std::fs::read(&out).unwrap())
+    };
+
+    // By default the noise raises ε, and the run says so once, with the measured noise.
+    let (stderr, auto_eps, auto_mesh) = run("auto", &[]);
+    assert!(auto_eps > 4.0 * 2.5e-3, "{auto_eps}");
+    assert_eq!(
+        stderr
+            .matches("note: cover tolerance raised from 2.500e-3")
+            .count(),
+        1
+    );
+    assert!(stderr.contains("measured noise"), "{stderr}");
+
+    // A given ε is obeyed, with a warning that it lies below the noise floor, and it
+    // changes the surface.
+    let (stderr, eps, small) = run("small", &["--eps", "0.004"]);
+    assert_eq!(eps, 0.004);
+    assert!(
+        stderr.contains("warning: --eps 4.000e-3 is below"),
+        "{stderr}"
+    );
+    let (_, eps, larger) = run("larger", &["--eps", "0.008"]);
+    assert_eq!(eps, 0.008);
+    assert_ne!(small, larger);
+    assert_ne!(small, auto_mesh);
+
+    // --noise auto applies the floor to a given ε; off keeps the default ε; a value is the
+    // noise to keep to.
+    let (stderr, eps, _) = run("given_auto", &["--eps", "0.004", "--noise", "auto"]);
+    assert_eq!(eps, auto_eps);
+    assert!(stderr.contains("raised from 4.000e-3"), "{stderr}");
+    let (stderr, eps, _) = run("off", &["--noise", "off"]);
+    assert_eq!(eps, 2.5e-3);
+    assert!(
+        stderr.contains("warning: --eps 2.500e-3 is below"),
+        "{stderr}"
+    );
+    let (stderr, eps, _) = run("value", &["--noise", "0.002"]);
+    assert_eq!(eps, 0.008);
+    assert!(stderr.contains("given noise 2.000e-3"), "{stderr}");
+
+    for bad in ["loud", "-1"] {
+        let out = dir.path().join("bad.ply");
+        let result = sphcover(&[
+            "recon",
+            scan.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--noise",
+            bad,
+        ]);
+        assert_eq!(result.status.code(), Some(2), "{bad}");
+        assert!(
+            text(&result.stderr).contains("--noise"),
+            "{}",
+            text(&result.stderr)
+        );
+        assert!(!out.exists());
+    }
+}

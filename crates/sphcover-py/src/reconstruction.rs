@@ -7,8 +7,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sphcover_core::PointCloud;
 use sphcover_recon::{
-    BudgetFit, Method, ReconOptions, Reconstruction, TrimOption, fit_memory_budget,
-    reconstruct_until,
+    BudgetFit, Method, NoiseOption, ReconOptions, Reconstruction, ToleranceNote, TrimOption,
+    fit_memory_budget, reconstruct_until,
 };
 
 use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
@@ -50,6 +50,23 @@ fn trim(value: Option<&Bound<'_, PyAny>>) -> PyResult<TrimOption> {
     Ok(TrimOption::Distance(value.extract::<f64>()?))
 }
 
+/// `noise`: None, "auto", "off" or the noise σ.
+fn noise_option(value: Option<&Bound<'_, PyAny>>) -> PyResult<Option<NoiseOption>> {
+    let Some(value) = value.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    if let Ok(text) = value.extract::<String>() {
+        return match text.as_str() {
+            "auto" => Ok(Some(NoiseOption::Auto)),
+            "off" => Ok(Some(NoiseOption::Off)),
+            _ => Err(bad_input(format!(
+                "noise {text:?} must be \"auto\", \"off\" or a non-negative number"
+            ))),
+        };
+    }
+    Ok(Some(NoiseOption::Value(value.extract::<f64>()?)))
+}
+
 /// Reconstructs the surface of the points; returns a dict of the mesh's arrays, the per-point
 /// confidence and outlier labels, the final cover and the statistics.
 #[pyfunction]
@@ -57,7 +74,7 @@ fn trim(value: Option<&Bound<'_, PyAny>>) -> PyResult<TrimOption> {
     points, normals = None, confidence = None, colors = None, *, method_name = "integrated", eps = None,
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
     normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
-    threads = None, progress = None, max_memory = None,
+    threads = None, progress = None, max_memory = None, noise = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct<'py>(
@@ -80,11 +97,13 @@ pub fn reconstruct<'py>(
     threads: Option<usize>,
     progress: Option<&Bound<'py, PyAny>>,
     max_memory: Option<&Bound<'py, PyAny>>,
+    noise: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let budget = byte_size(max_memory)?;
     let options = ReconOptions {
         method: method(method_name)?,
         eps,
+        noise: noise_option(noise)?,
         k,
         trim: trim(trim_value)?,
         depth,
@@ -132,11 +151,22 @@ pub fn reconstruct<'py>(
         }
         None => None,
     };
+    let run_params = params.clone();
     let recon = run(py, progress, threads, move |context| {
-        reconstruct_until(&cloud, &params, &|s| context.stage(s), context.stop())
+        reconstruct_until(&cloud, &run_params, &|s| context.stage(s), context.stop())
             .map_err(recon_error)
     })?;
-    into_dict(py, recon, memory)
+    let note = ToleranceNote::of(&params, &recon.stats);
+    if let Some(note @ ToleranceNote::BelowFloor { .. }) = note {
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        let message = std::ffi::CString::new(note.message("eps", "noise"))?;
+        PyErr::warn(py, &category, &message, 1)?;
+    }
+    let out = into_dict(py, recon, memory)?;
+    let stats = out.get_item("stats")?.expect("into_dict sets the stats");
+    stats.set_item("eps_requested", params.cover.eps)?;
+    stats.set_item("tolerance_note", note.map(|n| n.message("eps", "noise")))?;
+    Ok(out)
 }
 
 fn into_dict(
@@ -193,6 +223,7 @@ fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'p
     d.set_item("graph_mean_degree", s.graph_mean_degree)?;
     d.set_item("inconsistent_supports", s.inconsistent_supports)?;
     d.set_item("eps", s.eps)?;
+    d.set_item("noise_floor", s.noise_floor)?;
     d.set_item("spacing", s.scan.spacing)?;
     d.set_item("noise", s.scan.noise)?;
     d.set_item("depth", s.depth)?;

@@ -81,10 +81,12 @@ pub use memory_budget::{BudgetError, BudgetFit, fit_memory_budget};
 pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel};
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
-pub use options::{MAX_DEPTH, MAX_NORMAL_NEIGHBOURS, OptionError, ReconOptions, TrimOption};
+pub use options::{
+    MAX_DEPTH, MAX_NORMAL_NEIGHBOURS, NoiseOption, OptionError, ReconOptions, TrimOption,
+};
 pub use pipeline::{
-    Method, ReconError, ReconParams, ReconStats, Reconstruction, Trim, default_depth, reconstruct,
-    reconstruct_until, stage_names,
+    DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Reconstruction,
+    ToleranceNote, Trim, default_depth, reconstruct, reconstruct_until, stage_names,
 };
 pub use polygonise::{
     GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,

@@ -28,14 +28,29 @@ pub enum TrimOption {
     Distance(f64),
 }
 
+/// How the cover tolerance follows the scan's noise ([`ReconOptions::noise`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NoiseOption {
+    /// ε is at least 4× the measured noise (the default without a given ε).
+    Auto,
+    /// ε as given (the default with a given ε).
+    Off,
+    /// ε is at least 4× this noise σ, relative to the longest bounding-box edge.
+    Value(f64),
+}
+
 /// The user-facing options of a reconstruction; `Default` gives the defaults of the command
 /// line. Every `None` takes the library default of [`ReconParams`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ReconOptions {
     /// The pipeline.
     pub method: Method,
-    /// Cover tolerance ε relative to the longest bounding-box edge, in (0, 1).
+    /// Cover tolerance ε relative to the longest bounding-box edge, in (0, 1). A given ε is
+    /// used as given unless [`ReconOptions::noise`] says otherwise.
     pub eps: Option<f64>,
+    /// How ε follows the scan's noise; `None`: [`NoiseOption::Auto`] without a given ε,
+    /// [`NoiseOption::Off`] with one.
+    pub noise: Option<NoiseOption>,
     /// Graph-cut ratio of terminal to edge cost (both graph cuts), positive.
     pub k: Option<f64>,
     /// Trimming of surface far from the samples.
@@ -59,6 +74,7 @@ impl Default for ReconOptions {
         ReconOptions {
             method: Method::Integrated,
             eps: None,
+            noise: None,
             k: None,
             trim: TrimOption::Off,
             depth: None,
@@ -130,8 +146,24 @@ impl ReconOptions {
                 format!("in 3..={MAX_NORMAL_NEIGHBOURS}"),
             ));
         }
+        let (noise_tolerance, noise) = match (self.noise, self.eps) {
+            (Some(NoiseOption::Auto), _) | (None, None) => (defaults.noise_tolerance, None),
+            (Some(NoiseOption::Off), _) | (None, Some(_)) => (None, None),
+            (Some(NoiseOption::Value(v)), _) if v.is_finite() && v >= 0.0 => {
+                (defaults.noise_tolerance, Some(v))
+            }
+            (Some(NoiseOption::Value(v)), _) => {
+                return Err(OptionError::new(
+                    "noise",
+                    v,
+                    "auto, off or a non-negative number",
+                ));
+            }
+        };
         let mut params = ReconParams {
             method: self.method,
+            noise_tolerance,
+            noise,
             cover: sphcover_core::SurfaceCoverParams {
                 eps: self.eps.unwrap_or(defaults.cover.eps),
                 seed: self.seed,

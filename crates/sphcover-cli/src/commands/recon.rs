@@ -7,8 +7,8 @@ use serde_json::json;
 use sphcover_core::PointCloud;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
-    BudgetFit, Method, ReconError, ReconOptions, ReconParams, Reconstruction, TrimOption,
-    fit_memory_budget, reconstruct,
+    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction,
+    ToleranceNote, TrimOption, fit_memory_budget, reconstruct,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -54,6 +54,13 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
     }
     details(&recon, reporter);
+    match ToleranceNote::of(&params, &recon.stats) {
+        Some(note @ ToleranceNote::Raised { .. }) => {
+            reporter.note(&note.message("--eps", "--noise"))
+        }
+        Some(note) => reporter.warn(&note.message("--eps", "--noise")),
+        None => {}
+    }
 
     let stage = reporter.stage("write");
     let options = WriteOptions {
@@ -90,7 +97,8 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         io::write_cover(path, &recon.cover, &meta, &options)?;
     }
     if let Some(path) = &args.report {
-        let text = serde_json::to_string_pretty(&report_json(args, &recon, memory.as_ref()))?;
+        let text =
+            serde_json::to_string_pretty(&report_json(args, &params, &recon, memory.as_ref()))?;
         io::write_atomic(path, std::slice::from_ref(&args.input), |w| {
             w.write_all(text.as_bytes())
         })?;
@@ -172,6 +180,20 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
             }
         },
     };
+    let noise = match args.noise.as_deref() {
+        None => None,
+        Some("auto") => Some(NoiseOption::Auto),
+        Some("off") => Some(NoiseOption::Off),
+        Some(text) => match text.parse::<f64>() {
+            Ok(v) => Some(NoiseOption::Value(v)),
+            Err(_) => {
+                return Err(BadInput(format!(
+                    "--noise {text} must be auto, off or a non-negative number"
+                ))
+                .into());
+            }
+        },
+    };
     let options = ReconOptions {
         method: match args.method {
             ReconMethodArg::Integrated => Method::Integrated,
@@ -180,6 +202,7 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
             ReconMethodArg::Pu => Method::PartitionOfUnity,
         },
         eps: args.eps,
+        noise,
         k: args.k,
         trim,
         depth: args.depth,
@@ -243,6 +266,7 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
 
 fn report_json(
     args: &ReconArgs,
+    params: &ReconParams,
     recon: &Reconstruction,
     memory: Option<&BudgetFit>,
 ) -> serde_json::Value {
@@ -265,6 +289,10 @@ fn report_json(
         "graph_mean_degree": s.graph_mean_degree,
         "inconsistent_supports": s.inconsistent_supports,
         "depth": s.depth,
+        "eps_requested": params.cover.eps,
+        "eps": s.eps,
+        "noise": s.scan.noise,
+        "noise_floor": s.noise_floor,
         "vertices": s.vertices,
         "triangles": s.triangles,
         "components": s.components,

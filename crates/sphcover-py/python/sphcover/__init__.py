@@ -228,6 +228,7 @@ def reconstruct(
     threads: Optional[int] = None,
     progress: Progress = None,
     max_memory: Union[None, int, str] = None,
+    noise: Union[None, str, float] = None,
 ) -> Mesh:
     """Reconstructs a surface mesh from scanned points, as ``sphcover recon`` does.
 
@@ -237,7 +238,9 @@ def reconstruct(
     to the vertices (the colour of the nearest inlier sample).
     Keywords are the command line's options: ``method`` (``"integrated"``, ``"graphcut"``,
     ``"diffusion"``, ``"pu"``), ``eps`` (cover tolerance relative to the longest bounding-box
-    edge), ``k`` (graph-cut ratio), ``trim`` (True: drop surface farther than 3 sample
+    edge, used as given), ``noise`` (``"auto"``: ε at least 4× the measured noise, the default
+    without ``eps``; ``"off"``: ε as given, the default with ``eps``; a number: the noise σ to
+    keep to), ``k`` (graph-cut ratio), ``trim`` (True: drop surface farther than 3 sample
     spacings from every sample; a number: that distance relative to the longest edge),
     ``depth``, ``normal_fit``, ``position_fit``, ``normal_neighbours``, ``estimate_normals``,
     ``refine`` (False is ``--no-refine``), ``seed``; ``threads`` the worker threads (the
@@ -279,6 +282,7 @@ def reconstruct(
             threads=threads,
             progress=callback,
             max_memory=max_memory,
+            noise=noise,
         ),
     )
     return Mesh(

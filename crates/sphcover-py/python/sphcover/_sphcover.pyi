@@ -98,6 +98,7 @@ def reconstruct(
     threads: Optional[int] = None,
     progress: ProgressCallback = None,
     max_memory: Union[None, int, str] = None,
+    noise: Union[None, str, float] = None,
 ) -> Dict[str, Any]: ...
 def skeleton_volume(
     values: npt.NDArray[np.float64],

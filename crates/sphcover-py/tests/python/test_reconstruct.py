@@ -66,6 +66,25 @@ def test_max_memory_decides_as_the_command_line_does(fixtures, run_cli, tmp_path
     assert "memory" not in sphcover.reconstruct(sphcover.read(scan), depth=5).stats
 
 
+def test_a_given_eps_is_obeyed_and_overrides_are_reported(fixtures, run_cli, tmp_path):
+    scan = fixtures / "sphere_noisy_2k.ply"
+    cloud = sphcover.read(scan)
+    auto = sphcover.reconstruct(cloud)
+    assert auto.stats["eps"] > auto.stats["eps_requested"] == 2.5e-3
+    assert auto.stats["tolerance_note"].startswith("cover tolerance raised from 2.500e-3")
+    run_cli("recon", scan, "-o", tmp_path / "cli.ply", "--eps", "0.004")
+    with pytest.warns(UserWarning, match="eps 4.000e-3 is below"):
+        mesh, written = python_recon_bytes(tmp_path, scan, eps=0.004)
+    assert written == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["eps"] == 0.004
+    assert sphcover.reconstruct(cloud, eps=0.004, noise="auto").stats["eps"] == auto.stats["eps"]
+    assert sphcover.reconstruct(cloud, noise=0.002).stats["eps"] == 0.008
+    with pytest.raises(sphcover.BadInputError, match="noise"):
+        sphcover.reconstruct(cloud, noise="loud")
+
+
+# The ε given lies below the noise floor: the warning is the subject of the test above.
+@pytest.mark.filterwarnings("ignore:eps 4.000e-3 is below")
 def test_options_match_the_command_line_flags(fixtures, run_cli, tmp_path):
     scan = fixtures / "sphere_noisy_2k.ply"
     run_cli(

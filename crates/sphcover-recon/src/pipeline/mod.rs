@@ -90,9 +90,15 @@ pub struct ReconParams {
     pub seed_confidence: f64,
     /// Spacing, noise and isolated samples of the scan (beyond the thesis).
     pub scan: ScanStatisticsParams,
-    /// The cover tolerance is at least this multiple of the measured noise σ̂ (see
-    /// [`scan_statistics()`](crate::scan_statistics())); `None` keeps ε as given.
+    /// The cover tolerance is at least this multiple of the scan's noise σ (see
+    /// [`scan_statistics()`](crate::scan_statistics())); `None` keeps ε as given. The floor
+    /// is recorded either way ([`ReconStats::noise_floor`], with
+    /// [`DEFAULT_NOISE_TOLERANCE`] when `None`), so that a caller can say when a given ε
+    /// lies below it.
     pub noise_tolerance: Option<f64>,
+    /// The noise σ of the scan, relative to the longest edge of the unit frame, when it is
+    /// known; `None` measures it.
+    pub noise: Option<f64>,
     /// Leave isolated samples out of the cover and label them outliers.
     pub drop_isolated: bool,
     /// Move the vertices onto quadrics fitted to the samples near them (see
@@ -116,7 +122,8 @@ impl Default for ReconParams {
             min_component_fraction: 0.01,
             seed_confidence: 0.0,
             scan: ScanStatisticsParams::default(),
-            noise_tolerance: Some(4.0),
+            noise_tolerance: Some(DEFAULT_NOISE_TOLERANCE),
+            noise: None,
             drop_isolated: true,
             refine: Some(VertexRefinementParams::default()),
         }
@@ -268,6 +275,80 @@ impl ReconError {
     }
 }
 
+/// The multiple of the noise σ the cover tolerance keeps to by default: with a smaller ε
+/// the local functions fit the noise rather than the surface, and the supports shrink to
+/// the noise's scale.
+pub const DEFAULT_NOISE_TOLERANCE: f64 = 4.0;
+
+/// What a run did with the requested cover tolerance, worth telling the user once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ToleranceNote {
+    /// ε was raised to the noise floor.
+    Raised {
+        /// The ε asked for.
+        requested: f64,
+        /// The ε used: `factor × noise`.
+        used: f64,
+        /// The multiple of the noise.
+        factor: f64,
+        /// The noise σ.
+        noise: f64,
+        /// Whether σ was measured (else given).
+        measured: bool,
+    },
+    /// The ε asked for lies below the noise floor and was used as asked.
+    BelowFloor {
+        /// The ε asked for.
+        requested: f64,
+        /// The floor: [`DEFAULT_NOISE_TOLERANCE`] × the measured noise.
+        floor: f64,
+    },
+}
+
+impl ToleranceNote {
+    /// The note for a run with `params` that gave `stats`, if there is one.
+    pub fn of(params: &ReconParams, stats: &ReconStats) -> Option<ToleranceNote> {
+        let requested = params.cover.eps;
+        if stats.eps > requested {
+            Some(ToleranceNote::Raised {
+                requested,
+                used: stats.eps,
+                factor: params.noise_tolerance.unwrap_or(DEFAULT_NOISE_TOLERANCE),
+                noise: params.noise.unwrap_or(stats.scan.noise),
+                measured: params.noise.is_none(),
+            })
+        } else if stats.noise_floor > requested {
+            Some(ToleranceNote::BelowFloor {
+                requested,
+                floor: stats.noise_floor,
+            })
+        } else {
+            None
+        }
+    }
+
+    /// The note for people, with the options spelled `eps_option` and `noise_option`
+    /// (`--eps`, `--noise`; `eps`, `noise`). Tolerances are relative to the longest edge of
+    /// the bounding box.
+    pub fn message(&self, eps_option: &str, noise_option: &str) -> String {
+        match *self {
+            ToleranceNote::Raised {
+                requested,
+                used,
+                factor,
+                noise,
+                measured,
+            } => format!(
+                "cover tolerance raised from {requested:.3e} to {used:.3e}, {factor} × the scan's {} noise {noise:.3e}, so that the local functions fit the surface and not its noise; {noise_option} off keeps {requested:.3e} ({eps_option} sets it)",
+                if measured { "measured" } else { "given" }
+            ),
+            ToleranceNote::BelowFloor { requested, floor } => format!(
+                "{eps_option} {requested:.3e} is below {floor:.3e}, {DEFAULT_NOISE_TOLERANCE} × the scan's measured noise: the surface may follow the noise; used as given ({noise_option} auto raises it)"
+            ),
+        }
+    }
+}
+
 /// Counts and timings of [`reconstruct`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ReconStats {
@@ -281,6 +362,9 @@ pub struct ReconStats {
     pub scan: ScanStatistics,
     /// The cover tolerance used (ε, or more on a noisy scan).
     pub eps: f64,
+    /// The least tolerance the scan's noise asks for: [`ReconParams::noise_tolerance`] (or
+    /// [`DEFAULT_NOISE_TOLERANCE`]) times the noise σ, given or measured.
+    pub noise_floor: f64,
     /// Normals were estimated (the input had none).
     pub normals_estimated: bool,
     /// Samples labelled outliers.

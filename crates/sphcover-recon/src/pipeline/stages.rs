@@ -14,7 +14,9 @@ use sphcover_core::{
 };
 use sphcover_ops::{OpsError, PairGeometry};
 
-use super::{Method, ReconError, ReconParams, ReconStats, Trim, default_depth};
+use super::{
+    DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, default_depth,
+};
 use crate::confidence::{
     SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
 };
@@ -238,8 +240,11 @@ fn measure_scan(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
             index = PointIndex::new(&ctx.points)?;
         }
     }
+    let noise = params.noise.unwrap_or(scan.noise);
+    let factor = params.noise_tolerance.unwrap_or(DEFAULT_NOISE_TOLERANCE);
+    ctx.stats.noise_floor = factor * noise;
     ctx.stats.eps = match params.noise_tolerance {
-        Some(factor) => params.cover.eps.max(factor * scan.noise),
+        Some(_) => params.cover.eps.max(ctx.stats.noise_floor),
         None => params.cover.eps,
     };
     ctx.index = Some(index);
