@@ -356,3 +356,33 @@ fn a_given_eps_is_used_as_given_and_every_override_says_why() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn boundaries_of_a_trimmed_surface_share_their_vertices() {
+    // The hippo scan is open underneath; trimming leaves boundaries, and where a boundary
+    // pinched a vertex the surface used to keep two copies of it at one position.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hippo_trimmed.ply");
+    let input = fixture("real/hippo2.ply");
+    let run = sphcover(&[
+        "recon",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--trim",
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let mesh = io::read_mesh(&out, &ReadOptions::default()).unwrap();
+    let mut positions: Vec<[u64; 3]> = mesh
+        .vertices
+        .iter()
+        .map(|v| v.to_array().map(f64::to_bits))
+        .collect();
+    positions.sort_unstable();
+    positions.dedup();
+    assert_eq!(positions.len(), mesh.vertices.len(), "coincident vertices");
+    let topology = MeshTopology::of(&mesh);
+    assert!(topology.is_manifold(), "{}", summary(&topology));
+    assert_eq!(topology.non_manifold_vertices, 0, "{}", summary(&topology));
+    assert!(topology.boundary_edges > 0, "{}", summary(&topology));
+}

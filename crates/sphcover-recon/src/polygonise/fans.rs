@@ -1,19 +1,96 @@
-//! Splitting every vertex whose triangles form several fans into one vertex per fan.
+//! Vertices whose triangles form several fans, made single.
 //!
 //! Where the meshed region ends (`f` undefined, trimming) a vertex can keep two separate
-//! fans. This last pass makes the mesh a 2-manifold there; it works on the finished mesh
-//! alone, after trimming, and knows nothing of the grid.
+//! fans, and where two sheets pass through one cell two closed fans can share a vertex. This
+//! last pass makes the mesh a 2-manifold there; it works on the finished mesh alone, after
+//! trimming, and knows nothing of the grid.
+//!
+//! A closed fan (a full ring of triangles around the vertex) belongs to a closed sheet and is
+//! kept whole: each closed fan gets a copy of the vertex. An open fan (a path of triangles:
+//! the vertex is on a boundary) is not worth a copy: two copies at one position are a
+//! boundary that other tools weld back into a pinched vertex, and count differently (the
+//! Euler characteristic of the file then depends on the reader). So at a pinched vertex the
+//! open fans are removed, except the largest when no closed fan is there; removing them can
+//! pinch a neighbour, so the pass repeats, and splits whatever is left after a few rounds.
 
 use rayon::prelude::*;
-use sphcover_core::{DisjointSets, TriMesh, VertexTriangles};
+use sphcover_core::{DisjointSets, TriMesh, VertexTriangles, remove_unused_vertices};
 
-/// Splits every vertex whose triangles form several fans (joined through edges shared by
-/// exactly two of them) into one vertex per fan; returns how many new vertices were made.
-pub(super) fn split_fans(mesh: &mut TriMesh) -> usize {
-    let n = mesh.vertices.len();
+/// Rounds of open-fan removal before the remaining pinches are split.
+const REMOVAL_ROUNDS: usize = 4;
+
+/// What [`resolve_fans`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct FanRepair {
+    /// Triangles of open fans removed.
+    pub removed_triangles: usize,
+    /// Copies of vertices made for closed fans (and for pinches left after the rounds).
+    pub split_vertices: usize,
+}
+
+/// Makes every vertex a single fan (see the module docs).
+pub(super) fn resolve_fans(mesh: &mut TriMesh) -> FanRepair {
+    let mut repair = FanRepair::default();
+    for _ in 0..REMOVAL_ROUNDS {
+        let pinches = pinched_vertices(mesh);
+        let mut remove = vec![false; mesh.triangles.len()];
+        let mut any = false;
+        for pinch in &pinches {
+            for (t, keep) in pinch.tris.iter().zip(pinch.kept_fans()) {
+                if !keep {
+                    remove[*t as usize] = true;
+                    any = true;
+                }
+            }
+        }
+        if !any {
+            break;
+        }
+        let before = mesh.triangles.len();
+        let mut k = remove.iter();
+        mesh.triangles.retain(|_| !*k.next().unwrap_or(&false));
+        repair.removed_triangles += before - mesh.triangles.len();
+        remove_unused_vertices(mesh);
+    }
+    repair.split_vertices = split_fans(mesh);
+    repair
+}
+
+/// A vertex whose triangles form several fans.
+struct Pinch {
+    vertex: usize,
+    /// Its incident triangles.
+    tris: Vec<u32>,
+    /// The fan of each.
+    fan: Vec<u32>,
+    /// Whether each fan is closed, by fan number.
+    closed: Vec<bool>,
+}
+
+impl Pinch {
+    /// Whether each incident triangle stays: closed fans do; open fans only when no closed
+    /// fan is there, and then only the largest (ties: the lowest fan number).
+    fn kept_fans(&self) -> impl Iterator<Item = bool> + '_ {
+        let fans = self.closed.len();
+        let mut size = vec![0usize; fans];
+        for &f in &self.fan {
+            size[f as usize] += 1;
+        }
+        let largest_open = if self.closed.iter().any(|&c| c) {
+            None
+        } else {
+            (0..fans).rev().max_by_key(|&f| size[f])
+        };
+        self.fan
+            .iter()
+            .map(move |&f| self.closed[f as usize] || Some(f as usize) == largest_open)
+    }
+}
+
+/// The vertices of several fans, ascending.
+fn pinched_vertices(mesh: &TriMesh) -> Vec<Pinch> {
     let incident = VertexTriangles::of(mesh);
-    // The vertices of several fans (few), ascending, with the fan of each incident triangle.
-    let split: Vec<(usize, Vec<u32>)> = (0..n)
+    (0..mesh.vertices.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter_map(|v| {
@@ -21,11 +98,54 @@ pub(super) fn split_fans(mesh: &mut TriMesh) -> usize {
             if is_single_fan(v as u32, tris, &mesh.triangles) == Some(true) {
                 return None;
             }
-            fans_of(v as u32, tris, &mesh.triangles).map(|fan| (v, fan))
+            let fan = fans_of(v as u32, tris, &mesh.triangles)?;
+            let closed = closed_fans(v as u32, tris, &fan, &mesh.triangles);
+            Some(Pinch {
+                vertex: v,
+                tris: tris.to_vec(),
+                fan,
+                closed,
+            })
         })
-        .collect();
+        .collect()
+}
+
+/// Whether each fan of `v` is a full ring: every edge `(v, w)` of its triangles is held by
+/// exactly two of them.
+fn closed_fans(v: u32, tris: &[u32], fan: &[u32], triangles: &[[u32; 3]]) -> Vec<bool> {
+    let fans = fan.iter().copied().max().map_or(0, |m| m as usize + 1);
+    let mut edges: Vec<(u32, u32)> = Vec::with_capacity(2 * tris.len());
+    for (&t, &f) in tris.iter().zip(fan) {
+        edges.extend(
+            triangles[t as usize]
+                .iter()
+                .filter(|&&w| w != v)
+                .map(|&w| (f, w)),
+        );
+    }
+    edges.sort_unstable();
+    let mut closed = vec![true; fans];
+    for group in edges.chunk_by(|a, b| a == b) {
+        if group.len() != 2 {
+            closed[group[0].0 as usize] = false;
+        }
+    }
+    closed
+}
+
+/// Splits every vertex whose triangles form several fans (joined through edges shared by
+/// exactly two of them) into one vertex per fan; returns how many new vertices were made.
+fn split_fans(mesh: &mut TriMesh) -> usize {
+    let n = mesh.vertices.len();
+    let split = pinched_vertices(mesh);
     let mut added = 0;
-    for (v, fan) in split {
+    for Pinch {
+        vertex: v,
+        tris,
+        fan,
+        ..
+    } in split
+    {
         let count = fan.iter().copied().max().unwrap_or(0) as usize + 1;
         let copies: Vec<u32> = std::iter::once(v as u32)
             .chain((1..count).map(|k| (n + added + k - 1) as u32))
@@ -38,9 +158,12 @@ pub(super) fn split_fans(mesh: &mut TriMesh) -> usize {
             if let Some(values) = &mut mesh.values {
                 values.push(values[v]);
             }
+            if let Some(colors) = &mut mesh.colors {
+                colors.push(colors[v]);
+            }
         }
         added += count - 1;
-        for (&t, &f) in incident.triangles_at(v).iter().zip(&fan) {
+        for (&t, &f) in tris.iter().zip(&fan) {
             for corner in &mut mesh.triangles[t as usize] {
                 if *corner == v as u32 {
                     *corner = copies[f as usize];
@@ -200,7 +323,69 @@ mod tests {
         assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
     }
 
+    #[test]
+    fn open_fans_at_a_pinch_are_removed_and_closed_ones_split() {
+        let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let tet = |v: [u32; 4]| faces.map(|f: [u32; 3]| f.map(|k| v[k as usize]));
+        let vertices = vec![
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            -DVec3::X,
+            -DVec3::Y,
+            -DVec3::Z,
+        ];
+        // Two closed sheets at vertex 0: both kept, the vertex split.
+        let mut closed = TriMesh::new(
+            vertices.clone(),
+            [tet([0, 1, 2, 3]), tet([0, 4, 5, 6])].concat(),
+        );
+        let repair = resolve_fans(&mut closed);
+        assert_eq!((repair.removed_triangles, repair.split_vertices), (0, 1));
+        assert!(MeshTopology::of(&closed).is_closed_oriented_manifold());
+
+        // A bow tie of an open fan of two triangles and one of one: the smaller goes, and no
+        // vertex is duplicated.
+        let mut bow_tie = TriMesh::new(vertices.clone(), vec![[0, 1, 2], [0, 2, 3], [0, 4, 5]]);
+        let repair = resolve_fans(&mut bow_tie);
+        assert_eq!((repair.removed_triangles, repair.split_vertices), (1, 0));
+        assert_eq!(bow_tie.triangles.len(), 2);
+        assert_eq!(bow_tie.vertices.len(), 4);
+        let topo = MeshTopology::of(&bow_tie);
+        assert!(
+            topo.is_manifold() && topo.non_manifold_vertices == 0,
+            "{topo:?}"
+        );
+
+        // An open fan touching a closed sheet: the open fan goes, the sheet stays closed.
+        let mut touching = TriMesh::new(
+            vertices,
+            [tet([0, 1, 2, 3]).to_vec(), vec![[0, 4, 5], [0, 5, 6]]].concat(),
+        );
+        let repair = resolve_fans(&mut touching);
+        assert_eq!((repair.removed_triangles, repair.split_vertices), (2, 0));
+        assert!(MeshTopology::of(&touching).is_closed_oriented_manifold());
+    }
+
     proptest! {
+        /// Whatever the triangles, the repair leaves every vertex a single fan and the mesh
+        /// consistent.
+        #[test]
+        fn resolved_meshes_have_single_fans(
+            triangles in prop::collection::vec([0u32..8, 0u32..8, 0u32..8], 1..24),
+        ) {
+            let triangles: Vec<[u32; 3]> = triangles
+                .into_iter()
+                .filter(|[a, b, c]| a != b && b != c && a != c)
+                .collect();
+            let vertices: Vec<DVec3> = (0..8).map(|i| DVec3::new(i as f64, (i * i) as f64, 1.0)).collect();
+            let mut mesh = TriMesh::new(vertices, triangles);
+            resolve_fans(&mut mesh);
+            prop_assert!(pinched_vertices(&mesh).is_empty());
+            prop_assert!(mesh.check().is_ok());
+        }
+
         /// The quick fan test agrees with the union–find of `fans_of` wherever it decides: on
         /// random triangles around vertex 0 over a few other vertices (closed and open fans,
         /// several fans, edges held by three or more triangles, repeated triangles).

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use bricks::brick_of;
 use extract::extract;
-use fans::split_fans;
+use fans::resolve_fans;
 use grid::{Grid, KeyMap, grid_step, pack_clamped, unpack_clamped};
 use search::{Search, project_seeds};
 use trim::trim;
@@ -152,8 +152,11 @@ pub struct PolygoniseStats {
     /// Faces where both cells' polygons use both crossing segments (a tube through the
     /// face): each segment got a vertex of its own on the face.
     pub tube_faces: usize,
-    /// Vertices split because their triangles formed several fans.
+    /// Vertices split because their triangles formed several closed fans.
     pub split_vertices: usize,
+    /// Triangles removed at vertices where a boundary pinched them (open fans beside
+    /// another fan), so that boundaries share their vertices.
+    pub pinch_triangles: usize,
     /// Time spent evaluating `f` at grid vertices (part of the search).
     pub evaluation_time: Duration,
     /// Time of the search over cells, from the seeds.
@@ -339,7 +342,9 @@ pub fn polygonise_blending(
     if let Some(limit) = params.trim {
         stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
     }
-    stats.split_vertices = split_fans(&mut mesh);
+    let fans = resolve_fans(&mut mesh);
+    stats.split_vertices = fans.split_vertices;
+    stats.pinch_triangles = fans.removed_triangles;
     stats.total_time = start.elapsed();
     Ok((mesh, stats))
 }
