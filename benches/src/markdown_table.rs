@@ -84,9 +84,9 @@ pub fn parse_count(s: &str) -> Option<usize> {
 
 /// A point count as written in tables: `100K`, `362K`, `1M`, `1.5M`, or the plain number.
 pub fn format_count(n: usize) -> String {
-    if n >= 1_000_000 && n % 100_000 == 0 {
+    if n >= 1_000_000 && n.is_multiple_of(100_000) {
         format!("{}M", n as f64 / 1e6)
-    } else if n >= 1000 && n % 1000 == 0 {
+    } else if n >= 1000 && n.is_multiple_of(1000) {
         format!("{}K", n / 1000)
     } else {
         n.to_string()

@@ -313,10 +313,10 @@ impl Octree<'_> {
                             None if level == 0 => self.samples.index.len(),
                             None => 0,
                         };
-                        if parent_points >= BOUND_FIRST_POINTS {
-                            if let Some(leaf) = self.bound_cell(sample, level, key) {
-                                return Some(leaf);
-                            }
+                        if parent_points >= BOUND_FIRST_POINTS
+                            && let Some(leaf) = self.bound_cell(sample, level, key)
+                        {
+                            return Some(leaf);
                         }
                         self.fit_cell(cand, level, key, false)
                     },

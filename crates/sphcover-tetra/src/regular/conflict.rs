@@ -102,10 +102,10 @@ impl RegularTriangulation {
             None => {
                 // Near-zero orientations, mostly exact zeros on grids: plain f64 settles them
                 // when the grid is fine enough, before the out-of-line exact stages.
-                if self.grid_orient_limit != 0.0 {
-                    if let Some(s) = orient3d_grid(pa, pb, pc, pd, self.grid_orient_limit) {
-                        return s;
-                    }
+                if self.grid_orient_limit != 0.0
+                    && let Some(s) = orient3d_grid(pa, pb, pc, pd, self.grid_orient_limit)
+                {
+                    return s;
                 }
                 self.orient_exact(ids)
             }
@@ -151,10 +151,10 @@ impl RegularTriangulation {
         q: &Point,
         wq: f64,
     ) -> i32 {
-        if self.grid_inverse_unit != 0.0 {
-            if let Some(s) = grid_lifted_sign(p, w, q, wq, self.grid_inverse_unit) {
-                return s;
-            }
+        if self.grid_inverse_unit != 0.0
+            && let Some(s) = grid_lifted_sign(p, w, q, wq, self.grid_inverse_unit)
+        {
+            return s;
         }
         if let Some((e, ic)) = &self.grid {
             let iq = ic[v as usize];
@@ -168,10 +168,10 @@ impl RegularTriangulation {
                     range |= d.abs();
                 }
             }
-            if range < 1 << 22 {
-                if let Some(s) = lifted_sign_fixed(&ints, *e, w, wq) {
-                    return s;
-                }
+            if range < 1 << 22
+                && let Some(s) = lifted_sign_fixed(&ints, *e, w, wq)
+            {
+                return s;
             }
         }
         power_test_exact(p, w, q, wq)
