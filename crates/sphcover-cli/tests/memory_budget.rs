@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use sphcover_recon::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL};
-use support::{fibonacci_sphere, files_in, sphcover, text, write_points_ply};
+use support::{fibonacci_sphere, files_in, recon_with_report, sphcover, text, write_points_ply};
 
 const LIMIT: Duration = Duration::from_secs(120);
 /// Points of the test scan; its default depth is 6 (the coarsest default).
@@ -26,16 +26,7 @@ fn recon(scan: &std::path::Path, extra: &[&str]) -> (std::process::Output, PathB
     let dir = scan.parent().unwrap();
     let out = dir.join("mesh.ply");
     let report = dir.join("report.json");
-    let mut args = vec![
-        "recon",
-        scan.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    (sphcover(&args, LIMIT), out, report)
+    (recon_with_report(scan, &out, &report, extra), out, report)
 }
 
 fn report(path: &std::path::Path) -> serde_json::Value {

@@ -4,7 +4,7 @@ mod support;
 
 use sphcover_core::MeshTopology;
 use sphcover_core::io::{self, ReadOptions};
-use support::{fixture, run as sphcover, text};
+use support::{fixture, recon_with_report, run as sphcover, text};
 
 fn summary(t: &MeshTopology) -> String {
     format!(
@@ -281,16 +281,7 @@ fn a_given_eps_is_used_as_given_and_every_override_says_why() {
     let run = |name: &str, extra: &[&str]| {
         let out = dir.path().join(format!("{name}.ply"));
         let report = dir.path().join(format!("{name}.json"));
-        let mut args = vec![
-            "recon",
-            scan.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--report",
-            report.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        let result = sphcover(&args);
+        let result = recon_with_report(&scan, &out, &report, extra);
         assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
         let report: serde_json::Value =
             serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();

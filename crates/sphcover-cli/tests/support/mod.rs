@@ -47,6 +47,20 @@ pub fn run(args: &[&str]) -> Output {
     sphcover(args, Duration::from_secs(120))
 }
 
+/// `sphcover recon SCAN -o OUT --report REPORT EXTRA…` with [`run`]'s limit.
+pub fn recon_with_report(scan: &Path, out: &Path, report: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "recon",
+        scan.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
 /// [`sphcover_in`] in the current directory.
 pub fn sphcover(args: &[&str], limit: Duration) -> Output {
     sphcover_in(None, args, limit)
