@@ -2,8 +2,8 @@
 
 mod support;
 
-use sphcover_core::MeshTopology;
 use sphcover_core::io::{self, ReadOptions};
+use sphcover_core::{DVec3, MeshTopology};
 use support::{fixture, recon_with_report, run as sphcover, text};
 
 fn summary(t: &MeshTopology) -> String {
@@ -376,4 +376,35 @@ fn boundaries_of_a_trimmed_surface_share_their_vertices() {
     assert!(topology.is_manifold(), "{}", summary(&topology));
     assert_eq!(topology.non_manifold_vertices, 0, "{}", summary(&topology));
     assert!(topology.boundary_edges > 0, "{}", summary(&topology));
+}
+
+#[test]
+fn an_open_sheet_beside_a_closed_object_is_not_blamed_on_the_scan() {
+    // A closed sphere of samples, and apart from it a small flat patch of stray samples that
+    // the reconstruction meshes as an open sheet.
+    let sphere = support::fibonacci_sphere(3000);
+    let mut points: Vec<DVec3> = sphere.iter().map(|&n| 0.4 * n).collect();
+    let mut normals = sphere.clone();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 0..200 {
+        let r = 0.06 * ((i as f64 + 0.5) / 200.0).sqrt();
+        let a = golden * i as f64;
+        points.push(DVec3::new(0.9 + r * a.cos(), r * a.sin(), 0.0));
+        normals.push(DVec3::Z);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("sphere_and_patch.ply");
+    support::write_points_ply(&scan, &points, Some(&normals));
+    let out = dir.path().join("mesh.ply");
+    let run = sphcover(&["recon", scan.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let stderr = text(&run.stderr);
+    assert!(
+        stderr.contains("the object's surface is closed, but 1 smaller component is an open sheet"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("does not enclose the object"), "{stderr}");
+    let topology = MeshTopology::of(&io::read_mesh(&out, &ReadOptions::default()).unwrap());
+    assert_eq!(topology.components, 2);
+    assert_eq!(topology.open_component.iter().filter(|&&o| o).count(), 1);
 }

@@ -53,6 +53,8 @@ pub struct MeshTopology {
     /// For each triangle, its component (`u32::MAX` for invalid triangles). Components are
     /// numbered by their first triangle.
     pub triangle_component: Vec<u32>,
+    /// For each component, whether it has a boundary edge.
+    pub open_component: Vec<bool>,
 }
 
 impl MeshTopology {
@@ -78,8 +80,9 @@ impl MeshTopology {
                     invalid_triangles: mesh.triangles.len() - faces,
                     ..MeshTopology::default()
                 };
-                count_edges(mesh, &valid, &mut topo);
+                let boundary_vertices = count_edges(mesh, &valid, &mut topo);
                 label_components(mesh, &valid, &mut topo);
+                mark_open_components(mesh, &boundary_vertices, &mut topo);
                 topo
             },
         );
@@ -125,12 +128,12 @@ impl MeshTopology {
 }
 
 /// Counts the undirected edges of the valid triangles into `topo`: all of them, boundary,
-/// non-manifold and inconsistently wound ones.
+/// non-manifold and inconsistently wound ones; returns a vertex of each boundary edge.
 ///
 /// The half-edges are bucketed by their lower vertex (a counting sort), and each bucket,
 /// a few entries long, is sorted on its own: a sort of all `3F` half-edges by their vertex
 /// pair would be about half the analysis time of a reconstruction's mesh.
-fn count_edges(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) {
+fn count_edges(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) -> Vec<u32> {
     let half_edges = || {
         mesh.triangles
             .iter()
@@ -142,10 +145,13 @@ fn count_edges(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) {
     let (offsets, upper) = bucketed(mesh.vertices.len(), || {
         half_edges().map(|(a, b)| (a.min(b) as usize, (a.max(b), a < b)))
     });
-    let (edges, boundary, non_manifold, inconsistent) = offsets
+    type Counts = (usize, usize, usize, usize);
+    let add = |a: Counts, b: Counts| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3 + b.3);
+    let (counts, boundary_vertices) = offsets
         .par_windows(2)
+        .enumerate()
         .with_min_len(1024)
-        .map_init(Vec::new, |bucket, w| {
+        .map_init(Vec::new, |bucket, (v, w)| {
             bucket.clear();
             bucket.extend_from_slice(&upper[w[0] as usize..w[1] as usize]);
             bucket.sort_unstable();
@@ -158,16 +164,51 @@ fn count_edges(mesh: &TriMesh, valid: &[bool], topo: &mut MeshTopology) {
                     _ => counts.2 += 1,
                 }
             }
-            counts
+            (counts, v as u32)
         })
+        .fold(
+            || ((0, 0, 0, 0), Vec::new()),
+            |(sum, mut open), (counts, v)| {
+                if counts.1 > 0 {
+                    open.push(v);
+                }
+                (add(sum, counts), open)
+            },
+        )
         .reduce(
-            || (0, 0, 0, 0),
-            |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3 + b.3),
+            || ((0, 0, 0, 0), Vec::new()),
+            |(a, mut open), (b, more)| {
+                open.extend(more);
+                (add(a, b), open)
+            },
         );
-    topo.edges = edges;
-    topo.boundary_edges = boundary;
-    topo.non_manifold_edges = non_manifold;
-    topo.inconsistent_edges = inconsistent;
+    topo.edges = counts.0;
+    topo.boundary_edges = counts.1;
+    topo.non_manifold_edges = counts.2;
+    topo.inconsistent_edges = counts.3;
+    boundary_vertices
+}
+
+/// Marks the components that hold a vertex of a boundary edge.
+fn mark_open_components(mesh: &TriMesh, boundary_vertices: &[u32], topo: &mut MeshTopology) {
+    topo.open_component = vec![false; topo.components];
+    if boundary_vertices.is_empty() {
+        return;
+    }
+    let mut component_of_vertex = vec![u32::MAX; mesh.vertices.len()];
+    for (tri, &c) in mesh.triangles.iter().zip(&topo.triangle_component) {
+        if c != u32::MAX {
+            for &v in tri {
+                component_of_vertex[v as usize] = c;
+            }
+        }
+    }
+    for &v in boundary_vertices {
+        let c = component_of_vertex[v as usize];
+        if c != u32::MAX {
+            topo.open_component[c as usize] = true;
+        }
+    }
 }
 
 /// Counts the used vertices and labels the components of the valid triangles into `topo`.
@@ -309,6 +350,17 @@ mod tests {
         let topo = MeshTopology::of(&open);
         assert_eq!((topo.boundary_edges, topo.euler_characteristic()), (3, 1));
         assert!(!topo.is_watertight() && topo.is_manifold());
+        assert_eq!(topo.open_component, vec![true]);
+
+        // A closed tetrahedron beside an open one: only the second component is open.
+        let mut pair = tetrahedron();
+        let far = open.vertices.iter().map(|v| *v + DVec3::splat(5.0));
+        pair.vertices.extend(far);
+        pair.triangles
+            .extend(open.triangles.iter().map(|t| t.map(|v| v + 4)));
+        let topo = MeshTopology::of(&pair);
+        assert_eq!(topo.open_component, vec![false, true]);
+        assert_eq!(MeshTopology::of(&tetrahedron()).open_component, vec![false]);
 
         let mut flipped = tetrahedron();
         flipped.triangles[0].swap(1, 2);
@@ -413,6 +465,23 @@ mod tests {
             let next = first_of_label.len() as u32;
             triangle_component[t] = *first_of_label.entry(label[i]).or_insert(next);
         }
+        // A component is open when one of its triangles has an edge no other triangle has.
+        let edge_of = |t: usize, k: usize| {
+            let (a, b) = (mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]);
+            (a.min(b), a.max(b))
+        };
+        let holders = |e: (u32, u32)| {
+            valid
+                .iter()
+                .filter(|&&u| (0..3).any(|k| edge_of(u, k) == e))
+                .count()
+        };
+        let mut open_component = vec![false; first_of_label.len()];
+        for &t in &valid {
+            if (0..3).any(|k| holders(edge_of(t, k)) == 1) {
+                open_component[triangle_component[t] as usize] = true;
+            }
+        }
         MeshTopology {
             used_vertices: used,
             edges: uses.len(),
@@ -427,6 +496,7 @@ mod tests {
             non_manifold_vertices,
             components: first_of_label.len(),
             triangle_component,
+            open_component,
         }
     }
 

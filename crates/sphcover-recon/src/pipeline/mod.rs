@@ -399,6 +399,12 @@ pub struct ReconStats {
     pub components: usize,
     /// Every edge has exactly two triangles.
     pub watertight: bool,
+    /// Components with a boundary.
+    pub open_components: usize,
+    /// Whether the largest component (by triangles) has a boundary: when it has none, the
+    /// open components are separate sheets (most often surface around stray samples), not
+    /// a hole in the object.
+    pub largest_component_open: bool,
     /// Euler characteristic of the result.
     pub euler_characteristic: i64,
     /// Wall time per stage, in order.

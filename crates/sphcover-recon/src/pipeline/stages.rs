@@ -588,6 +588,11 @@ fn topology(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     stats.vertices = ctx.mesh.vertices.len();
     stats.components = topology.components;
     stats.watertight = topology.is_watertight();
+    stats.open_components = topology.open_component.iter().filter(|&&o| o).count();
+    let sizes = topology.component_sizes();
+    // The first of the largest: component numbers follow the triangles, so this is stable.
+    let largest = (0..sizes.len()).rev().max_by_key(|&c| sizes[c]);
+    stats.largest_component_open = largest.is_some_and(|c| topology.open_component[c]);
     stats.euler_characteristic = topology.euler_characteristic();
     Ok(())
 }
