@@ -176,11 +176,7 @@ fn bad_parameters_and_inputs_exit_2_without_output() {
 
 /// The colour the test paints at `p` in a box from `lo` spanning `extent`: red along x,
 /// green along y, blue along z, 8-bit.
-fn paint(
-    p: sphcover_core::DVec3,
-    lo: sphcover_core::DVec3,
-    extent: sphcover_core::DVec3,
-) -> [u8; 3] {
+fn paint(p: DVec3, lo: DVec3, extent: DVec3) -> [u8; 3] {
     ((p - lo) / extent)
         .to_array()
         .map(|t| (t.clamp(0.0, 1.0) * 255.0).round() as u8)
