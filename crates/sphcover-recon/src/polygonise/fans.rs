@@ -31,20 +31,26 @@ pub(super) struct FanRepair {
 /// Makes every vertex a single fan (see the module docs).
 pub(super) fn resolve_fans(mesh: &mut TriMesh) -> FanRepair {
     let mut repair = FanRepair::default();
-    for _ in 0..REMOVAL_ROUNDS {
+    for round in 0.. {
+        // Nearly always empty: one pass over the vertices, and nothing else to do.
         let pinches = pinched_vertices(mesh);
-        let mut remove = vec![false; mesh.triangles.len()];
-        let mut any = false;
-        for pinch in &pinches {
-            for (t, keep) in pinch.tris.iter().zip(pinch.kept_fans()) {
-                if !keep {
-                    remove[*t as usize] = true;
-                    any = true;
-                }
-            }
-        }
-        if !any {
+        let dropped: Vec<u32> = if round < REMOVAL_ROUNDS {
+            pinches
+                .iter()
+                .flat_map(|p| p.tris.iter().zip(p.kept_fans()))
+                .filter(|&(_, keep)| !keep)
+                .map(|(&t, _)| t)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if dropped.is_empty() {
+            repair.split_vertices = split_fans(mesh, pinches);
             break;
+        }
+        let mut remove = vec![false; mesh.triangles.len()];
+        for t in dropped {
+            remove[t as usize] = true;
         }
         let before = mesh.triangles.len();
         let mut k = remove.iter();
@@ -52,7 +58,6 @@ pub(super) fn resolve_fans(mesh: &mut TriMesh) -> FanRepair {
         repair.removed_triangles += before - mesh.triangles.len();
         remove_unused_vertices(mesh);
     }
-    repair.split_vertices = split_fans(mesh);
     repair
 }
 
@@ -133,18 +138,17 @@ fn closed_fans(v: u32, tris: &[u32], fan: &[u32], triangles: &[[u32; 3]]) -> Vec
     closed
 }
 
-/// Splits every vertex whose triangles form several fans (joined through edges shared by
-/// exactly two of them) into one vertex per fan; returns how many new vertices were made.
-fn split_fans(mesh: &mut TriMesh) -> usize {
+/// Splits every vertex of `pinches` (the mesh's [`pinched_vertices`]) into one vertex per
+/// fan; returns how many new vertices were made.
+fn split_fans(mesh: &mut TriMesh, pinches: Vec<Pinch>) -> usize {
     let n = mesh.vertices.len();
-    let split = pinched_vertices(mesh);
     let mut added = 0;
     for Pinch {
         vertex: v,
         tris,
         fan,
         ..
-    } in split
+    } in pinches
     {
         let count = fan.iter().copied().max().unwrap_or(0) as usize + 1;
         let copies: Vec<u32> = std::iter::once(v as u32)
@@ -303,7 +307,13 @@ mod tests {
         pinched.normals = Some(vertices.clone());
         pinched.values = Some((0..7).map(f64::from).collect());
         assert_eq!(MeshTopology::of(&pinched).non_manifold_vertices, 1);
-        assert_eq!(split_fans(&mut pinched), 1);
+        assert_eq!(
+            {
+                let pinches = pinched_vertices(&pinched);
+                split_fans(&mut pinched, pinches)
+            },
+            1
+        );
         let topo = MeshTopology::of(&pinched);
         assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
         assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
@@ -317,7 +327,13 @@ mod tests {
         // the x axis, so it is wound outwards too.
         let mut glued = TriMesh::new(vertices, [tet([0, 1, 2, 3]), tet([0, 1, 5, 6])].concat());
         assert_eq!(MeshTopology::of(&glued).non_manifold_edges, 1);
-        assert_eq!(split_fans(&mut glued), 2);
+        assert_eq!(
+            {
+                let pinches = pinched_vertices(&glued);
+                split_fans(&mut glued, pinches)
+            },
+            2
+        );
         let topo = MeshTopology::of(&glued);
         assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
         assert_eq!((topo.components, topo.euler_characteristic()), (2, 4));
