@@ -31,6 +31,12 @@ pub fn bad_input(message: impl Into<String>) -> PyErr {
     BadInputError::new_err(message.into())
 }
 
+/// Emits `message` as a Python `UserWarning` (an error when the warnings filter says so).
+pub fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    PyErr::warn(py, &category, &std::ffi::CString::new(message)?, 1)
+}
+
 /// A runtime-failure exception with `message`.
 pub fn failure(message: impl Into<String>) -> PyErr {
     SphcoverError::new_err(message.into())

@@ -7,13 +7,13 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sphcover_core::PointCloud;
 use sphcover_recon::{
-    BudgetFit, Method, NoiseOption, ReconOptions, Reconstruction, ToleranceNote, TrimOption,
-    fit_memory_budget, reconstruct_until,
+    BudgetFit, Method, NoiseOption, ReconOptions, ReconParams, Reconstruction, ToleranceNote,
+    TrimOption, fit_memory_budget, reconstruct_until,
 };
 
 use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
 use crate::cover::Cover;
-use crate::errors::{bad_input, option_error, recon_error};
+use crate::errors::{bad_input, option_error, recon_error, warn};
 use crate::memory::byte_size;
 use crate::run::{run, stage_times};
 
@@ -143,8 +143,7 @@ pub fn reconstruct<'py>(
             let fit =
                 fit_memory_budget(&cloud, &params, budget).map_err(|e| bad_input(e.to_string()))?;
             if let Some(warning) = fit.lowering_message("max_memory") {
-                let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
-                PyErr::warn(py, &category, &std::ffi::CString::new(warning)?, 1)?;
+                warn(py, &warning)?;
                 params.depth = Some(fit.depth);
             }
             Some(fit)
@@ -156,25 +155,23 @@ pub fn reconstruct<'py>(
         reconstruct_until(&cloud, &run_params, &|s| context.stage(s), context.stop())
             .map_err(recon_error)
     })?;
-    let note = ToleranceNote::of(&params, &recon.stats);
-    if let Some(note @ ToleranceNote::BelowFloor { .. }) = note {
-        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
-        let message = std::ffi::CString::new(note.message("eps", "noise"))?;
-        PyErr::warn(py, &category, &message, 1)?;
+    let note = ToleranceNote::of(&params, &recon.stats).map(|n| (n, n.message("eps", "noise")));
+    if let Some((ToleranceNote::BelowFloor { .. }, message)) = &note {
+        warn(py, message)?;
     }
-    let out = into_dict(py, recon, memory)?;
-    let stats = out.get_item("stats")?.expect("into_dict sets the stats");
-    stats.set_item("eps_requested", params.cover.eps)?;
-    stats.set_item("tolerance_note", note.map(|n| n.message("eps", "noise")))?;
-    Ok(out)
+    into_dict(py, recon, &params, note.map(|(_, message)| message), memory)
 }
 
-fn into_dict(
-    py: Python<'_>,
+fn into_dict<'py>(
+    py: Python<'py>,
     recon: Reconstruction,
+    params: &ReconParams,
+    tolerance_note: Option<String>,
     memory: Option<BudgetFit>,
-) -> PyResult<Bound<'_, PyDict>> {
+) -> PyResult<Bound<'py, PyDict>> {
     let stats = stats_dict(py, &recon)?;
+    stats.set_item("eps_requested", params.cover.eps)?;
+    stats.set_item("tolerance_note", tolerance_note)?;
     if let Some(m) = memory {
         let d = PyDict::new(py);
         d.set_item("budget_bytes", m.budget)?;

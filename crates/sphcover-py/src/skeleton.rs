@@ -13,7 +13,7 @@ use sphcover_skeleton::{
 };
 
 use crate::arrays::{points_from_py, points_to_py, rows_to_py, values_from_py, vec_to_py};
-use crate::errors::{bad_input, skeleton_error};
+use crate::errors::{bad_input, skeleton_error, warn};
 use crate::run::{run, stage_times};
 
 /// The ridge pipeline's parameters: the library's defaults and the given options, as
@@ -80,17 +80,9 @@ pub fn skeleton_volume<'py>(
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let volume = volume(&values, &affine)?;
-    let size = volume.voxel_size();
-    match check_voxel_grid(size, volume.affine().matrix3) {
-        Ok(true) => {}
-        Ok(false) => {
-            let warning = format!(
-                "voxels of {:.6} x {:.6} x {:.6} are not cubic; the sheet is computed in world coordinates, lengths given in voxels use their geometric mean",
-                size.x, size.y, size.z
-            );
-            let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
-            PyErr::warn(py, &category, &std::ffi::CString::new(warning)?, 1)?;
-        }
+    match check_voxel_grid(volume.voxel_size(), volume.affine().matrix3) {
+        Ok(None) => {}
+        Ok(Some(non_cubic)) => warn(py, &non_cubic.to_string())?,
         Err(e) => return Err(bad_input(e.to_string())),
     }
     match method {

@@ -107,4 +107,4 @@ pub use ridge_points::{
     RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
 };
 pub use symmetric_eigen::SmallestEigen;
-pub use voxel_grid::{MAX_ANISOTROPY, VoxelGridError, check_voxel_grid};
+pub use voxel_grid::{MAX_ANISOTROPY, NonCubicVoxels, VoxelGridError, check_voxel_grid};

@@ -32,10 +32,24 @@ pub enum VoxelGridError {
     Oblique,
 }
 
+/// Voxels accepted though not cubic: worth a warning.
+#[derive(Clone, Copy, Debug, PartialEq, Error)]
+#[error(
+    "voxels of {:.6} x {:.6} x {:.6} are not cubic; the sheet is computed in world coordinates, lengths given in voxels use their geometric mean",
+    size.x, size.y, size.z
+)]
+pub struct NonCubicVoxels {
+    /// The voxel's edge lengths.
+    pub size: DVec3,
+}
+
 /// Checks a grid of voxels `size` long along the voxel-to-world axes `axes` (the columns of
-/// the affine's linear part). Accepted, it says whether the voxels are cubic; when they are
-/// not, lengths given in voxels use their geometric mean.
-pub fn check_voxel_grid(size: DVec3, axes: DMat3) -> Result<bool, VoxelGridError> {
+/// the affine's linear part). Accepted, it says when the voxels are not cubic (lengths given
+/// in voxels then use their geometric mean).
+pub fn check_voxel_grid(
+    size: DVec3,
+    axes: DMat3,
+) -> Result<Option<NonCubicVoxels>, VoxelGridError> {
     let (lo, hi) = (size.min_element(), size.max_element());
     if hi > MAX_ANISOTROPY * lo {
         return Err(VoxelGridError::Anisotropic { size });
@@ -52,7 +66,7 @@ pub fn check_voxel_grid(size: DVec3, axes: DMat3) -> Result<bool, VoxelGridError
             return Err(VoxelGridError::Oblique);
         }
     }
-    Ok(hi - lo <= CUBIC_TOLERANCE * hi)
+    Ok((hi - lo > CUBIC_TOLERANCE * hi).then_some(NonCubicVoxels { size }))
 }
 
 #[cfg(test)]
@@ -63,12 +77,15 @@ mod tests {
     fn near_cubic_axis_aligned_grids_pass_and_others_are_refused() {
         let diagonal = |s: DVec3| DMat3::from_diagonal(s);
         let cube = DVec3::splat(0.5);
-        assert_eq!(check_voxel_grid(cube, diagonal(cube)), Ok(true));
+        assert_eq!(check_voxel_grid(cube, diagonal(cube)), Ok(None));
         // Axes may be flipped and permuted (LPS/RAS, sagittal stacks).
         let permuted = DMat3::from_cols(DVec3::Y * -0.5, DVec3::X * 0.5, DVec3::Z * 0.5);
-        assert_eq!(check_voxel_grid(cube, permuted), Ok(true));
+        assert_eq!(check_voxel_grid(cube, permuted), Ok(None));
         let slab = DVec3::new(0.5, 0.5, 0.9);
-        assert_eq!(check_voxel_grid(slab, diagonal(slab)), Ok(false));
+        assert_eq!(
+            check_voxel_grid(slab, diagonal(slab)),
+            Ok(Some(NonCubicVoxels { size: slab }))
+        );
         let needle = DVec3::new(0.5, 0.5, 1.2);
         assert_eq!(
             check_voxel_grid(needle, diagonal(needle)),

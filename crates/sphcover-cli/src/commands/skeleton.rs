@@ -201,13 +201,9 @@ fn check_volume(args: &SkeletonArgs, info: &VolumeInfo, reporter: &Reporter) -> 
         ))
         .into());
     }
-    let size = info.voxel_size();
-    match check_voxel_grid(size, info.affine().matrix3) {
-        Ok(true) => {}
-        Ok(false) => reporter.warn(&format!(
-            "{name}: voxels of {:.6} x {:.6} x {:.6} are not cubic; the sheet is computed in world coordinates, lengths given in voxels use their geometric mean",
-            size.x, size.y, size.z
-        )),
+    match check_voxel_grid(info.voxel_size(), info.affine().matrix3) {
+        Ok(None) => {}
+        Ok(Some(non_cubic)) => reporter.warn(&format!("{name}: {non_cubic}")),
         Err(VoxelGridError::Oblique) => {
             return Err(BadInput(format!(
                 "{name}: the voxel axes are oblique to the world axes ({} affine); resample to an axis-aligned grid first",
