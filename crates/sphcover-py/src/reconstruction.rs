@@ -231,7 +231,7 @@ fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'p
     d.set_item("refined_vertices", s.refinement.as_ref().map(|r| r.moved))?;
     d.set_item("watertight", s.watertight)?;
     d.set_item("open_components", s.open_components)?;
-    d.set_item("largest_component_open", s.largest_component_open)?;
+    d.set_item("object_component_open", s.object_component_open)?;
     d.set_item("euler_characteristic", s.euler_characteristic)?;
     d.set_item("stages_seconds", stage_times(py, &s.stages)?)?;
     d.set_item(

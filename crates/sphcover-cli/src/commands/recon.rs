@@ -107,15 +107,15 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
 
     let s = &recon.stats;
     if !s.watertight && args.trim.is_none() {
-        if s.largest_component_open {
+        if s.object_component_open {
             reporter.warn(
                 "the surface is open: the scan does not enclose the object everywhere (one view, a LiDAR tile, an open base), \
                  so away from the samples the surface is extrapolated; --trim drops what lies farther than 3 sample spacings from every sample",
             );
         } else if s.open_components > 0 {
             let sheets = match s.open_components {
-                1 => "1 smaller component is an open sheet".to_owned(),
-                n => format!("{n} smaller components are open sheets"),
+                1 => "1 other component is an open sheet".to_owned(),
+                n => format!("{n} other components are open sheets"),
             };
             reporter.warn(&format!(
                 "the object's surface is closed, but {sheets} apart from it, most often surface around stray samples or outliers; components under 1% of the largest one's area are dropped"
@@ -310,7 +310,7 @@ fn report_json(
         "refined_vertices": s.refinement.as_ref().map(|r| r.moved),
         "watertight": s.watertight,
         "open_components": s.open_components,
-        "largest_component_open": s.largest_component_open,
+        "object_component_open": s.object_component_open,
         "euler_characteristic": s.euler_characteristic,
         "stages_seconds": s.stages.iter().map(|(n, t)| json!({"stage": n, "seconds": t.as_secs_f64()})).collect::<Vec<_>>(),
         "total_seconds": s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),

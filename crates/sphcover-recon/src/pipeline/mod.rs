@@ -401,10 +401,11 @@ pub struct ReconStats {
     pub watertight: bool,
     /// Components with a boundary.
     pub open_components: usize,
-    /// Whether the largest component (by triangles) has a boundary: when it has none, the
-    /// open components are separate sheets (most often surface around stray samples), not
-    /// a hole in the object.
-    pub largest_component_open: bool,
+    /// Whether the object's component has a boundary: when it has none, the open
+    /// components are separate sheets (most often surface around stray samples), not a hole
+    /// in the object. With several components, the object's is the one that most samples
+    /// lie nearest to (a sheet around a few stray samples can be the larger in area).
+    pub object_component_open: bool,
     /// Euler characteristic of the result.
     pub euler_characteristic: i64,
     /// Wall time per stage, in order.
@@ -604,7 +605,7 @@ mod tests {
             with(&["graph cut", "confidence"])
         );
         let unoriented = names(Method::Integrated, false, &PointCloud::default());
-        assert_eq!(unoriented[2], "normals");
+        assert_eq!(unoriented[1], "normals");
         assert!(!unoriented.contains(&"refine"));
         let coloured = PointCloud {
             colors: Some(Vec::new()),
