@@ -219,6 +219,7 @@ fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'p
     d.set_item("supports_over_eps", s.cover.supports_over_eps)?;
     d.set_item("graph_mean_degree", s.graph_mean_degree)?;
     d.set_item("inconsistent_supports", s.inconsistent_supports)?;
+    d.set_item("confirmed_supports", s.confirmed_supports)?;
     d.set_item("eps", s.eps)?;
     d.set_item("noise_floor", s.noise_floor)?;
     d.set_item("spacing", s.scan.spacing)?;

@@ -244,6 +244,16 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
         "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}",
         s.supports, s.cover.supports_over_eps, s.cover.max_error, s.graph_mean_degree
     ));
+    if s.cut.is_some() {
+        let kept = match s.confirmed_supports {
+            0 => String::new(),
+            n => format!(", {n} of them kept (their samples fit them)"),
+        };
+        reporter.detail(&format!(
+            "  graph cut: {} supports inconsistent{kept}",
+            s.inconsistent_supports
+        ));
+    }
     if let Some(d) = &s.diffusion {
         reporter.detail(&format!(
             "  diffusion: {} rounds, CG iterations {:?}, {} supports fitted",
@@ -298,6 +308,7 @@ fn report_json(
         "supports_over_eps": s.cover.supports_over_eps,
         "graph_mean_degree": s.graph_mean_degree,
         "inconsistent_supports": s.inconsistent_supports,
+        "confirmed_supports": s.confirmed_supports,
         "depth": s.depth,
         "eps_requested": params.cover.eps,
         "eps": s.eps,

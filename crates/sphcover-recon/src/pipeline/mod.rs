@@ -377,8 +377,11 @@ pub struct ReconStats {
     pub graph_mean_degree: f64,
     /// The graph cut's statistics (integrated method).
     pub cut: Option<GraphCutStats>,
-    /// Supports whose label disagreed with the sign of `f` (zeroed).
+    /// Supports whose label disagreed with the sign of `f` (zeroed unless confirmed).
     pub inconsistent_supports: usize,
+    /// Inconsistent supports kept because at least `n_min` of their samples lie within ε of
+    /// their local function's zero set (thin walls, narrow gaps).
+    pub confirmed_supports: usize,
     /// Confidence statistics.
     pub confidence: Option<ConfidenceStats>,
     /// Diffusion statistics.
@@ -440,12 +443,15 @@ pub struct Reconstruction {
 /// 2. the surface cover (thesis §3.4.1), weighted by a scanner-given confidence if any;
 /// 3. the graph cut on the sphere intersection graph (thesis §5.2.4): supports whose label
 ///    disagrees with the sign of `f` at their centre are *inconsistent* (outliers and wrong
-///    normals make them) and get a zero local function and confidence 0;
+///    normals make them) and get a zero local function and confidence 0, unless at least
+///    `n_min` of their samples lie within ε of their zero set (beyond the thesis: the cut
+///    also relabels thin walls);
 /// 4. the confidence of every sample (eq. 5.39–5.40) and the outlier labels;
 /// 5. diffusion of the local functions with confidence-weighted fitting (§5.2.3);
 /// 6. polygonisation by surface nets from the confident samples, so a sheet that no
 ///    confident sample touches (floating outlier surfaces) is never meshed; components far
-///    smaller than the largest are dropped;
+///    smaller than the largest are dropped, and open ones that fewer than 1% of the samples
+///    lie nearest to;
 /// 7. when the points have colours, the colour of the nearest inlier sample at every vertex
 ///    ([`nearest_sample_colors`](crate::nearest_sample_colors));
 ///

@@ -339,7 +339,8 @@ fn build_graph_and_geometry(ctx: &mut ReconContext<'_>) -> Result<(), ReconError
 
 /// The graph cut on the sphere intersection graph (thesis §5.2.4): supports whose label
 /// disagrees with the sign of `f` at their centre are inconsistent (outliers and wrong
-/// normals make them) and get a zero local function and confidence 0.
+/// normals make them) and get a zero local function and confidence 0, unless their own
+/// samples confirm them: at least `n_min` lie within ε of the local function's zero set.
 fn cut_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let graph = built(ctx.graph.take(), "sphere intersection graph");
     let (cover, index) = (ctx.cover(), ctx.index());
@@ -350,15 +351,59 @@ fn cut_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         graph_cut_sig_alongside(cover, &graph, &at_centres, &ctx.params.graph_cut, || {
             geometry_and_samples(cover, &graph, index)
         })?;
+    let fitted = fitted_samples(
+        cover,
+        index,
+        &incidence,
+        &cut.inconsistent,
+        ctx.stats.eps,
+        &ctx.scan.isolated,
+    );
     ctx.stats.inconsistent_supports = cut.inconsistent.len();
-    for &i in &cut.inconsistent {
-        ctx.zeroed[i as usize] = true;
+    // The cut's smoothing also flips supports on thin walls and across narrow gaps, where a
+    // thin region of one sign is cheaper to relabel than to cut around; there the samples
+    // confirm the local function, and zeroing it leaves bumps of a wall's thickness.
+    let n_min = ctx.params.cover.n_min;
+    for (&i, &f) in cut.inconsistent.iter().zip(&fitted) {
+        ctx.zeroed[i as usize] = f < n_min;
     }
+    ctx.stats.confirmed_supports = fitted.iter().filter(|&&f| f >= n_min).count();
     ctx.stats.cut = Some(cut.stats);
     ctx.pairs = Some(pairs?);
     ctx.at_centres = Some(at_centres);
     ctx.incidence = Some(incidence);
     Ok(())
+}
+
+/// For each of `supports`, how many of its samples (isolated ones left out) lie within
+/// `eps` of the zero set of its local function.
+fn fitted_samples(
+    cover: &Cover,
+    index: &PointIndex,
+    incidence: &SupportSamples,
+    supports: &[u32],
+    eps: f64,
+    isolated: &[bool],
+) -> Vec<usize> {
+    let LocalFunctions::Linear { alpha, beta } = cover.funcs() else {
+        return vec![0; supports.len()];
+    };
+    let (points, order) = (index.slot_points(), index.order());
+    supports
+        .par_iter()
+        .map(|&i| {
+            let i = i as usize;
+            let c = cover.centres()[i];
+            let mut count = 0;
+            incidence.for_each_slot_within(cover, index, i, |slot, _| {
+                let value = alpha[i].dot(points[slot] - c) + beta[i];
+                if value.abs() <= eps && !isolated[order[slot] as usize] {
+                    count += 1;
+                }
+            });
+            count
+        })
+        .collect()
 }
 
 /// The graph-cut-only path (thesis §5.2.2): marching tetrahedra on the labels of the dual
