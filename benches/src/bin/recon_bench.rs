@@ -38,7 +38,8 @@ struct Args {
     #[arg(long, value_delimiter = ',', default_value = "100k")]
     sizes: Vec<String>,
     /// Scan cases (default: all): clean, noise025, noise050, outliers1, outliers5, holes,
-    /// gradient, normals30, normals60, scanner, combined, combined-no-outliers, all.
+    /// gradient, normals30, normals60, scanner, combined, combined-no-outliers, combined030,
+    /// all.
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
     /// Ground-truth mesh as NAME=PATH, or `sphere` or `torus` for an analytic shape
