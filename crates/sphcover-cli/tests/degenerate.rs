@@ -231,7 +231,7 @@ fn collinear_points_with_normals_give_the_strip_their_normals_span() {
     // trimmed to a strip along the line; untrimmed it would fill the bounding box.
     let points = collinear_points();
     let case = Case::new(&points, Some(&vec![DVec3::Z; points.len()]));
-    let message = case.expect_refusal(&case.recon(&[]));
+    let message = case.expect_refusal(&case.recon(&["--trim", "off"]));
     assert!(
         message.contains("the points lie on a plane") && message.contains("--trim"),
         "{message}"
@@ -261,18 +261,26 @@ fn open_sheet() -> Vec<DVec3> {
         .collect()
 }
 
-/// An open sheet is refused untrimmed (it encloses nothing: the surface would be its plane
-/// across the bounding box), with the hint to trim; trimmed, a flat piece covering the
-/// samples' square and ending near it. The bound is 6 sample spacings (1/19) past the
-/// square's edges: the default trim is 3 spacings, and measured the surface reaches 0.27 ≈
-/// 5.2 spacings past them at depth 6.
+/// An open sheet is refused with `--trim off` (it encloses nothing: the surface would be its
+/// plane across the bounding box), with the hint to trim; by default (the plane beyond the
+/// samples is never seen) and with `--trim`, a flat piece covering the samples' square and
+/// ending near it. The bound is 6 sample spacings (1/19) past the square's edges: trimming
+/// keeps 3 spacings, and measured the surface reaches 0.27 ≈ 5.2 spacings past them at
+/// depth 6.
 fn assert_trimmed_sheet(case: &Case) {
-    let message = case.expect_refusal(&case.recon(&[]));
+    let message = case.expect_refusal(&case.recon(&["--trim", "off"]));
     assert!(
-        message.contains("the points lie on a plane, to rounding") && message.contains("(--trim)"),
+        message.contains("the points lie on a plane, to rounding")
+            && message.contains("(without --trim off)"),
         "{message}"
     );
-    let run = case.recon(&["--trim"]);
+    for trim in [&[][..], &["--trim"][..]] {
+        assert_sheet(case, trim);
+    }
+}
+
+fn assert_sheet(case: &Case, trim: &[&str]) {
+    let run = case.recon(trim);
     assert!(
         !text(&run.stderr).contains("the surface is open"),
         "{}",

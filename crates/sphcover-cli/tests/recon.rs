@@ -3,7 +3,7 @@
 mod support;
 
 use sphcover_core::io::{self, ReadOptions};
-use sphcover_core::{DVec3, MeshTopology};
+use sphcover_core::{DVec3, MeshTopology, TriMesh};
 use support::{fixture, recon_with_report, run as sphcover, text};
 
 fn summary(t: &MeshTopology) -> String {
@@ -404,4 +404,45 @@ fn an_open_sheet_beside_a_closed_object_is_not_blamed_on_the_scan() {
     let topology = MeshTopology::of(&io::read_mesh(&out, &ReadOptions::default()).unwrap());
     assert_eq!(topology.components, 2);
     assert_eq!(topology.open_component.iter().filter(|&&o| o).count(), 1);
+}
+
+#[test]
+fn a_single_view_is_not_wrapped_in_invented_surface_by_default() {
+    // A raw range scan seen from one side: by default the side the scanner never saw is left
+    // out (most of the surface `--trim off` extrapolates), with a note saying so.
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("real/hippo2.ply");
+    let area = |mesh: &TriMesh| -> f64 {
+        mesh.triangles
+            .iter()
+            .map(|t| sphcover_core::triangle_area(mesh, t))
+            .sum()
+    };
+    let run_with = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "recon",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let run = sphcover(&args);
+        assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+        let mesh = io::read_mesh(&out, &ReadOptions::default()).unwrap();
+        (text(&run.stderr), mesh)
+    };
+    let (note, open) = run_with("default.ply", &[]);
+    let (_, closed) = run_with("closed.ply", &["--trim", "off"]);
+    assert!(
+        note.contains("left out") && note.contains("--trim off"),
+        "{note}"
+    );
+    assert!(!note.contains("the surface is open"), "{note}");
+    assert!(MeshTopology::of(&open).boundary_edges > 0);
+    let kept = area(&open) / area(&closed);
+    assert!(
+        kept < 0.35,
+        "the default keeps {kept:.2} of the closed surface's area"
+    );
 }

@@ -32,14 +32,12 @@ fn method(name: &str) -> PyResult<Method> {
     })
 }
 
-/// `trim`: False/None (keep everything), True (3 sample spacings) or a distance.
+/// `trim`: None (the default: leave out what the scanner never saw), False (keep
+/// everything), True (3 sample spacings) or a distance.
 fn trim(value: Option<&Bound<'_, PyAny>>) -> PyResult<TrimOption> {
-    let Some(value) = value else {
-        return Ok(TrimOption::Off);
+    let Some(value) = value.filter(|v| !v.is_none()) else {
+        return Ok(TrimOption::Unseen);
     };
-    if value.is_none() {
-        return Ok(TrimOption::Off);
-    }
     if let Ok(flag) = value.cast::<pyo3::types::PyBool>() {
         return Ok(if flag.is_true() {
             TrimOption::Auto
@@ -220,6 +218,7 @@ fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'p
     d.set_item("graph_mean_degree", s.graph_mean_degree)?;
     d.set_item("inconsistent_supports", s.inconsistent_supports)?;
     d.set_item("confirmed_supports", s.confirmed_supports)?;
+    d.set_item("unseen_area_fraction", s.unseen_area_fraction)?;
     d.set_item("eps", s.eps)?;
     d.set_item("noise_floor", s.noise_floor)?;
     d.set_item("spacing", s.scan.spacing)?;

@@ -86,10 +86,11 @@ pub use options::{
 };
 pub use pipeline::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Reconstruction,
-    ToleranceNote, Trim, default_depth, reconstruct, reconstruct_until, stage_names,
+    ToleranceNote, Trim, UNSEEN_REACH, default_depth, reconstruct, reconstruct_until, stage_names,
 };
 pub use polygonise::{
-    GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, polygonise, polygonise_blending,
+    GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, UnseenTrim, polygonise,
+    polygonise_blending,
 };
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 pub use vertex_colors::nearest_sample_colors;

@@ -19,9 +19,11 @@ pub const MAX_DEPTH: u32 = 14;
 /// How far from the samples the surface is kept ([`ReconOptions::trim`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum TrimOption {
-    /// Keep everything.
-    #[default]
+    /// Keep everything: a closed surface, extrapolated where the scan is open.
     Off,
+    /// Leave out what the scanner never saw, close holes ([`Trim::Unseen`]).
+    #[default]
+    Unseen,
     /// Three sample spacings.
     Auto,
     /// This distance, relative to the longest bounding-box edge.
@@ -76,7 +78,7 @@ impl Default for ReconOptions {
             eps: None,
             noise: None,
             k: None,
-            trim: TrimOption::Off,
+            trim: TrimOption::Unseen,
             depth: None,
             normal_fit: None,
             position_fit: None,
@@ -128,6 +130,7 @@ impl ReconOptions {
         }
         let trim = match self.trim {
             TrimOption::Off => Trim::Off,
+            TrimOption::Unseen => Trim::Unseen,
             TrimOption::Auto => Trim::SampleSpacings(3.0),
             TrimOption::Distance(d) if d.is_finite() && d > 0.0 => Trim::Distance(d),
             TrimOption::Distance(d) => {

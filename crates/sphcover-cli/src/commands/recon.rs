@@ -8,7 +8,7 @@ use sphcover_core::PointCloud;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
     BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction,
-    ToleranceNote, TrimOption, fit_memory_budget, reconstruct,
+    ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget, reconstruct,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -41,7 +41,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         let input = args.input.display();
         if e.is_bad_input() {
             let hint = if matches!(e, ReconError::Flat) {
-                " (--trim)"
+                " (without --trim off)"
             } else {
                 ""
             };
@@ -106,13 +106,22 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     stage.finish();
 
     let s = &recon.stats;
-    if !s.watertight && args.trim.is_none() {
-        if s.object_component_open {
+    if s.unseen_area_fraction > 0.0 {
+        reporter.note(&format!(
+            "left out {:.1}% of the surface, where the scanner did not see the object (farther than 3 sample spacings from every sample, over more than {:.0}% of the diagonal); \
+             smaller holes are closed; --trim off keeps a closed surface",
+            100.0 * s.unseen_area_fraction,
+            100.0 * UNSEEN_REACH
+        ));
+    }
+    let untrimmed = matches!(args.trim.as_deref(), None | Some("off"));
+    if !s.watertight && untrimmed {
+        if s.object_component_open && s.unseen_area_fraction == 0.0 {
             reporter.warn(
                 "the surface is open: the scan does not enclose the object everywhere (one view, a LiDAR tile, an open base), \
                  so away from the samples the surface is extrapolated; --trim drops what lies farther than 3 sample spacings from every sample",
             );
-        } else if s.open_components > 0 {
+        } else if !s.object_component_open && s.open_components > 0 {
             let sheets = match s.open_components {
                 1 => "1 other component is an open sheet".to_owned(),
                 n => format!("{n} other components are open sheets"),
@@ -178,13 +187,14 @@ fn fit_budget(
 /// input named by its flag.
 fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
     let trim = match args.trim.as_deref() {
-        None => TrimOption::Off,
+        None => TrimOption::Unseen,
+        Some("off") => TrimOption::Off,
         Some("auto") => TrimOption::Auto,
         Some(text) => match text.parse::<f64>() {
             Ok(d) if d.is_finite() && d > 0.0 => TrimOption::Distance(d),
             _ => {
                 return Err(BadInput(format!(
-                    "--trim {text} must be a positive number (or no value: 3 sample spacings)"
+                    "--trim {text} must be a positive number, off, or no value (3 sample spacings)"
                 ))
                 .into());
             }
@@ -309,6 +319,7 @@ fn report_json(
         "graph_mean_degree": s.graph_mean_degree,
         "inconsistent_supports": s.inconsistent_supports,
         "confirmed_supports": s.confirmed_supports,
+        "unseen_area_fraction": s.unseen_area_fraction,
         "depth": s.depth,
         "eps_requested": params.cover.eps,
         "eps": s.eps,

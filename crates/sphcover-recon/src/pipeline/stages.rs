@@ -8,14 +8,15 @@
 
 use rayon::prelude::*;
 use sphcover_core::{
-    Cover, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex, PuEvaluator,
-    SphereIntersectionGraph, Stage, SupportLists, SupportSamples, SurfaceSamples, TriMesh,
-    build_surface_cover,
+    Aabb, Cover, DVec3, LocalFunctions, MeshTopology, Normalisation, PointCloud, PointIndex,
+    PuEvaluator, SphereIntersectionGraph, Stage, SupportLists, SupportSamples, SurfaceSamples,
+    TriMesh, build_surface_cover,
 };
 use sphcover_ops::{OpsError, PairGeometry};
 
 use super::{
-    DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, default_depth,
+    DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, UNSEEN_REACH,
+    default_depth,
 };
 use crate::confidence::{
     SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
@@ -24,7 +25,7 @@ use crate::diffusion::{FittingTerms, diffuse};
 use crate::graph_cut::graph_cut_sig_alongside;
 use crate::graphcut_reconstruction::reconstruct_graphcut;
 use crate::normals::estimate_normals;
-use crate::polygonise::{GridStep, PolygoniseParams, polygonise_blending};
+use crate::polygonise::{GridStep, PolygoniseParams, UnseenTrim, polygonise_blending};
 use crate::scan_statistics::{ScanStatistics, scan_statistics};
 use crate::vertex_colors::nearest_sample_colors;
 use crate::vertex_refinement::{RefinementSamples, RefinementScale, refine_vertices};
@@ -188,7 +189,7 @@ fn normalise(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         });
     }
     let mut points: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
-    let extent = sphcover_core::Aabb::from_points(&points).longest_edge();
+    let extent = Aabb::from_points(&points).longest_edge();
     if extent.is_nan() || extent <= 0.0 {
         return Err(ReconError::NoExtent(kept.len()));
     }
@@ -529,13 +530,19 @@ fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let poly = PolygoniseParams {
         step: GridStep::Absolute(1.0 / f64::from(1u32 << ctx.stats.depth)),
         trim: match params.trim {
-            Trim::Off => None,
+            Trim::Off | Trim::Unseen => None,
             Trim::SampleSpacings(m) => Some(m * ctx.scan.spacing),
             Trim::Distance(d) => Some(d),
         },
+        unseen: (params.trim == Trim::Unseen).then(|| UnseenTrim {
+            near: 3.0 * ctx.scan.spacing,
+            reach: (UNSEEN_REACH * Aabb::from_points(&seeds).diagonal())
+                .max(3.0 * ctx.scan.spacing),
+        }),
         ..PolygoniseParams::default()
     };
     let (mesh, stats) = polygonise_blending(&eval, &seeds, &poly, Some(&conf.support_confidence))?;
+    ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
     ctx.stats.polygonise = Some(stats);
     ctx.mesh = mesh;
     Ok(())

@@ -23,7 +23,8 @@ use extract::extract;
 use fans::resolve_fans;
 use grid::{Grid, KeyMap, grid_step, pack_clamped, unpack_clamped};
 use search::{Search, project_seeds};
-use trim::trim;
+pub use trim::UnseenTrim;
+use trim::{trim, trim_unseen};
 
 /// How the grid step is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,6 +48,9 @@ pub struct PolygoniseParams {
     /// Drop triangles whose centroid is farther than this from every seed, in the units of
     /// the cover (surface invented where there were no samples).
     pub trim: Option<f64>,
+    /// Without `trim`: drop the regions of surface that the scanner did not see, keep those
+    /// that close holes (see [`UnseenTrim`]).
+    pub unseen: Option<UnseenTrim>,
     /// Attach per-vertex outward unit normals `−∇f / ‖∇f‖`.
     pub normals: bool,
     /// A seed whose Newton steps towards `f = 0` move it farther than this many grid steps,
@@ -63,6 +67,7 @@ impl Default for PolygoniseParams {
             step: GridStep::Depth(9),
             project: true,
             trim: None,
+            unseen: None,
             normals: true,
             seed_reach: 4.0,
             max_cells: 1 << 25,
@@ -149,6 +154,8 @@ pub struct PolygoniseStats {
     pub open_quads: usize,
     /// Triangles removed by trimming.
     pub trimmed_triangles: usize,
+    /// Share of the surface's area that [`PolygoniseParams::unseen`] removed.
+    pub unseen_area_fraction: f64,
     /// Faces where both cells' polygons use both crossing segments (a tube through the
     /// face): each segment got a vertex of its own on the face.
     pub tube_faces: usize,
@@ -341,6 +348,10 @@ pub fn polygonise_blending(
     stats.extraction_time = extraction_start.elapsed();
     if let Some(limit) = params.trim {
         stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
+    } else if let Some(unseen) = &params.unseen {
+        let removed = trim_unseen(&mut mesh, &finite_seeds, unseen)?;
+        stats.trimmed_triangles = removed.triangles;
+        stats.unseen_area_fraction = removed.area_fraction;
     }
     let fans = resolve_fans(&mut mesh);
     stats.split_vertices = fans.split_vertices;
@@ -368,6 +379,14 @@ fn check_params(params: &PolygoniseParams) -> Result<(), PolygoniseError> {
         && (t.is_nan() || t <= 0.0)
     {
         return invalid("trim", t, "> 0 (or None)");
+    }
+    if let Some(u) = &params.unseen {
+        if !(u.near.is_finite() && u.near > 0.0) {
+            return invalid("unseen.near", u.near, "finite and > 0");
+        }
+        if u.reach.is_nan() || u.reach < u.near {
+            return invalid("unseen.reach", u.reach, "≥ unseen.near");
+        }
     }
     if !(params.seed_reach.is_finite() && params.seed_reach >= 0.0) {
         return invalid("seed_reach", params.seed_reach, "finite and ≥ 0");
