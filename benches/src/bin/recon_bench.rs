@@ -23,7 +23,7 @@ use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptio
 use sphcover_core::{DVec3, TriMesh};
 use sphcover_evaluation::ground_truth_meshes::{icosphere, torus_mesh};
 use sphcover_evaluation::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
-use sphcover_evaluation::scan_simulation::{ScanCase, generate_scan};
+use sphcover_evaluation::scan_simulation::{ScanCase, ScanParams, generate_scan};
 
 /// The ground truth used when no `--mesh` is given (relative to the workspace root).
 const DEFAULT_MESH: &str = "bunny=fixtures/real/bunny00.off";
@@ -77,6 +77,37 @@ struct Args {
     /// range of all (the machine's speed drifts, so one run says little).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     repeat: u32,
+    /// Camera positions of the virtual scanner, in the cases that use it (default 6).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    views: Option<u32>,
+    /// Range noise of the virtual scanner, as a fraction of the diagonal (default 0.001).
+    #[arg(long)]
+    range_noise: Option<f64>,
+    /// Uniform outliers as a fraction of the surface points, in place of each case's own.
+    #[arg(long)]
+    outliers: Option<f64>,
+}
+
+/// The scan parameters of `case` with the command line's overrides, and the suffix that
+/// names the overrides in file names and tables (empty without any).
+fn scan_params(case: ScanCase, size: usize, args: &Args) -> (ScanParams, String) {
+    let mut params = case.params(size, args.seed);
+    let mut suffix = String::new();
+    if let Some(scanner) = params.scanner.as_mut() {
+        if let Some(views) = args.views {
+            scanner.views = views as usize;
+            suffix += &format!("-views{views}");
+        }
+        if let Some(noise) = args.range_noise {
+            scanner.range_noise = noise;
+            suffix += &format!("-range{noise}");
+        }
+    }
+    if let Some(outliers) = args.outliers {
+        params.outliers = outliers;
+        suffix += &format!("-outliers{outliers}");
+    }
+    (params, suffix)
 }
 
 /// Builds the command line of a tool for an input and an output path.
@@ -223,9 +254,10 @@ fn run(args: Args) -> anyhow::Result<()> {
         for &size in &sizes {
             for &case in &cases {
                 let t0 = Instant::now();
-                let scan = generate_scan(gt, &case.params(size, args.seed))
+                let (params, suffix) = scan_params(case, size, &args);
+                let scan = generate_scan(gt, &params)
                     .with_context(|| format!("generating {} of {mesh_name}", case.name()))?;
-                let stem = format!("{mesh_name}-{}-{}", case.name(), format_count(size));
+                let stem = format!("{mesh_name}-{}{suffix}-{}", case.name(), format_count(size));
                 let input = work.join(format!("{stem}.ply"));
                 let wopts = WriteOptions {
                     ply_encoding: PlyEncoding::BinaryLittleEndian,
@@ -252,7 +284,9 @@ fn run(args: Args) -> anyhow::Result<()> {
                         timeout,
                         args.repeat,
                     );
-                    let cells = row_cells(mesh_name, case, scan.cloud.len(), &tool.name, &row);
+                    let case_name = format!("{}{suffix}", case.name());
+                    let cells =
+                        row_cells(mesh_name, &case_name, scan.cloud.len(), &tool.name, &row);
                     eprintln!("  {}", cells.join(" | "));
                     table.push(cells);
                 }
@@ -368,10 +402,10 @@ fn median_or_failed(mut runs: Vec<RunMeasurement>) -> RunMeasurement {
     runs.swap_remove(middle)
 }
 
-fn row_cells(mesh: &str, case: ScanCase, points: usize, tool: &str, r: &ToolResult) -> Vec<String> {
+fn row_cells(mesh: &str, case: &str, points: usize, tool: &str, r: &ToolResult) -> Vec<String> {
     let mut cells = vec![
         mesh.to_string(),
-        case.name().to_string(),
+        case.to_string(),
         points.to_string(),
         tool.to_string(),
         wall_cell(r),
@@ -426,5 +460,37 @@ fn resolve(root: &Path, p: &Path) -> PathBuf {
         p.to_path_buf()
     } else {
         root.join(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_change_the_scanner_cases_and_name_themselves() {
+        let args = Args::parse_from([
+            "recon-bench",
+            "--views",
+            "12",
+            "--range-noise",
+            "0.0001",
+            "--outliers",
+            "0.05",
+        ]);
+        let (scanner, suffix) = scan_params(ScanCase::Scanner, 1000, &args);
+        let camera = scanner.scanner.expect("the scanner case scans");
+        assert_eq!((camera.views, camera.range_noise), (12, 0.0001));
+        assert_eq!(scanner.outliers, 0.05);
+        assert_eq!(suffix, "-views12-range0.0001-outliers0.05");
+        // Without a scanner, only the outliers change.
+        let (clean, suffix) = scan_params(ScanCase::Clean, 1000, &args);
+        assert!(clean.scanner.is_none());
+        assert_eq!(suffix, "-outliers0.05");
+        let defaults = Args::parse_from(["recon-bench"]);
+        assert_eq!(
+            scan_params(ScanCase::Scanner, 1000, &defaults),
+            (ScanCase::Scanner.params(1000, 0), String::new())
+        );
     }
 }
