@@ -163,3 +163,17 @@ def test_progress_true_shows_the_stages_on_stderr(fixtures, capsys):
     sphcover.reconstruct(sphcover.read(fixtures / "sphere_2k.ply"), progress=True)
     # A tqdm bar when tqdm is installed, else one line per stage: both name the stages.
     assert "normalise" in capsys.readouterr().err
+
+
+def test_an_open_scan_leaves_out_what_was_never_seen_as_the_command_line_does(
+    fixtures, run_cli, tmp_path
+):
+    scan = fixtures / "real" / "hippo2.ply"
+    run_cli("recon", scan, "-o", tmp_path / "cli.ply")
+    run_cli("recon", scan, "-o", tmp_path / "cli_closed.ply", "--trim", "off")
+    mesh, written = python_recon_bytes(tmp_path, scan)
+    assert written == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["unseen_area_fraction"] > 0.5 and not mesh.stats["watertight"]
+    closed, written = python_recon_bytes(tmp_path, scan, trim=False)
+    assert written == (tmp_path / "cli_closed.ply").read_bytes()
+    assert closed.stats["unseen_area_fraction"] == 0.0
