@@ -333,7 +333,7 @@ impl SheetNoise {
                     .sheet
                     .iter()
                     .map(|&p| (p - pca.centroid).dot(direction));
-                let explained = explained_by_split(&mut self.offsets, offsets);
+                let (explained, _) = best_split(&mut self.offsets, offsets);
                 if explained > best.map_or(TWO_SHEETS, |b| b.0) {
                     best = Some((explained, direction));
                 }
@@ -359,13 +359,6 @@ impl SheetNoise {
             self.sheet.extend(kept);
         }
     }
-}
-
-/// The share of the variance of `offsets` that their best split in two explains (0 when
-/// none is allowed), with `buffer` left holding them sorted with their positions.
-fn explained_by_split(buffer: &mut Vec<(f64, usize)>, offsets: impl Iterator<Item = f64>) -> f64 {
-    let (explained, _) = best_split(buffer, offsets);
-    explained
 }
 
 /// The best split of `offsets` into two sheets: the share of their variance it explains and

@@ -23,8 +23,29 @@ const MAJOR: f64 = 1.0;
 const MINOR: f64 = 0.2;
 
 fn bunny() -> TriMesh {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/real/bunny00.off");
-    read_mesh(&path, &ReadOptions::default()).expect("bundled bunny")
+    bundled_mesh("bunny00.off")
+}
+
+/// A mesh of `fixtures/real/`.
+fn bundled_mesh(name: &str) -> TriMesh {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/real")
+        .join(name);
+    read_mesh(&path, &ReadOptions::default()).expect("bundled mesh")
+}
+
+/// The distance of each vertex of `mesh` to `truth`.
+fn vertex_distances(mesh: &TriMesh, truth: &TriMesh) -> Vec<f64> {
+    let bvh = TriangleBvh::new(truth).expect("bvh");
+    mesh.vertices
+        .iter()
+        .map(|&v| {
+            bvh.closest_point(v)
+                .expect("closest")
+                .distance_squared
+                .sqrt()
+        })
+        .collect()
 }
 
 /// `n` area-uniform samples of `mesh` with its face normals.
@@ -45,19 +66,10 @@ fn mesh_score(cloud: &PointCloud, params: &ReconParams, truth: &TriMesh) -> (f64
         "not watertight: {} components, {} isolated samples, {} outliers",
         rec.stats.components, rec.stats.scan.isolated_count, rec.stats.outliers
     );
-    let bvh = TriangleBvh::new(truth).expect("bvh");
     let diagonal = sphcover_core::Aabb::from_points(&truth.vertices).diagonal();
-    let d: Vec<f64> = rec
-        .mesh
-        .vertices
-        .iter()
-        .map(|&v| {
-            bvh.closest_point(v)
-                .expect("closest")
-                .distance_squared
-                .sqrt()
-                / diagonal
-        })
+    let d: Vec<f64> = vertex_distances(&rec.mesh, truth)
+        .into_iter()
+        .map(|d| d / diagonal)
         .collect();
     let mean = d.iter().sum::<f64>() / d.len() as f64;
     let max = d.iter().copied().fold(0.0, f64::max);
@@ -231,18 +243,7 @@ fn thin_walls_keep_their_surface_through_the_graph_cut() {
     let cloud = mesh_scan(&truth, 200_000, 7);
     let rec = reconstruct(&cloud, &ReconParams::default(), &|_| {}).expect("reconstruction");
     assert!(rec.stats.watertight && rec.stats.components == 1);
-    let bvh = TriangleBvh::new(&truth).expect("bvh");
-    let mut d: Vec<f64> = rec
-        .mesh
-        .vertices
-        .iter()
-        .map(|&v| {
-            bvh.closest_point(v)
-                .expect("closest")
-                .distance_squared
-                .sqrt()
-        })
-        .collect();
+    let mut d = vertex_distances(&rec.mesh, &truth);
     d.sort_by(f64::total_cmp);
     let p99 = d[d.len() * 99 / 100];
     eprintln!(
@@ -261,10 +262,7 @@ fn noise_outliers_and_holes_together_on_sharp_and_genus_two_shapes() {
     use sphcover_evaluation::recon_metrics::{ReconMetricsParams, score_reconstruction};
     use sphcover_evaluation::scan_simulation::{ScanCase, generate_scan};
     for name in ["fandisk.off", "femur.off"] {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../fixtures/real")
-            .join(name);
-        let truth = read_mesh(&path, &ReadOptions::default()).expect("bundled mesh");
+        let truth = bundled_mesh(name);
         for seed in [1, 2] {
             let scan =
                 generate_scan(&truth, &ScanCase::Combined030.params(60_000, seed)).expect("scan");

@@ -16,21 +16,39 @@ pub(super) fn trim(
     seeds: &[DVec3],
     limit: f64,
 ) -> Result<usize, PolygoniseError> {
+    let limit2 = limit * limit;
+    let drop: Vec<bool> = centroid_distances_squared(mesh, seeds)?
+        .into_iter()
+        .map(|d2| d2 > limit2)
+        .collect();
+    Ok(drop_triangles(mesh, &drop))
+}
+
+/// The squared distance from each triangle's centroid to the nearest seed.
+fn centroid_distances_squared(
+    mesh: &TriMesh,
+    seeds: &[DVec3],
+) -> Result<Vec<f64>, PolygoniseError> {
     let index = PointIndex::new(seeds)?;
-    let keep: Vec<bool> = mesh
+    Ok(mesh
         .triangles
         .par_iter()
         .map_init(Vec::new, |found, t| {
             let centroid = t.iter().map(|&v| mesh.vertices[v as usize]).sum::<DVec3>() / 3.0;
             index.nearest_k_with_distances(centroid, 1, found);
-            found.first().is_some_and(|&(d2, _)| d2 <= limit * limit)
+            found.first().map_or(f64::INFINITY, |&(d2, _)| d2)
         })
-        .collect();
+        .collect())
+}
+
+/// Removes the triangles marked in `drop` and the vertices left unused; returns how many
+/// triangles went.
+fn drop_triangles(mesh: &mut TriMesh, drop: &[bool]) -> usize {
     let before = mesh.triangles.len();
-    let mut k = keep.iter();
-    mesh.triangles.retain(|_| *k.next().unwrap_or(&false));
+    let mut d = drop.iter();
+    mesh.triangles.retain(|_| !*d.next().unwrap_or(&false));
     remove_unused_vertices(mesh);
-    Ok(before - mesh.triangles.len())
+    before - mesh.triangles.len()
 }
 
 /// Which surface far from the seeds is left out by default: the parts the scanner never saw,
@@ -61,18 +79,10 @@ pub(super) fn trim_unseen(
     seeds: &[DVec3],
     unseen: &UnseenTrim,
 ) -> Result<UnseenRemoval, PolygoniseError> {
-    let index = PointIndex::new(seeds)?;
-    let distance: Vec<f64> = mesh
-        .triangles
-        .par_iter()
-        .map_init(Vec::new, |found, t| {
-            let centroid = t.iter().map(|&v| mesh.vertices[v as usize]).sum::<DVec3>() / 3.0;
-            index.nearest_k_with_distances(centroid, 1, found);
-            found.first().map_or(f64::INFINITY, |&(d2, _)| d2.sqrt())
-        })
-        .collect();
-    let far: Vec<u32> = (0..distance.len() as u32)
-        .filter(|&t| distance[t as usize] > unseen.near)
+    let distance2 = centroid_distances_squared(mesh, seeds)?;
+    let near2 = unseen.near * unseen.near;
+    let far: Vec<u32> = (0..distance2.len() as u32)
+        .filter(|&t| distance2[t as usize] > near2)
         .collect();
     let none = UnseenRemoval {
         triangles: 0,
@@ -97,15 +107,15 @@ pub(super) fn trim_unseen(
             regions.union(pair[0].1, pair[1].1);
         }
     }
-    let mut reach = vec![0.0f64; far.len()];
+    let mut reach2 = vec![0.0f64; far.len()];
     for (i, &t) in far.iter().enumerate() {
         let root = regions.find(i as u32) as usize;
-        reach[root] = reach[root].max(distance[t as usize]);
+        reach2[root] = reach2[root].max(distance2[t as usize]);
     }
     let mut drop = vec![false; mesh.triangles.len()];
     for (i, &t) in far.iter().enumerate() {
         let root = regions.find(i as u32) as usize;
-        drop[t as usize] = reach[root] > unseen.reach;
+        drop[t as usize] = reach2[root] > unseen.reach * unseen.reach;
     }
     let removed = drop.iter().filter(|&&d| d).count();
     if removed == 0 {
@@ -120,9 +130,7 @@ pub(super) fn trim_unseen(
             .sum()
     };
     let (dropped_area, kept_area) = (area(false), area(true));
-    let mut d = drop.iter();
-    mesh.triangles.retain(|_| !*d.next().unwrap_or(&false));
-    remove_unused_vertices(mesh);
+    drop_triangles(mesh, &drop);
     Ok(UnseenRemoval {
         triangles: removed,
         area_fraction: dropped_area / (dropped_area + kept_area).max(f64::MIN_POSITIVE),
