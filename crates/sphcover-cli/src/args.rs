@@ -259,6 +259,20 @@ pub enum SkeletonMethod {
     Nms,
 }
 
+/// Which material of a CT `sphcover skeleton` takes the sheet of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MaterialArg {
+    /// On a CT in Hounsfield units, the first thin material of bone and tissue; otherwise
+    /// two classes.
+    Auto,
+    /// Bone: above the soft-tissue level + 190 HU (226 HU at +36 HU).
+    Bone,
+    /// Tissue: above the midpoint of air and soft tissue (the skin).
+    Tissue,
+    /// No materials: two classes, values as they are.
+    Off,
+}
+
 /// Arguments of `sphcover skeleton`.
 #[derive(Debug, Args)]
 pub struct SkeletonArgs {
@@ -272,10 +286,18 @@ pub struct SkeletonArgs {
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// The object is where the value exceeds T, in the file's own units (HU for CT).
-    /// Default: halfway between the air and material levels on either side of Otsu's split
-    /// of the smoothed histogram.
+    /// Default: on a CT in Hounsfield units, the threshold of the material (see
+    /// --material); otherwise halfway between the median of the values below Otsu's split
+    /// of the volume smoothed by one voxel and the upper quartile of those above it. On a
+    /// CT a given T is windowed as a material's is (unless --material off).
     #[arg(long, value_name = "T")]
     pub threshold: Option<f64>,
+    /// On a CT in Hounsfield units (recognised by its air and soft-tissue peaks), the
+    /// material whose mid-surface is wanted; its values are clamped to a window around its
+    /// threshold and smoothed, so that the sheet follows the middle of the material whatever
+    /// lies inside it (e.g. the diploë of a skull). `auto` takes the first thin one.
+    #[arg(long, value_enum, default_value_t = MaterialArg::Auto)]
+    pub material: MaterialArg,
     /// Ridge method: support expansion σ for the derivatives (default 4, thesis §6.2.2).
     /// NMS method: the Gaussian's standard deviation in voxels (default 1).
     #[arg(long, value_name = "S")]

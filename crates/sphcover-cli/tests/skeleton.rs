@@ -366,3 +366,89 @@ fn non_finite_voxels_are_refused_or_with_the_flag_become_background() {
         text(&info.stdout)
     );
 }
+
+/// A 40³ CT in HU of 1 mm voxels: a ball of soft tissue (+40, radius 16) in air, holding a
+/// bone shell (+1200, radii 11–13).
+fn head_values() -> Vec<f32> {
+    let n = 40;
+    let mut v = Vec::with_capacity(n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let r = [i, j, k]
+                    .iter()
+                    .map(|&c| (c as f32 - 19.5).powi(2))
+                    .sum::<f32>()
+                    .sqrt();
+                v.push(if (11.0..=13.0).contains(&r) {
+                    1200.0
+                } else if r <= 16.0 {
+                    40.0
+                } else {
+                    -1000.0
+                });
+            }
+        }
+    }
+    v
+}
+
+#[test]
+fn a_ct_in_hounsfield_units_takes_its_thin_material() {
+    let dir = tempfile::tempdir().unwrap();
+    let ct = dir.path().join("head.nii");
+    write_nifti(&ct, &[40, 40, 40], [1.0; 3], None, &head_values());
+    let out_path = dir.path().join("sheet.ply");
+    let out = sphcover(&[
+        "skeleton",
+        ct.to_str().unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("note: CT in Hounsfield units (air -1000, soft tissue +40): bone is the thin material, above 230 HU"),
+        "{err}"
+    );
+    assert!(
+        err.contains("choose another with --material or --threshold"),
+        "{err}"
+    );
+    // The shell's sheet: every vertex near the middle radius 12.
+    let sheet = sphcover_core::io::read_mesh(&out_path, &Default::default()).unwrap();
+    assert!(!sheet.triangles.is_empty());
+    for v in &sheet.vertices {
+        let r = (*v - sphcover_core::DVec3::splat(19.5)).length();
+        assert!((r - 12.0).abs() < 1.0, "{r}");
+    }
+    // Without materials the threshold splits air from the body: the whole ball, thick.
+    let out = sphcover(&[
+        "skeleton",
+        ct.to_str().unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+        "--material",
+        "off",
+    ]);
+    let err = text(&out.stderr);
+    assert!(!err.contains("note: CT"), "{err}");
+    assert!(err.contains("threshold -"), "{err}");
+    // A material needs a CT: the phantom of air and one material has no soft tissue.
+    let out = sphcover(&[
+        "skeleton",
+        fixture("phantoms/t_junction_ct_n000.nii.gz")
+            .to_str()
+            .unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+        "--material",
+        "bone",
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--material bone needs a CT in Hounsfield units"),
+        "{err}"
+    );
+}

@@ -103,4 +103,5 @@ pub use volume::{Volume, VolumeError, VoxelValues};
 pub use volume_cover::{
     CentreOrder, Elimination, Threshold, VolumeCoverError, VolumeCoverParams, VolumeCoverStats,
     VolumeCoverVariant, build_scattered_cover, build_volume_cover, median_nearest_distance,
+    squared_depth_to_background,
 };

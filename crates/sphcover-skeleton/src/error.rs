@@ -40,6 +40,14 @@ pub enum SkeletonError {
         /// Largest finite value.
         max: f64,
     },
+    /// A material was asked for, but the volume does not look like a CT in Hounsfield units.
+    #[error(
+        "--material {material} needs a CT in Hounsfield units (a histogram with air near -1000 and soft tissue near 0); give the threshold instead"
+    )]
+    NotHounsfield {
+        /// The material asked for.
+        material: &'static str,
+    },
     /// A parameter is out of its domain.
     #[error(transparent)]
     InvalidParameter(#[from] ParameterError),

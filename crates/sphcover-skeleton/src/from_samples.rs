@@ -119,6 +119,7 @@ pub fn extract_skeleton_from_samples_until(
     let times = run_stages_until(&mut ctx, &front, &offset(progress, 0, count), stop)?;
     let (cover, cover_stats) = built(ctx.cover, "cover");
     let front = CoverStage {
+        material: None,
         intensity: built(ctx.intensity, "intensity model"),
         tolerance: ctx.tolerance,
         object_mask: ctx.object_mask,

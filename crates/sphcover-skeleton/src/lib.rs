@@ -31,7 +31,8 @@
 //! ([`stage_names`]):
 //!
 //! ```text
-//! Volume ─► intensity model (automatic threshold, noise, tolerance ε)
+//! Volume ─► intensity model (on a CT in Hounsfield units the thin material and its
+//!                           window, see `Material`; threshold, noise, tolerance ε)
 //!        ─► object mask (drop noise specks above the threshold)
 //!        ─► cover (core: quadratic local fits, automatic r_min / r_max)
 //!        ─► tetrahedral mesh (tetra: dual complex with radius shrink σ_t, edges, rings)
@@ -70,6 +71,7 @@ mod error;
 mod from_samples;
 mod gaussian_filter;
 mod intensity_model;
+mod material;
 mod nms_baseline;
 mod object_mask;
 mod patches;
@@ -84,6 +86,10 @@ pub use error::SkeletonError;
 pub use from_samples::{extract_skeleton_from_samples, extract_skeleton_from_samples_until};
 pub use intensity_model::{
     IntensityModel, estimate_intensity_model, estimate_sample_intensity_model, otsu_threshold,
+};
+pub use material::{
+    CtLevels, MATERIAL_SMOOTHING, Material, MaterialCandidate, MaterialChoice, MaterialReport,
+    THIN_DEPTH, ct_levels,
 };
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};

@@ -5,11 +5,12 @@
 use sphcover_core::io::{self, VolumeInfo};
 use sphcover_core::{PointCloud, TriMesh};
 use sphcover_skeleton::{
-    NmsParams, SkeletonError, SkeletonParams, SkeletonStats, VoxelGridError, check_voxel_grid,
-    extract_skeleton, extract_skeleton_from_samples, nms_skeleton,
+    Material, MaterialChoice, MaterialReport, NmsParams, SkeletonError, SkeletonParams,
+    SkeletonStats, VoxelGridError, check_voxel_grid, extract_skeleton,
+    extract_skeleton_from_samples, nms_skeleton,
 };
 
-use crate::args::{SkeletonArgs, SkeletonMethod};
+use crate::args::{MaterialArg, SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
 use crate::memory_limit::MemoryLimit;
 use crate::report::{Reporter, stage_message};
@@ -135,6 +136,12 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
 fn ridge_params(args: &SkeletonArgs) -> SkeletonParams {
     let mut params = SkeletonParams::default();
     params.threshold = args.threshold;
+    params.material = match args.material {
+        MaterialArg::Auto => MaterialChoice::Auto,
+        MaterialArg::Bone => MaterialChoice::Given(Material::Bone),
+        MaterialArg::Tissue => MaterialChoice::Given(Material::Tissue),
+        MaterialArg::Off => MaterialChoice::Off,
+    };
     params.tolerance = args.eps;
     params.sigma = args.sigma.unwrap_or(params.sigma);
     params.seed = args.seed;
@@ -162,11 +169,15 @@ fn write_sheet(
     for (name, time) in &stats.stages {
         reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
     }
+    if let Some(material) = &stats.material {
+        report_material(material, reporter);
+    }
     if stats.thickness_exceeds_r_max() {
         reporter.warn(&format!(
-            "the object is up to {:.3} thick, more than the largest support radius {:.3}: thick parts may lose their sheet",
+            "the object is up to {:.3} thick, more than the largest support radius {:.3}: thick parts may lose their sheet; if the thin part is another material, choose it with --threshold{}",
             stats.cover.thickness.unwrap_or(0.0),
-            stats.cover.r_max
+            stats.cover.r_max,
+            if stats.material.is_some() { " or --material" } else { "" }
         ));
     }
     if stats.components > 1 {
@@ -187,6 +198,50 @@ fn write_sheet(
     }
     reporter.summary(&summary(stats, &args.output.display().to_string()));
     Ok(())
+}
+
+/// What the material stage decided on a CT, said once: the material and why, or why none.
+fn report_material(m: &MaterialReport, reporter: &Reporter) {
+    let levels = format!(
+        "CT in Hounsfield units (air {:.0}, soft tissue {:+.0})",
+        m.levels.air, m.levels.soft_tissue
+    );
+    let window = m
+        .window
+        .map(|(lo, hi)| format!("; values windowed to [{lo:.0}, {hi:.0}] HU and smoothed"))
+        .unwrap_or_default();
+    let depths = || {
+        m.candidates
+            .iter()
+            .map(|c| match c.depth_p90 {
+                Some(d) => format!("{} {d:.1}", c.material.name()),
+                None => format!("{} none", c.material.name()),
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match (m.material, m.automatic) {
+        (Some(material), true) => reporter.note(&format!(
+            "{levels}: {} is the thin material, above {:.0} HU (90% of it within {:.1} mm of its surface; thin is within {:.1}){window}; choose another with --material or --threshold",
+            material.name(),
+            m.candidates.last().map_or(f64::NAN, |c| c.threshold),
+            m.candidates.last().and_then(|c| c.depth_p90).unwrap_or(f64::NAN),
+            m.thin_depth,
+        )),
+        (Some(material), false) => reporter.note(&format!(
+            "{levels}: {}, above {:.0} HU{window}",
+            material.name(),
+            material.threshold(&m.levels)
+        )),
+        (None, true) => reporter.warn(&format!(
+            "{levels}, but no material is thin (depth of 90% of its voxels: {}; thin is within {:.1}): the threshold splits the two largest classes; choose a material with --material or --threshold",
+            depths(),
+            m.thin_depth
+        )),
+        (None, false) => reporter.note(&format!(
+            "{levels}: the given threshold is taken as a material's{window} (--material off takes the values as they are)"
+        )),
+    }
 }
 
 /// Refuses, from the header, what the pipeline cannot treat correctly: several frames,
@@ -223,6 +278,13 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "output": args.output.display().to_string(),
         "threshold": s.intensity.threshold,
         "automatic_threshold": s.intensity.automatic_threshold,
+        "material": s.material.as_ref().map(|m| serde_json::json!({
+            "name": m.material.map(Material::name),
+            "automatic": m.automatic,
+            "air_hu": m.levels.air,
+            "soft_tissue_hu": m.levels.soft_tissue,
+            "window": m.window.map(|(lo, hi)| [lo, hi]),
+        })),
         "tolerance": s.tolerance,
         "object_voxels": s.cover.object_points,
         "supports": s.cover.supports,

@@ -26,7 +26,8 @@ use crate::kernel::Kernel;
 use crate::volume::Volume;
 use fit::{LINEAR, QUADRATIC};
 use grid::Grid;
-use radii::{depth_to_background, grid_diagonal, max_thickness, radius_cap};
+pub use radii::squared_depth_to_background;
+use radii::{grid_diagonal, max_thickness, radius_cap};
 use support::supports_to_cover;
 
 /// The threshold that selects the object points `v > T`.
@@ -403,7 +404,8 @@ pub fn build_volume_cover(
     let start = Instant::now();
     let deepest = params.centre_order == CentreOrder::DeepestFirst
         && params.variant == VolumeCoverVariant::ObjectQuadratic;
-    let depth = (params.r_max.is_none() || deepest).then(|| depth_to_background(volume, &object));
+    let depth =
+        (params.r_max.is_none() || deepest).then(|| squared_depth_to_background(volume, &object));
     let (r_max, thickness) = radius_cap(
         params,
         r_min,

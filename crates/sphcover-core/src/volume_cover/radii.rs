@@ -12,8 +12,25 @@ use super::distance_transform;
 use super::{VolumeCoverError, VolumeCoverParams};
 use crate::volume::Volume;
 
-/// Squared distance from every voxel centre to the nearest background voxel centre.
-pub(super) fn depth_to_background(volume: &Volume, object: &[bool]) -> Vec<f64> {
+/// Squared distance (world units²) from every voxel centre of `volume` to the nearest voxel
+/// centre outside `object` (one flag per voxel): the squared depth of each object voxel,
+/// exact on axis-aligned grids of any voxel size (Felzenszwalb and Huttenlocher's separable
+/// transform); 0 outside the object, `+∞` everywhere when there is no background voxel.
+///
+/// ```
+/// use sphcover_core::{DVec3, Volume, VoxelValues, squared_depth_to_background};
+///
+/// // A slab 5 voxels thick (z = 2 … 6) in a 4 × 4 × 9 grid of 0.5 × 0.5 × 1 voxels.
+/// let values = VoxelValues::F32(vec![0.0; 4 * 4 * 9]);
+/// let volume = Volume::axis_aligned([4, 4, 9], values, DVec3::new(0.5, 0.5, 1.0), DVec3::ZERO)?;
+/// let object: Vec<bool> = (0..volume.len()).map(|i| (2..=6).contains(&volume.ijk(i)[2])).collect();
+/// let d2 = squared_depth_to_background(&volume, &object);
+/// // The middle layer is 3 slices (3 world units) from the nearest background voxel.
+/// assert_eq!(d2[volume.index(1, 1, 4)], 9.0);
+/// assert_eq!(d2[volume.index(1, 1, 0)], 0.0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn squared_depth_to_background(volume: &Volume, object: &[bool]) -> Vec<f64> {
     let size = volume.voxel_size();
     distance_transform::squared_distance_to_background(
         volume.dims(),
@@ -23,7 +40,7 @@ pub(super) fn depth_to_background(volume: &Volume, object: &[bool]) -> Vec<f64> 
 }
 
 /// Twice the largest distance from an object voxel to a background voxel centre (`d2` from
-/// [`depth_to_background`]); `+∞` with no background voxel.
+/// [`squared_depth_to_background`]); `+∞` with no background voxel.
 pub(super) fn max_thickness(d2: &[f64], object: &[bool]) -> f64 {
     let max = d2
         .par_iter()

@@ -7,11 +7,16 @@ use sphcover_core::{Cover, Stage, Threshold, Volume, VolumeCoverParams, VolumeCo
 use super::{SkeletonParams, voxel_length};
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
-use crate::intensity_model::{IntensityModel, estimate_intensity_model};
+use crate::intensity_model::{IntensityModel, OTSU_SMOOTHING, estimate_intensity_model};
+use crate::material::{
+    Material, MaterialCandidate, MaterialChoice, MaterialReport, THIN_DEPTH, ct_levels, depth_p90,
+    windowed_volume,
+};
 use crate::object_mask::{ObjectMaskStats, drop_small_object_components};
 
 /// What the stages up to the cover produced, for the stages after it.
 pub(crate) struct CoverStage {
+    pub material: Option<MaterialReport>,
     pub intensity: IntensityModel,
     pub tolerance: f64,
     pub object_mask: ObjectMaskStats,
@@ -46,9 +51,13 @@ pub(crate) fn intensity_cover_params(
 pub(super) struct VolumeFront<'a> {
     volume: &'a Volume,
     params: &'a SkeletonParams,
+    material: Option<MaterialReport>,
+    /// The volume windowed to the chosen material, when the input is a CT with materials.
+    windowed: Option<Volume>,
     intensity: Option<IntensityModel>,
     tolerance: f64,
-    /// The volume with its noise specks lowered below the threshold, when it had any.
+    /// The (windowed) volume with its noise specks lowered below the threshold, when it had
+    /// any.
     cleaned: Option<Volume>,
     object_mask: ObjectMaskStats,
     cover: Option<(Cover, VolumeCoverStats)>,
@@ -59,6 +68,8 @@ impl<'a> VolumeFront<'a> {
         VolumeFront {
             volume,
             params,
+            material: None,
+            windowed: None,
             intensity: None,
             tolerance: 0.0,
             cleaned: None,
@@ -71,16 +82,22 @@ impl<'a> VolumeFront<'a> {
         super::built(self.intensity.as_ref(), "intensity model")
     }
 
+    /// The volume the threshold applies to: the input, or its material window.
+    fn source(&self) -> &Volume {
+        self.windowed.as_ref().unwrap_or(self.volume)
+    }
+
     /// The volume the cover is built on.
     fn volume(&self) -> &Volume {
-        self.cleaned.as_ref().unwrap_or(self.volume)
+        self.cleaned.as_ref().unwrap_or_else(|| self.source())
     }
 
     /// The product of the front stages, once they have all run.
     pub fn finish(self) -> Result<CoverStage, SkeletonError> {
-        let voxel = voxel_length(self.cleaned.as_ref().unwrap_or(self.volume));
+        let voxel = voxel_length(self.volume);
         let (cover, cover_stats) = super::built(self.cover, "cover");
         Ok(CoverStage {
+            material: self.material,
             intensity: super::built(self.intensity, "intensity model"),
             tolerance: self.tolerance,
             object_mask: self.object_mask,
@@ -100,9 +117,18 @@ pub(super) fn volume_front_stages<'a>() -> Vec<Stage<VolumeFront<'a>, SkeletonEr
     ]
 }
 
-/// Histogram, threshold (Otsu's unless given) and noise; the fit tolerance ε.
+/// The material (on a CT in Hounsfield units) and its window, then the histogram, threshold
+/// (the material's, the caller's or the two-class one) and noise; the fit tolerance ε.
 fn intensity_model(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
-    let intensity = estimate_intensity_model(ctx.volume, ctx.params.threshold)?;
+    let threshold = choose_material(ctx)?;
+    let mut intensity = estimate_intensity_model(ctx.source(), threshold)?;
+    if ctx
+        .material
+        .as_ref()
+        .is_some_and(|m| m.automatic && m.material.is_some())
+    {
+        intensity.automatic_threshold = true;
+    }
     ctx.tolerance = ctx
         .params
         .tolerance
@@ -116,9 +142,9 @@ fn intensity_model(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
 fn object_mask(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
     let intensity = ctx.intensity();
     let smooth = (intensity.noise_std > ctx.params.smooth_mask_noise * intensity.contrast().abs())
-        .then(|| smoothed_values(ctx.volume, 1.0, intensity.value_range.0));
+        .then(|| smoothed_values(ctx.source(), 1.0, intensity.value_range.0));
     let (cleaned, mask) = drop_small_object_components(
-        ctx.volume,
+        ctx.source(),
         intensity.threshold,
         ctx.params.min_object_fraction,
         smooth.as_deref(),
@@ -136,4 +162,57 @@ fn cover(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
         &cover_params,
     )?);
     Ok(())
+}
+
+/// On a CT in Hounsfield units (see [`crate::material`]), the material's threshold and
+/// window: the caller's threshold, the given material's, or the first thin material's.
+/// Returns the threshold for the intensity model (`None`: its two-class threshold).
+fn choose_material(ctx: &mut VolumeFront<'_>) -> Result<Option<f64>, SkeletonError> {
+    let (params, volume) = (ctx.params, ctx.volume);
+    if params.material == MaterialChoice::Off {
+        return Ok(params.threshold);
+    }
+    let (lo, _) = volume.value_range().ok_or(SkeletonError::NoFiniteValue)?;
+    let smooth = smoothed_values(volume, OTSU_SMOOTHING, lo);
+    let Some(levels) = ct_levels(&smooth) else {
+        return match params.material {
+            MaterialChoice::Given(m) => Err(SkeletonError::NotHounsfield { material: m.name() }),
+            _ => Ok(params.threshold),
+        };
+    };
+    let thin_depth = THIN_DEPTH * volume.voxel_size().min_element();
+    let mut candidates = Vec::new();
+    let (material, automatic) = match (params.threshold, params.material) {
+        (Some(_), _) => (None, false),
+        (None, MaterialChoice::Given(m)) => (Some(m), false),
+        (None, _) => {
+            let thin = Material::ALL.into_iter().find(|&m| {
+                let threshold = m.threshold(&levels);
+                let depth = depth_p90(volume, &smooth, threshold);
+                candidates.push(MaterialCandidate {
+                    material: m,
+                    threshold,
+                    depth_p90: depth,
+                });
+                depth.is_some_and(|d| d <= thin_depth)
+            });
+            (thin, true)
+        }
+    };
+    let threshold = params
+        .threshold
+        .or_else(|| material.map(|m| m.threshold(&levels)));
+    let window = threshold.and_then(|t| levels.window(t));
+    if let Some(window) = window {
+        ctx.windowed = Some(windowed_volume(volume, window));
+    }
+    ctx.material = Some(MaterialReport {
+        levels,
+        material,
+        automatic,
+        candidates,
+        window,
+        thin_depth,
+    });
+    Ok(threshold)
 }

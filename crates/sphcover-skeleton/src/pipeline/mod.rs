@@ -16,6 +16,7 @@ use sphcover_core::{
 
 use crate::error::SkeletonError;
 use crate::intensity_model::IntensityModel;
+use crate::material::{MaterialChoice, MaterialReport};
 use crate::object_mask::ObjectMaskStats;
 use crate::repair::SheetRepairs;
 use crate::repair::cleaning::CleaningStats;
@@ -30,9 +31,15 @@ use sheet_stages::{SheetContext, built};
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct SkeletonParams {
-    /// Object voxels are those above this value (volume units, e.g. HU); `None`: automatic
-    /// (see [`IntensityModel`]).
+    /// Object voxels are those above this value (volume units, e.g. HU); `None`: the
+    /// material's on a CT in Hounsfield units (see [`material`](Self::material)), otherwise
+    /// the two-class threshold of [`IntensityModel`].
     pub threshold: Option<f64>,
+    /// On a CT in Hounsfield units, the material whose mid-surface is wanted (see the
+    /// [`Material`](crate::Material) list): chosen automatically as the first thin one, or
+    /// given. The volume is then windowed to that material (a given threshold is windowed
+    /// too). [`MaterialChoice::Off`] treats every volume as two classes.
+    pub material: MaterialChoice,
     /// Fit tolerance ε of the cover (fraction of the value range); `None`: from the noise
     /// and contrast, see [`IntensityModel::tolerance`].
     pub tolerance: Option<f64>,
@@ -78,6 +85,7 @@ impl Default for SkeletonParams {
     fn default() -> SkeletonParams {
         SkeletonParams {
             threshold: None,
+            material: MaterialChoice::Auto,
             tolerance: None,
             model_tolerance: 0.05,
             min_object_fraction: 0.01,
@@ -98,7 +106,9 @@ impl Default for SkeletonParams {
 /// What [`extract_skeleton`] did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SkeletonStats {
-    /// Threshold, levels and noise.
+    /// The CT's materials and the one used, when the volume is a CT in Hounsfield units.
+    pub material: Option<MaterialReport>,
+    /// Threshold, levels and noise (of the windowed volume when a material was used).
     pub intensity: IntensityModel,
     /// The fit tolerance ε used (normalised units).
     pub tolerance: f64,
@@ -213,6 +223,7 @@ pub(crate) fn sheet_from_cover(
     stop: &StopRequest,
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     let CoverStage {
+        material,
         intensity,
         tolerance,
         object_mask,
@@ -239,6 +250,7 @@ pub(crate) fn sheet_from_cover(
     let topology = built(ctx.topology.as_ref(), "topology");
     let repairs = &ctx.repairs;
     let stats = SkeletonStats {
+        material,
         intensity,
         tolerance,
         object_mask,
