@@ -549,7 +549,10 @@ mod tests {
         let (lo, hi) = thickness
             .iter()
             .fold((f64::MAX, f64::MIN), |(lo, hi), &t| (lo.min(t), hi.max(t)));
-        assert!((2.0..2.5).contains(&lo) && hi > 7.0 && hi <= 8.0, "{lo} {hi}");
+        assert!(
+            (2.0..2.5).contains(&lo) && hi > 7.0 && hi <= 8.0,
+            "{lo} {hi}"
+        );
         // Bone is a few percent of the voxels; the head (everything but air and foam) most.
         let bone = count(&ct, Tissue::is_bone) as f64 / ct.tissue.len() as f64;
         assert!(bone > 0.01 && bone < 0.15, "{bone}");
