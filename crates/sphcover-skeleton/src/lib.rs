@@ -41,7 +41,7 @@
 //!        ─► ridge points (eq. 6.1, 6.4, 6.5; eigenvectors oriented over the mesh)
 //!        ─► patches (fans around ridge edges, open at the mesh boundary)
 //!        ─► the repairs of module `repair`, each switchable in [`SheetRepairs`]:
-//!           cleaning, rim trimming, cleaning again, junction holes, tunnels, flaps,
+//!           cleaning, rim trimming, cleaning again, material holes, junction holes, tunnels, flaps,
 //!           centring, junction fold, junction planes, smoothing (off by default)
 //!        ─► topology ─► TriMesh in world units
 //! ```
@@ -102,6 +102,7 @@ pub use repair::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use repair::flaps::{FlapParams, collapse_misaligned_flaps, triangle_alignment};
 pub use repair::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
 pub use repair::junction_planes::{JunctionPlaneParams, snap_to_junction_planes};
+pub use repair::material_holes::{MaterialHoleParams, fill_material_holes};
 pub use repair::medial_correction::{
     CentringParams, JunctionFoldParams, centre_between_faces, fold_junction_vertices,
 };

@@ -130,6 +130,8 @@ pub struct SkeletonStats {
     pub cleaning: CleaningStats,
     /// Triangles removed by rim trimming.
     pub rim_triangles: usize,
+    /// Large holes filled where the material is continuous.
+    pub material_holes: usize,
     /// Holes filled in the sheets meeting at junctions.
     pub junction_holes: usize,
     /// Tunnels through material closed at junctions.
@@ -262,6 +264,7 @@ pub(crate) fn sheet_from_cover(
         raw_triangles: ctx.raw_triangles,
         cleaning: repairs.cleaning,
         rim_triangles: repairs.rim_triangles,
+        material_holes: repairs.material_holes,
         junction_holes: repairs.junction_holes,
         tunnels: repairs.tunnels,
         flap_triangles: repairs.flap_triangles,
@@ -349,6 +352,17 @@ fn check_repairs(r: &SheetRepairs) -> Result<(), SkeletonError> {
         if let Some(a) = t.keep_pieces_voxels {
             values.push(("rim_trimming.keep_pieces_voxels", a));
         }
+    }
+    if let Some(h) = &r.material_holes {
+        values.push((
+            "material_holes.max_perimeter_voxels",
+            h.max_perimeter_voxels,
+        ));
+        values.push(("material_holes.step_voxels", h.step_voxels));
+        values.push((
+            "material_holes.min_clearance_voxels",
+            h.min_clearance_voxels,
+        ));
     }
     if let Some(h) = &r.junction_holes {
         values.push(("junction_holes.min_angle_degrees", h.min_angle_degrees));

@@ -13,6 +13,7 @@ use crate::repair::cleaning::{CleaningStats, clean_sheet};
 use crate::repair::flaps::collapse_misaligned_flaps;
 use crate::repair::junction_holes::fill_holes_within_sheets;
 use crate::repair::junction_planes::snap_to_junction_planes;
+use crate::repair::material_holes::fill_material_holes;
 use crate::repair::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::repair::part_surface::PartSurface;
 use crate::repair::rim_trimming::trim_rims;
@@ -30,6 +31,7 @@ pub(crate) type SheetStage<'c> = Stage<SheetContext<'c>, SkeletonError>;
 pub(crate) struct RepairCounts {
     pub cleaning: CleaningStats,
     pub rim_triangles: usize,
+    pub material_holes: usize,
     pub junction_holes: usize,
     pub tunnels: usize,
     pub flap_triangles: usize,
@@ -121,7 +123,7 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
         Stage::new("patches", patches),
         Stage::new("cleaning", cleaning),
     ];
-    let optional: [(bool, SheetStage<'c>); 9] = [
+    let optional: [(bool, SheetStage<'c>); 10] = [
         (
             repairs.rim_trimming.is_some(),
             Stage::new("rim trimming", rim_trimming),
@@ -129,6 +131,10 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
         (
             repairs.rim_trimming.is_some(),
             Stage::new("cleaning again", cleaning),
+        ),
+        (
+            repairs.material_holes.is_some(),
+            Stage::new("material holes", material_holes),
         ),
         (
             repairs.junction_holes.is_some(),
@@ -262,6 +268,16 @@ fn rim_trimming(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     let (trimmed, removed) = trim_rims(&ctx.sheet, &part, params, ctx.voxel);
     ctx.repairs.rim_triangles = removed;
     ctx.sheet = trimmed;
+    Ok(())
+}
+
+/// Large holes where the material is continuous.
+fn material_holes(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let Some(params) = &ctx.params.repairs.material_holes else {
+        return Ok(());
+    };
+    let part = part(&ctx.function, ctx.level, ctx.r_max);
+    ctx.repairs.material_holes = fill_material_holes(&mut ctx.sheet, &part, params, ctx.voxel);
     Ok(())
 }
 

@@ -7,6 +7,7 @@ pub(crate) mod cleaning;
 pub(crate) mod flaps;
 pub(crate) mod junction_holes;
 pub(crate) mod junction_planes;
+pub(crate) mod material_holes;
 pub(crate) mod medial_correction;
 pub(crate) mod part_surface;
 pub(crate) mod rim_trimming;
@@ -17,6 +18,7 @@ use cleaning::CleaningParams;
 use flaps::FlapParams;
 use junction_holes::SheetHoleParams;
 use junction_planes::JunctionPlaneParams;
+use material_holes::MaterialHoleParams;
 use medial_correction::{CentringParams, JunctionFoldParams};
 use rim_trimming::RimTrimParams;
 use sheet_smoothing::SmoothingParams;
@@ -34,6 +36,7 @@ use tunnels::TunnelParams;
 /// |---|---|---|
 /// | cleaning | [`clean_sheet`](crate::clean_sheet) | weld, undo pinches, fill small holes over material, drop fragments |
 /// | rim trimming | [`trim_rims`](crate::trim_rims) | trim the sheet back from the part's rounded rims (medial-axis test), then clean again |
+/// | material holes | [`fill_material_holes`](crate::fill_material_holes) | fill large holes where the material is continuous, on the part's mid-surface |
 /// | junction holes | [`fill_holes_within_sheets`](crate::fill_holes_within_sheets) | fill holes of the sheets meeting at a junction |
 /// | tunnels | [`close_material_tunnels`](crate::close_material_tunnels) | open closed pockets, close loops that go around material only |
 /// | flaps | [`collapse_misaligned_flaps`](crate::collapse_misaligned_flaps) | collapse fins standing across the sheet |
@@ -49,6 +52,8 @@ pub struct SheetRepairs {
     pub cleaning: CleaningParams,
     /// Trimming back from the rims.
     pub rim_trimming: Option<RimTrimParams>,
+    /// Large holes where the material is continuous.
+    pub material_holes: Option<MaterialHoleParams>,
     /// Holes of the sheets meeting at a junction.
     pub junction_holes: Option<SheetHoleParams>,
     /// Closed pockets and tunnels through material.
@@ -74,6 +79,7 @@ impl Default for SheetRepairs {
         SheetRepairs {
             cleaning: CleaningParams::default(),
             rim_trimming: Some(RimTrimParams::default()),
+            material_holes: Some(MaterialHoleParams::default()),
             junction_holes: Some(SheetHoleParams::default()),
             tunnels: Some(TunnelParams::default()),
             flaps: Some(FlapParams::default()),
@@ -91,6 +97,7 @@ impl SheetRepairs {
         SheetRepairs {
             cleaning: CleaningParams::default(),
             rim_trimming: None,
+            material_holes: None,
             junction_holes: None,
             tunnels: None,
             flaps: None,
