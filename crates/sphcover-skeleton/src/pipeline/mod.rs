@@ -19,6 +19,7 @@ use crate::intensity_model::IntensityModel;
 use crate::object_mask::ObjectMaskStats;
 use crate::repair::SheetRepairs;
 use crate::repair::cleaning::CleaningStats;
+use crate::resample::{ResampledGrid, resample_if_anisotropic};
 use crate::ridge_points::RidgeFilter;
 pub(crate) use front_stages::{CoverStage, intensity_cover_params};
 use front_stages::{VolumeFront, volume_front_stages};
@@ -98,6 +99,11 @@ impl Default for SkeletonParams {
 /// What [`extract_skeleton`] did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SkeletonStats {
+    /// How the volume was resampled before the stages, its voxels being more than
+    /// [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart; `None` when the stages ran on the
+    /// input grid (always for scattered samples). Lengths given in voxels are then in the
+    /// resampled voxels.
+    pub resampled: Option<ResampledGrid>,
     /// Threshold, levels and noise.
     pub intensity: IntensityModel,
     /// The fit tolerance ε used (normalised units).
@@ -155,6 +161,11 @@ impl SkeletonStats {
 /// Extracts the skeletal sheet of the thin object in `volume` as one shared-vertex
 /// triangle mesh in world coordinates. Per-vertex values are the ridge strengths `−λ1`.
 /// `progress` is told of each stage as it starts ([`stage_names`]).
+///
+/// A volume whose voxels are more than [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart is
+/// first resampled along its coarse axes ([`Resampling`](crate::Resampling),
+/// [`SkeletonStats::resampled`]). No grid is refused here: [`check_voxel_grid`](crate::check_voxel_grid)
+/// says from the header which grids the pipeline treats correctly.
 pub fn extract_skeleton(
     volume: &Volume,
     params: &SkeletonParams,
@@ -172,11 +183,15 @@ pub fn extract_skeleton_until(
     stop: &StopRequest,
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     check_params(params)?;
+    let resampled = resample_if_anisotropic(volume)?;
+    let grid = resampled.as_ref().map_or(volume, |(grid, _)| grid);
     let front = volume_front_stages();
     let count = front.len() + sheet_stage_list(params).len();
-    let mut ctx = VolumeFront::new(volume, params);
+    let mut ctx = VolumeFront::new(grid, params);
     let times = run_stages_until(&mut ctx, &front, &offset(progress, 0, count), stop)?;
-    sheet_from_cover(ctx.finish()?, times, params, progress, stop)
+    let (sheet, mut stats) = sheet_from_cover(ctx.finish()?, times, params, progress, stop)?;
+    stats.resampled = resampled.map(|(_, record)| record);
+    Ok((sheet, stats))
 }
 
 /// The names of the stages [`extract_skeleton`] (and
@@ -239,6 +254,7 @@ pub(crate) fn sheet_from_cover(
     let topology = built(ctx.topology.as_ref(), "topology");
     let repairs = &ctx.repairs;
     let stats = SkeletonStats {
+        resampled: None,
         intensity,
         tolerance,
         object_mask,
