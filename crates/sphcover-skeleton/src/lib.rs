@@ -31,7 +31,7 @@
 //! ([`stage_names`]):
 //!
 //! ```text
-//! Volume ─► [not a stage: voxels more than 2:1 apart resampled along the coarse axes]
+//! Volume ─► [not a stage: voxels 2:1 to 8:1 apart resampled along the coarse axes]
 //!        ─► intensity model (automatic threshold, noise, tolerance ε)
 //!        ─► object mask (drop noise specks above the threshold)
 //!        ─► cover (core: quadratic local fits, automatic r_min / r_max)

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use sphcover_core::{Volume, VolumeError, VoxelValues};
 
 use crate::error::SkeletonError;
-use crate::voxel_grid::Resampling;
+use crate::voxel_grid::{Resampling, resamplable};
 
 /// What [`crate::extract_skeleton`] or [`crate::nms_skeleton`] did to a volume whose voxels
 /// were more than [`crate::MAX_ANISOTROPY`] apart before their stages: they ran on the
@@ -39,11 +39,14 @@ pub struct ResampledGrid {
 }
 
 /// `volume` resampled as [`Resampling::of`] its voxel size asks, `None` when it is processed
-/// as it is.
+/// as it is: within [`crate::MAX_ANISOTROPY`], and also beyond
+/// [`crate::MAX_RESAMPLED_ANISOTROPY`], which [`crate::check_voxel_grid`] refuses, since there
+/// the refined grid would grow without bound.
 pub(crate) fn resample_if_anisotropic(
     volume: &Volume,
 ) -> Result<Option<(Volume, ResampledGrid)>, SkeletonError> {
-    let Some(resampling) = Resampling::of(volume.voxel_size()) else {
+    let size = volume.voxel_size();
+    let Some(resampling) = Resampling::of(size).filter(|_| resamplable(size)) else {
         return Ok(None);
     };
     let start = Instant::now();
@@ -360,6 +363,25 @@ mod tests {
         let v = volume_of([1, 1, 3], |_, _, k| k);
         let out = resample_volume(&v, [1, 1, 2]).unwrap();
         assert_eq!(values(&out), [0.0, 0.4375, 1.0, 1.5625, 2.0]);
+    }
+
+    #[test]
+    fn only_grids_within_the_limit_are_resampled_by_the_pipeline() {
+        let grid = |z: f64| {
+            Volume::axis_aligned(
+                [2, 2, 3],
+                VoxelValues::F32(vec![0.0; 12]),
+                DVec3::new(0.5, 0.5, z),
+                DVec3::ZERO,
+            )
+            .unwrap()
+        };
+        assert!(resample_if_anisotropic(&grid(1.0)).unwrap().is_none());
+        let (resampled, record) = resample_if_anisotropic(&grid(2.5)).unwrap().unwrap();
+        assert_eq!((record.dims, resampled.dims()), ([2, 2, 7], [2, 2, 7]));
+        assert_eq!(record.original_dims, [2, 2, 3]);
+        // Refused by the grid check, and no refinement without bound here.
+        assert!(resample_if_anisotropic(&grid(50.0)).unwrap().is_none());
     }
 
     #[test]

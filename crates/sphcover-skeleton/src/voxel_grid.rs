@@ -122,6 +122,11 @@ impl fmt::Display for Resampling {
     }
 }
 
+/// Whether voxels of `size` are at most [`MAX_RESAMPLED_ANISOTROPY`] apart.
+pub(crate) fn resamplable(size: DVec3) -> bool {
+    size.max_element() <= MAX_RESAMPLED_ANISOTROPY * (1.0 + RATIO_TOLERANCE) * size.min_element()
+}
+
 /// What [`check_voxel_grid`] says about a grid it accepts.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VoxelGridCheck {
@@ -138,8 +143,7 @@ pub struct VoxelGridCheck {
 /// are not cubic (lengths given in voxels then use their geometric mean). Refused: voxels
 /// more than [`MAX_RESAMPLED_ANISOTROPY`] apart, and axes oblique to the world's.
 pub fn check_voxel_grid(size: DVec3, axes: DMat3) -> Result<VoxelGridCheck, VoxelGridError> {
-    let (lo, hi) = (size.min_element(), size.max_element());
-    if hi > MAX_RESAMPLED_ANISOTROPY * (1.0 + RATIO_TOLERANCE) * lo {
+    if !resamplable(size) {
         return Err(VoxelGridError::Anisotropic { size });
     }
     for column in [axes.x_axis, axes.y_axis, axes.z_axis] {

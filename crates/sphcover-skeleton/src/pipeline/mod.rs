@@ -162,10 +162,11 @@ impl SkeletonStats {
 /// triangle mesh in world coordinates. Per-vertex values are the ridge strengths `−λ1`.
 /// `progress` is told of each stage as it starts ([`stage_names`]).
 ///
-/// A volume whose voxels are more than [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart is
-/// first resampled along its coarse axes ([`Resampling`](crate::Resampling),
-/// [`SkeletonStats::resampled`]). No grid is refused here: [`check_voxel_grid`](crate::check_voxel_grid)
-/// says from the header which grids the pipeline treats correctly.
+/// A volume whose voxels are more than [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart, up
+/// to [`MAX_RESAMPLED_ANISOTROPY`](crate::MAX_RESAMPLED_ANISOTROPY), is first resampled along
+/// its coarse axes ([`Resampling`](crate::Resampling), [`SkeletonStats::resampled`]). No grid
+/// is refused here: [`check_voxel_grid`](crate::check_voxel_grid) says from the header which
+/// grids the pipeline treats correctly (the others run as they are).
 pub fn extract_skeleton(
     volume: &Volume,
     params: &SkeletonParams,
