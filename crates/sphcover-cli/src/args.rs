@@ -277,8 +277,9 @@ pub enum MaterialArg {
 #[derive(Debug, Args)]
 pub struct SkeletonArgs {
     /// A CT volume (`.nii`, `.nii.gz`, `.inr`, `.inr.gz`) of a thin part, brighter than the
-    /// background, with near-cubic voxels (at most 2:1) on axis-aligned axes; or, with
-    /// `--value-property`, a PLY file of scattered samples with values.
+    /// background, on axis-aligned axes with voxels at most 8:1 (beyond 2:1 resampled along
+    /// the coarse axes first); or, with `--value-property`, a PLY file of scattered samples
+    /// with values.
     #[arg(value_name = "CT")]
     pub input: PathBuf,
     /// Output: the sheet as a triangle mesh (PLY, VTK XML .vtu/.vtp, OBJ, OFF, STL) in world coordinates; with

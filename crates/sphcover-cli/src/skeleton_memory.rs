@@ -3,13 +3,16 @@
 //! input's, so there is no coarser parameter to fall back on: a run over budget is refused
 //! with the estimate. Without `--max-memory` the budget is all the memory the process may
 //! use ([`process_memory`]): a run predicted above it cannot finish, and would end in a
-//! failed allocation deep in the pipeline.
+//! failed allocation deep in the pipeline. A grid too anisotropic to process directly is
+//! resampled first, so the prediction is for the resampled grid, with the input's values
+//! held beside it.
 
 use crate::args::{SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
 use crate::report::Reporter;
 use sphcover_core::io::format_byte_size;
 use sphcover_core::{ProcessMemory, process_memory};
+use sphcover_skeleton::Resampling;
 
 /// Peak memory of `sphcover skeleton` (ridge method, default parameters): bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,18 +40,61 @@ impl SkeletonMemoryModel {
     }
 }
 
+/// The grid the pipeline runs on: the input's, or the input's resampled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkeletonGrid {
+    /// Dimensions of the input grid.
+    pub input: [usize; 3],
+    /// Dimensions of the grid the stages run on (the input's unless resampled).
+    pub processed: [usize; 3],
+}
+
+impl SkeletonGrid {
+    /// The grid of an input of `dims` voxels resampled as `resampling` says.
+    pub fn new(dims: [usize; 3], resampling: Option<&Resampling>) -> SkeletonGrid {
+        SkeletonGrid {
+            input: dims,
+            processed: resampling.map_or(dims, |r| r.dims(dims)),
+        }
+    }
+
+    /// The predicted peak in bytes: the model's for the processed grid, plus the input's
+    /// values (at most 8 bytes each) when the stages run on a resampled copy.
+    pub fn peak_bytes(&self) -> u64 {
+        let voxels = |[nx, ny, nz]: [usize; 3]| nx.saturating_mul(ny).saturating_mul(nz);
+        let peak = SKELETON_MEMORY_MODEL.peak_bytes(voxels(self.processed));
+        if self.processed == self.input {
+            return peak;
+        }
+        let input = voxels(self.input) as u64;
+        peak.saturating_add(input.saturating_mul(size_of::<f64>() as u64))
+    }
+}
+
+impl std::fmt::Display for SkeletonGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [nx, ny, nz] = self.processed;
+        write!(f, "{nx} x {ny} x {nz} voxels")?;
+        if self.processed != self.input {
+            let [nx, ny, nz] = self.input;
+            write!(f, " (resampled from {nx} x {ny} x {nz})")?;
+        }
+        Ok(())
+    }
+}
+
 /// Refuses the run (bad usage, exit 2) when `--max-memory`, or without it the memory of the
-/// process, is below the predicted peak for a grid of `dims` voxels.
+/// process, is below the predicted peak for `grid`.
 pub fn check_budget(
     args: &SkeletonArgs,
-    dims: [usize; 3],
+    grid: SkeletonGrid,
     reporter: &Reporter,
 ) -> anyhow::Result<()> {
     let Some(budget) = args.max_memory else {
         if args.method == SkeletonMethod::Ridge
             && let Some(memory) = process_memory()
         {
-            check_memory(args, dims, &memory)?;
+            check_memory(args, grid, &memory)?;
         }
         return Ok(());
     };
@@ -58,12 +104,10 @@ pub fn check_budget(
         )
         .into());
     }
-    let [nx, ny, nz] = dims;
-    let voxels = nx.saturating_mul(ny).saturating_mul(nz);
-    let estimate = SKELETON_MEMORY_MODEL.peak_bytes(voxels);
+    let estimate = grid.peak_bytes();
     if estimate > budget {
         return Err(BadInput(format!(
-            "--max-memory {}: extracting the sheet of {nx} x {ny} x {nz} voxels needs about {}; \
+            "--max-memory {}: extracting the sheet of {grid} needs about {}; \
              raise the budget or crop the volume",
             format_byte_size(budget),
             format_byte_size(estimate)
@@ -81,14 +125,13 @@ pub fn check_budget(
 /// Refuses a run predicted above all the memory the process may use.
 fn check_memory(
     args: &SkeletonArgs,
-    dims: [usize; 3],
+    grid: SkeletonGrid,
     memory: &ProcessMemory,
 ) -> anyhow::Result<()> {
-    let [nx, ny, nz] = dims;
-    let estimate = SKELETON_MEMORY_MODEL.peak_bytes(nx.saturating_mul(ny).saturating_mul(nz));
+    let estimate = grid.peak_bytes();
     if estimate > memory.bytes {
         return Err(BadInput(format!(
-            "{}: extracting the sheet of {nx} x {ny} x {nz} voxels needs about {}, more than {}; \
+            "{}: extracting the sheet of {grid} needs about {}, more than {}; \
              crop the volume, or pass --max-memory to try anyway",
             args.input.display(),
             format_byte_size(estimate),
@@ -114,5 +157,25 @@ mod tests {
             let error = predicted / (kib * 1024) as f64 - 1.0;
             assert!(error.abs() < 0.08, "{n}³: {error:+.3}");
         }
+    }
+
+    #[test]
+    fn a_resampled_grid_is_predicted_with_the_input_beside_it() {
+        let size = sphcover_core::DVec3::new(0.5, 0.5, 2.5);
+        let resampling = Resampling::of(size).unwrap();
+        let grid = SkeletonGrid::new([100, 100, 40], Some(&resampling));
+        assert_eq!(grid.processed, [100, 100, 118]);
+        let model = SKELETON_MEMORY_MODEL.peak_bytes(100 * 100 * 118);
+        assert_eq!(grid.peak_bytes(), model + 8 * 100 * 100 * 40);
+        assert_eq!(
+            grid.to_string(),
+            "100 x 100 x 118 voxels (resampled from 100 x 100 x 40)"
+        );
+        let direct = SkeletonGrid::new([100, 100, 40], None);
+        assert_eq!(
+            direct.peak_bytes(),
+            SKELETON_MEMORY_MODEL.peak_bytes(400_000)
+        );
+        assert_eq!(direct.to_string(), "100 x 100 x 40 voxels");
     }
 }

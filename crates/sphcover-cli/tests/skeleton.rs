@@ -157,10 +157,11 @@ fn bad_inputs_exit_2_without_writing() {
     let four_d = d.join("4d.nii");
     write_nifti(&four_d, &[24, 24, 24, 2], [0.5; 3], None, &slab_values(2));
     let aniso = d.join("aniso.nii");
+    // 9:1, beyond what resampling takes.
     write_nifti(
         &aniso,
         &[24, 24, 24],
-        [0.5, 0.5, 1.5],
+        [0.5, 0.5, 4.5],
         None,
         &slab_values(1),
     );
@@ -187,7 +188,7 @@ fn bad_inputs_exit_2_without_writing() {
 
     let cases: Vec<(&Path, Vec<&str>, &str)> = vec![
         (&four_d, vec![], "4D volume with 2 frames"),
-        (&aniso, vec![], "too anisotropic"),
+        (&aniso, vec![], "too anisotropic (more than 8:1)"),
         (&oblique, vec![], "oblique"),
         (&ok, vec!["--threshold", "1e6"], "selects no voxel"),
         (&ok, vec!["--threshold=-1e6"], "selects every voxel"),
@@ -233,6 +234,116 @@ fn bad_inputs_exit_2_without_writing() {
     }
 }
 
+/// The plane of [`thick_slice_plate`]: unit normal (tilted 25° off the slices) and offset.
+fn thick_slice_plane() -> ([f64; 3], f64) {
+    let tilt = 25f64.to_radians();
+    ([0.0, -tilt.sin(), tilt.cos()], 2.4)
+}
+
+/// A plate 3 thick on 48 x 48 x 12 voxels of 0.5 x 0.5 x 1.5, its faces blurred as a
+/// scanner blurs them (0.8 pixel in-plane, 0.8 slice across the slices).
+fn thick_slice_plate() -> Vec<f32> {
+    let (n, c) = thick_slice_plane();
+    let width = ((0.4 * n[1]).powi(2) + (1.2 * n[2]).powi(2)).sqrt();
+    let mut v = Vec::new();
+    for k in 0..12 {
+        for j in 0..48 {
+            for _ in 0..48 {
+                let u = n[1] * 0.5 * j as f64 + n[2] * 1.5 * k as f64 - c;
+                let inside = 0.5 * (((1.5 - u) / width).tanh() + ((1.5 + u) / width).tanh());
+                v.push((-1000.0 + 3000.0 * inside) as f32);
+            }
+        }
+    }
+    v
+}
+
+/// Slices three times the pixels are resampled (said on a note line without -v), the sheet
+/// is on the plate's mid-plane in world coordinates, the report records the grids, and the
+/// memory prediction is the resampled grid's.
+#[test]
+fn thick_slices_are_resampled_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let input = d.join("thick.nii");
+    write_nifti(
+        &input,
+        &[48, 48, 12],
+        [0.5, 0.5, 1.5],
+        None,
+        &thick_slice_plate(),
+    );
+    let sheet = d.join("sheet.ply");
+    let report = d.join("report.json");
+    let out = sphcover(&[
+        "skeleton",
+        input.to_str().unwrap(),
+        "-o",
+        sheet.to_str().unwrap(),
+        "--ascii",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let note = "note: {}: voxels of 0.500000 x 0.500000 x 1.500000 are more than 2:1 \
+                anisotropic; resampled by 2 along voxel axis k (spacing 1.500000 -> 0.750000) \
+                with cubic (Catmull-Rom) interpolation; 48 x 48 x 23 voxels\n";
+    assert!(
+        err.contains(&note.replace("{}", &input.display().to_string())),
+        "{err}"
+    );
+    assert!(err.contains("1 component,"), "{err}");
+
+    let ply = std::fs::read_to_string(&sheet).unwrap();
+    let vertices: usize = ply
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap();
+    let body = ply.split("end_header\n").nth(1).unwrap();
+    let (n, c) = thick_slice_plane();
+    let off: Vec<f64> = body
+        .lines()
+        .take(vertices)
+        .map(|l| {
+            let x: Vec<f64> = l
+                .split_whitespace()
+                .take(3)
+                .map(|v| v.parse().unwrap())
+                .collect();
+            (n[0] * x[0] + n[1] * x[1] + n[2] * x[2] - c).abs()
+        })
+        .collect();
+    assert!(off.len() > 100);
+    // In world coordinates on the mid-plane, though the slices are 1.5 apart.
+    assert!(off.iter().all(|&d| d < 0.3), "{off:?}");
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["resampled"]["factors"], serde_json::json!([1, 1, 2]));
+    assert_eq!(
+        json["resampled"]["input_dims"],
+        serde_json::json!([48, 48, 12])
+    );
+    assert_eq!(json["resampled"]["dims"], serde_json::json!([48, 48, 23]));
+
+    let out = sphcover(&[
+        "skeleton",
+        input.to_str().unwrap(),
+        "-o",
+        d.join("never.ply").to_str().unwrap(),
+        "--max-memory",
+        "1M",
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("extracting the sheet of 48 x 48 x 23 voxels (resampled from 48 x 48 x 12)"),
+        "{err}"
+    );
+}
+
 #[test]
 fn the_report_file_holds_the_stage_counts() {
     let dir = tempfile::tempdir().unwrap();
@@ -263,6 +374,7 @@ fn the_report_file_holds_the_stage_counts() {
     assert_eq!(stages, sphcover_skeleton::stage_names(&default));
     assert!(json["tunnels_closed"].is_u64());
     assert!(json["flap_triangles_collapsed"].is_u64());
+    assert!(json["resampled"].is_null());
 }
 
 /// Voxels holding NaN or an infinity are refused by every command that processes a volume,

@@ -80,10 +80,14 @@ pub fn skeleton_volume<'py>(
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let volume = volume(&values, &affine)?;
-    match check_voxel_grid(volume.voxel_size(), volume.affine().matrix3) {
-        Ok(None) => {}
-        Ok(Some(non_cubic)) => warn(py, &non_cubic.to_string())?,
-        Err(e) => return Err(bad_input(e.to_string())),
+    let check = check_voxel_grid(volume.voxel_size(), volume.affine().matrix3)
+        .map_err(|e| bad_input(e.to_string()))?;
+    if let Some(resampling) = check.resampling {
+        let [nx, ny, nz] = resampling.dims(volume.dims());
+        warn(py, &format!("{resampling}; {nx} x {ny} x {nz} voxels"))?;
+    }
+    if let Some(non_cubic) = check.non_cubic {
+        warn(py, &non_cubic.to_string())?;
     }
     match method {
         "ridge" => {
@@ -181,6 +185,18 @@ fn sheet_dict<'py>(
     d.set_item("tunnels_closed", s.tunnels)?;
     d.set_item("flap_triangles_collapsed", s.flap_triangles)?;
     d.set_item("thickness_exceeds_r_max", s.thickness_exceeds_r_max())?;
+    match &s.resampled {
+        Some(r) => {
+            let resampled = PyDict::new(py);
+            resampled.set_item("factors", r.resampling.factors.to_vec())?;
+            resampled.set_item("input_dims", r.original_dims.to_vec())?;
+            resampled.set_item("dims", r.dims.to_vec())?;
+            resampled.set_item("voxel_size", r.resampling.voxel_size().to_array().to_vec())?;
+            resampled.set_item("seconds", r.time.as_secs_f64())?;
+            d.set_item("resampled", resampled)?;
+        }
+        None => d.set_item("resampled", py.None())?,
+    }
     d.set_item("stages_seconds", stage_times(py, &s.stages)?)?;
     out.set_item("stats", d)?;
     Ok(out)

@@ -1,7 +1,7 @@
 //! Why a skeletal sheet could not be extracted.
 
 use sphcover_core::ParameterError;
-use sphcover_core::{CoverError, Stopped, VolumeCoverError};
+use sphcover_core::{CoverError, Stopped, VolumeCoverError, VolumeError};
 use sphcover_tetra::TetraError;
 
 /// Why [`crate::extract_skeleton`] or [`crate::nms_skeleton`] failed. Every variant is a
@@ -59,6 +59,10 @@ pub enum SkeletonError {
         /// What usually causes it.
         hint: &'static str,
     },
+    /// The volume could not be resampled to near-cubic voxels (its refined grid would have
+    /// more voxels than memory can index).
+    #[error("resampling to near-cubic voxels: {0}")]
+    Resampling(#[from] VolumeError),
     /// The volume cover could not be built.
     #[error("volume cover: {0}")]
     Cover(#[from] VolumeCoverError),

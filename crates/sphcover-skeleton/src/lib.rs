@@ -31,7 +31,8 @@
 //! ([`stage_names`]):
 //!
 //! ```text
-//! Volume ─► intensity model (on a CT in Hounsfield units the thin material and its
+//! Volume ─► [not a stage: voxels 2:1 to 8:1 apart resampled along the coarse axes]
+//!        ─► intensity model (on a CT in Hounsfield units the thin material and its
 //!                           window, see `Material`; threshold, noise, tolerance ε)
 //!        ─► object mask (drop noise specks above the threshold)
 //!        ─► cover (core: quadratic local fits, automatic r_min / r_max)
@@ -55,6 +56,10 @@
 //! operators (an implicit heat step of `∇f` and `∇²f` on the sphere intersection graph).
 //!
 //! [`extract_skeleton`] runs it all; each stage is public so a caller can run one alone.
+//! [`check_voxel_grid`] says from a header which grids it takes: axis-aligned voxels at most
+//! [`MAX_RESAMPLED_ANISOTROPY`] apart, those beyond [`MAX_ANISOTROPY`] resampled first by
+//! [`resample_volume`] (the world frame is kept, so the sheet is where an isotropic scan
+//! would put it).
 //! [`extract_skeleton_from_samples`] runs the same stages on scattered samples with values
 //! (no grid), which image-based methods cannot take.
 //! [`nms_skeleton`] is the image-based baseline the thesis compares against (Gaussian
@@ -77,6 +82,7 @@ mod object_mask;
 mod patches;
 mod pipeline;
 mod repair;
+mod resample;
 mod ridge_points;
 mod symmetric_eigen;
 mod voxel_grid;
@@ -110,8 +116,12 @@ pub use repair::part_surface::PartSurface;
 pub use repair::rim_trimming::{RimTrimParams, trim_rims};
 pub use repair::sheet_smoothing::{SmoothingParams, smooth_across};
 pub use repair::tunnels::{TunnelParams, close_material_tunnels};
+pub use resample::{ResampledGrid, resample_volume};
 pub use ridge_points::{
     RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
 };
 pub use symmetric_eigen::SmallestEigen;
-pub use voxel_grid::{MAX_ANISOTROPY, NonCubicVoxels, VoxelGridError, check_voxel_grid};
+pub use voxel_grid::{
+    MAX_ANISOTROPY, MAX_RESAMPLED_ANISOTROPY, NonCubicVoxels, Resampling, VoxelGridCheck,
+    VoxelGridError, check_voxel_grid,
+};

@@ -10,6 +10,7 @@ use sphcover_core::{ParameterError, Volume};
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
 use crate::intensity_model::{IntensityModel, estimate_intensity_model};
+use crate::resample::{ResampledGrid, resample_if_anisotropic};
 use crate::symmetric_eigen::smallest_eigen;
 
 /// Parameters of [`nms_skeleton`].
@@ -43,6 +44,9 @@ pub struct NmsStats {
     pub candidates: usize,
     /// Ridge points kept.
     pub points: usize,
+    /// How the volume was resampled first, as the ridge pipeline does it
+    /// ([`crate::SkeletonStats::resampled`]); σ is then in resampled voxels.
+    pub resampled: Option<ResampledGrid>,
 }
 
 /// Ridge points of `volume` by Gaussian smoothing and non-maximum suppression, in world
@@ -58,6 +62,9 @@ pub struct NmsStats {
 /// point per kept voxel. Its known failure, which the cover method is meant to fix: one σ
 /// cannot suit thin and thick parts at once (too small leaves double ridges on thick plates,
 /// too large flattens thin ones).
+///
+/// A volume whose voxels are more than [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart is
+/// first resampled as [`crate::extract_skeleton`] does it, so both methods see one grid.
 pub fn nms_skeleton(
     volume: &Volume,
     params: &NmsParams,
@@ -69,6 +76,18 @@ pub fn nms_skeleton(
             expected: "must lie in (0, 64] voxels",
         }));
     }
+    let resampled = resample_if_anisotropic(volume)?;
+    let grid = resampled.as_ref().map_or(volume, |(grid, _)| grid);
+    let (points, mut stats) = suppress_non_maxima(grid, params)?;
+    stats.resampled = resampled.map(|(_, record)| record);
+    Ok((points, stats))
+}
+
+/// [`nms_skeleton`] on the grid as it is.
+fn suppress_non_maxima(
+    volume: &Volume,
+    params: &NmsParams,
+) -> Result<(Vec<DVec3>, NmsStats), SkeletonError> {
     let intensity = estimate_intensity_model(volume, params.threshold)?;
     let dims = volume.dims();
     let smooth = smoothed_values(volume, params.sigma, intensity.background_level);
@@ -143,6 +162,7 @@ pub fn nms_skeleton(
         intensity,
         candidates: candidate_count,
         points: points.len(),
+        resampled: None,
     };
     Ok((points, stats))
 }

@@ -5,7 +5,7 @@
 use sphcover_core::io::{self, VolumeInfo};
 use sphcover_core::{PointCloud, TriMesh};
 use sphcover_skeleton::{
-    Material, MaterialChoice, MaterialReport, NmsParams, SkeletonError, SkeletonParams,
+    Material, MaterialChoice, MaterialReport, NmsParams, Resampling, SkeletonError, SkeletonParams,
     SkeletonStats, VoxelGridError, check_voxel_grid, extract_skeleton,
     extract_skeleton_from_samples, nms_skeleton,
 };
@@ -35,8 +35,9 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
 
     // Everything the header decides is checked before the voxels are read.
     let header = io::read_volume_info(&args.input)?;
-    check_volume(args, &header, reporter)?;
-    crate::skeleton_memory::check_budget(args, header.dims(), reporter)?;
+    let resampling = check_volume(args, &header, reporter)?;
+    let grid = crate::skeleton_memory::SkeletonGrid::new(header.dims(), resampling.as_ref());
+    crate::skeleton_memory::check_budget(args, grid, reporter)?;
     let limit = MemoryLimit::from_flag(args.max_memory);
     let stage = reporter.stage("read volume");
     let (volume, info) =
@@ -245,9 +246,14 @@ fn report_material(m: &MaterialReport, reporter: &Reporter) {
 }
 
 /// Refuses, from the header, what the pipeline cannot treat correctly: several frames,
-/// strongly anisotropic voxels, and voxel axes that are not the world axes (up to order and
-/// sign); warns about mildly anisotropic voxels.
-fn check_volume(args: &SkeletonArgs, info: &VolumeInfo, reporter: &Reporter) -> anyhow::Result<()> {
+/// voxels more than 8:1 anisotropic, and voxel axes that are not the world axes (up to order
+/// and sign). Notes how voxels more than 2:1 apart are resampled (returned), and warns about
+/// voxels processed though not cubic.
+fn check_volume(
+    args: &SkeletonArgs,
+    info: &VolumeInfo,
+    reporter: &Reporter,
+) -> anyhow::Result<Option<Resampling>> {
     let name = args.input.display();
     if info.frames() > 1 {
         return Err(BadInput(format!(
@@ -257,18 +263,26 @@ fn check_volume(args: &SkeletonArgs, info: &VolumeInfo, reporter: &Reporter) -> 
         .into());
     }
     match check_voxel_grid(info.voxel_size(), info.affine().matrix3) {
-        Ok(None) => {}
-        Ok(Some(non_cubic)) => reporter.warn(&format!("{name}: {non_cubic}")),
-        Err(VoxelGridError::Oblique) => {
-            return Err(BadInput(format!(
-                "{name}: the voxel axes are oblique to the world axes ({} affine); resample to an axis-aligned grid first",
-                info.axes_source()
-            ))
-            .into());
+        Ok(check) => {
+            if let Some(resampling) = &check.resampling {
+                // Not only with -v: the sheet is computed on interpolated slices.
+                let [nx, ny, nz] = resampling.dims(info.dims());
+                reporter.note(&format!(
+                    "{name}: {resampling}; {nx} x {ny} x {nz} voxels"
+                ));
+            }
+            if let Some(non_cubic) = check.non_cubic {
+                reporter.warn(&format!("{name}: {non_cubic}"));
+            }
+            Ok(check.resampling)
         }
-        Err(e) => return Err(BadInput(format!("{name}: {e}")).into()),
+        Err(VoxelGridError::Oblique) => Err(BadInput(format!(
+            "{name}: the voxel axes are oblique to the world axes ({} affine); resample to an axis-aligned grid first",
+            info.axes_source()
+        ))
+        .into()),
+        Err(e) => Err(BadInput(format!("{name}: {e}")).into()),
     }
-    Ok(())
 }
 
 /// The `--report` JSON: the closing line's counts and the per-stage seconds.
@@ -296,6 +310,13 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "euler_characteristic": s.euler_characteristic,
         "tunnels_closed": s.tunnels,
         "flap_triangles_collapsed": s.flap_triangles,
+        "resampled": s.resampled.map(|r| serde_json::json!({
+            "factors": r.resampling.factors,
+            "input_dims": r.original_dims,
+            "dims": r.dims,
+            "voxel_size": r.resampling.voxel_size().to_array(),
+            "seconds": r.time.as_secs_f64(),
+        })),
         "stages_seconds": s.stages.iter()
             .map(|(n, t)| serde_json::json!({"stage": n, "seconds": t.as_secs_f64()}))
             .collect::<Vec<_>>(),

@@ -318,9 +318,11 @@ def skeleton(
     ``img.get_fdata()`` and ``img.affine`` give. The object is brighter than the background.
     Keywords are the command line's: ``threshold`` (default: from the histogram), ``sigma``,
     ``eps``, ``method`` (``"ridge"``, or ``"nms"`` for the baseline's ridge points), ``seed``.
-    As the command line does, the grid is checked first: voxels more than 2:1 anisotropic or
+    As the command line does, the grid is checked first: voxels more than 8:1 anisotropic or
     axes oblique to the world's raise :class:`BadInputError` (resample first), several frames
-    too; voxels that are not cubic give a ``UserWarning``.
+    too; voxels more than 2:1 apart are resampled along the coarse axes (Catmull–Rom, same
+    world frame) and give a ``UserWarning`` saying how, as do voxels processed though not
+    cubic.
 
     Returns a :class:`Mesh` in world coordinates (per-vertex values: the ridge strength), or
     for ``method="nms"`` a :class:`PointCloud`.

@@ -20,6 +20,7 @@ use crate::material::{MaterialChoice, MaterialReport};
 use crate::object_mask::ObjectMaskStats;
 use crate::repair::SheetRepairs;
 use crate::repair::cleaning::CleaningStats;
+use crate::resample::{ResampledGrid, resample_if_anisotropic};
 use crate::ridge_points::RidgeFilter;
 pub(crate) use front_stages::{CoverStage, intensity_cover_params};
 use front_stages::{VolumeFront, volume_front_stages};
@@ -108,6 +109,11 @@ impl Default for SkeletonParams {
 pub struct SkeletonStats {
     /// The CT's materials and the one used, when the volume is a CT in Hounsfield units.
     pub material: Option<MaterialReport>,
+    /// How the volume was resampled before the stages, its voxels being more than
+    /// [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart; `None` when the stages ran on the
+    /// input grid (always for scattered samples). Lengths given in voxels are then in the
+    /// resampled voxels.
+    pub resampled: Option<ResampledGrid>,
     /// Threshold, levels and noise (of the windowed volume when a material was used).
     pub intensity: IntensityModel,
     /// The fit tolerance ε used (normalised units).
@@ -167,6 +173,12 @@ impl SkeletonStats {
 /// Extracts the skeletal sheet of the thin object in `volume` as one shared-vertex
 /// triangle mesh in world coordinates. Per-vertex values are the ridge strengths `−λ1`.
 /// `progress` is told of each stage as it starts ([`stage_names`]).
+///
+/// A volume whose voxels are more than [`MAX_ANISOTROPY`](crate::MAX_ANISOTROPY) apart, up
+/// to [`MAX_RESAMPLED_ANISOTROPY`](crate::MAX_RESAMPLED_ANISOTROPY), is first resampled along
+/// its coarse axes ([`Resampling`](crate::Resampling), [`SkeletonStats::resampled`]). No grid
+/// is refused here: [`check_voxel_grid`](crate::check_voxel_grid) says from the header which
+/// grids the pipeline treats correctly (the others run as they are).
 pub fn extract_skeleton(
     volume: &Volume,
     params: &SkeletonParams,
@@ -184,11 +196,15 @@ pub fn extract_skeleton_until(
     stop: &StopRequest,
 ) -> Result<(TriMesh, SkeletonStats), SkeletonError> {
     check_params(params)?;
+    let resampled = resample_if_anisotropic(volume)?;
+    let grid = resampled.as_ref().map_or(volume, |(grid, _)| grid);
     let front = volume_front_stages();
     let count = front.len() + sheet_stage_list(params).len();
-    let mut ctx = VolumeFront::new(volume, params);
+    let mut ctx = VolumeFront::new(grid, params);
     let times = run_stages_until(&mut ctx, &front, &offset(progress, 0, count), stop)?;
-    sheet_from_cover(ctx.finish()?, times, params, progress, stop)
+    let (sheet, mut stats) = sheet_from_cover(ctx.finish()?, times, params, progress, stop)?;
+    stats.resampled = resampled.map(|(_, record)| record);
+    Ok((sheet, stats))
 }
 
 /// The names of the stages [`extract_skeleton`] (and
@@ -253,6 +269,7 @@ pub(crate) fn sheet_from_cover(
     let repairs = &ctx.repairs;
     let stats = SkeletonStats {
         material,
+        resampled: None,
         intensity,
         tolerance,
         object_mask,
