@@ -21,8 +21,8 @@
 //! Everything is deterministic for a given seed.
 //!
 //! [`HeadCt`] also holds what the skeleton is scored against (see `head_sheet_metrics`):
-//! the material of each voxel centre, the vault's bone thickness there, and samples of the
-//! holder's mid-surface.
+//! the material on a grid of pixel-sized cubes over the field of view (whatever the slice
+//! spacing), the vault's bone thickness there, and samples of the holder's mid-surface.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -162,11 +162,14 @@ impl HeadCtParams {
 pub struct HeadCt {
     /// The CT image, in HU.
     pub volume: Volume,
-    /// The tissue at each voxel centre (the volume's voxel order).
+    /// The tissue at each centre of the truth grid: cubes of the pixel size over the field of
+    /// view (`truth_dims`, x fastest), whatever the slice spacing.
     pub tissue: Vec<Tissue>,
-    /// The vault's bone thickness (mm) along the ray through each voxel centre; `NaN` away
-    /// from the vault.
-    pub vault_thickness: Vec<f64>,
+    /// The vault's bone thickness (mm) along the ray through each centre of the truth grid;
+    /// `NaN` away from the vault.
+    pub vault_thickness: Vec<f32>,
+    /// Cubes of the truth grid along x, y, z.
+    pub truth_dims: [usize; 3],
     /// Samples of the holder's mid-surface about half a millimetre apart (mm).
     pub holder_mid_surface: Vec<DVec3>,
     /// Height (mm) of the skull base's upper face: the vault lies above it.
@@ -185,6 +188,16 @@ impl HeadCt {
         let depth = SCALP + 0.5 * head.vault_thickness(u);
         let p = head.centre + u * (head.scalp_radius(u) - depth);
         (p.z >= head.skull_base_z && head.frontal_thickening(p) <= 0.5).then_some(p)
+    }
+
+    /// World position (mm) of centre `idx` of the truth grid.
+    pub fn truth_centre(&self, idx: usize) -> DVec3 {
+        truth_centre(self.truth_dims, self.pixel, idx)
+    }
+
+    /// The tissue at `x` (mm), before partial volume, blur and noise.
+    pub fn tissue_at(&self, x: DVec3) -> Tissue {
+        self.head.tissue(x).0
     }
 
     /// The head's centre (mm), from which [`HeadCt::vault_mid_point`] casts its rays.
@@ -435,6 +448,14 @@ fn vault_bone(p: DVec3, into_bone: f64, t: f64) -> (Tissue, f64) {
     }
 }
 
+/// Centre of voxel `idx` of a grid of `dims` cubes of edge `pixel` from the origin.
+fn truth_centre(dims: [usize; 3], pixel: f64, idx: usize) -> DVec3 {
+    let i = idx % dims[0];
+    let j = (idx / dims[0]) % dims[1];
+    let k = idx / (dims[0] * dims[1]);
+    DVec3::new(i as f64, j as f64, k as f64) * pixel
+}
+
 /// Renders the head-CT phantom.
 pub fn head_ct_phantom(params: &HeadCtParams) -> HeadCt {
     let head = Head::new(params);
@@ -448,7 +469,7 @@ pub fn head_ct_phantom(params: &HeadCtParams) -> HeadCt {
     };
     // Partial volume: voxels whose centre and eight inner corners agree on the tissue take
     // the centre's value; the others average 64 subsamples.
-    let rendered: Vec<(Tissue, f64, f64)> = (0..nx * ny * nz)
+    let rendered: Vec<f64> = (0..nx * ny * nz)
         .into_par_iter()
         .map(|idx| {
             let x = centre_of(idx);
@@ -463,24 +484,17 @@ pub fn head_ct_phantom(params: &HeadCtParams) -> HeadCt {
             let uniform = corners
                 .map(|o| head.tissue(x + o * spacing).0)
                 .all(|t| t == tissue);
-            let value = if uniform {
+            if uniform {
                 hu
             } else {
                 voxel_subsamples()
                     .map(|o| head.tissue(x + o * spacing).1)
                     .sum::<f64>()
                     / 64.0
-            };
-            let thickness = if tissue.is_vault() {
-                let d = x - head.centre;
-                head.vault_thickness(d / d.length())
-            } else {
-                f64::NAN
-            };
-            (tissue, value, thickness)
+            }
         })
         .collect();
-    let mut values: Vec<f64> = rendered.iter().map(|r| r.1).collect();
+    let mut values = rendered;
     let sigma_voxels = [
         params.psf_mm[0] / params.pixel,
         params.psf_mm[0] / params.pixel,
@@ -502,10 +516,28 @@ pub fn head_ct_phantom(params: &HeadCtParams) -> HeadCt {
     let volume = Volume::axis_aligned(params.dims, VoxelValues::F32(values), spacing, DVec3::ZERO)
         .expect("the phantom's grid is non-empty with an invertible affine");
     let z_max = (nz - 1) as f64 * params.slice;
+    // The truth is sampled on cubes of the pixel size over the same field of view, whatever
+    // the slice spacing, so that thick slices are scored against the same anatomy.
+    let truth_dims = [nx, ny, (z_max / params.pixel).floor() as usize + 1];
+    let truth: Vec<(Tissue, f32)> = (0..truth_dims.iter().product::<usize>())
+        .into_par_iter()
+        .map(|idx| {
+            let x = truth_centre(truth_dims, params.pixel, idx);
+            let tissue = head.tissue(x).0;
+            let thickness = if tissue.is_vault() {
+                let d = x - head.centre;
+                head.vault_thickness(d / d.length()) as f32
+            } else {
+                f32::NAN
+            };
+            (tissue, thickness)
+        })
+        .collect();
     HeadCt {
         volume,
-        tissue: rendered.iter().map(|r| r.0).collect(),
-        vault_thickness: rendered.iter().map(|r| r.2).collect(),
+        tissue: truth.iter().map(|t| t.0).collect(),
+        vault_thickness: truth.iter().map(|t| t.1).collect(),
+        truth_dims,
         holder_mid_surface: head.holder_samples(0.5, z_max),
         skull_base_z: head.skull_base_z,
         pixel: params.pixel,
@@ -543,8 +575,8 @@ mod tests {
         let thickness: Vec<f64> = ct
             .vault_thickness
             .iter()
-            .copied()
             .filter(|t| t.is_finite())
+            .map(|&t| f64::from(t))
             .collect();
         let (lo, hi) = thickness
             .iter()
@@ -563,10 +595,10 @@ mod tests {
         let ct = head_ct_phantom(&HeadCtParams::small());
         let mut brain = Vec::new();
         let mut vault = Vec::new();
-        for (idx, t) in ct.tissue.iter().enumerate() {
+        for idx in 0..ct.volume.len() {
             let v = ct.volume.value(idx);
             assert_eq!(v, v.round());
-            match t {
+            match ct.tissue_at(ct.volume.voxel_centre(ct.volume.ijk(idx))) {
                 Tissue::Brain => brain.push(v),
                 Tissue::VaultCortical => vault.push(v),
                 _ => {}
@@ -609,7 +641,7 @@ mod tests {
             .iter()
             .enumerate()
             .filter(|(_, t)| **t == Tissue::Skin)
-            .map(|(idx, _)| ct.volume.voxel_centre(ct.volume.ijk(idx)))
+            .map(|(idx, _)| ct.truth_centre(idx))
             .collect();
         for h in ct.holder_mid_surface.iter().step_by(97) {
             let nearest = skin.iter().map(|s| s.distance(*h)).fold(f64::MAX, f64::min);

@@ -57,13 +57,13 @@ impl HeadSheetMetrics {
     }
 }
 
-/// Voxel centres of the phantom whose tissue passes `keep`.
+/// Centres of the phantom's truth grid whose tissue passes `keep`.
 fn voxel_centres(ct: &HeadCt, keep: impl Fn(usize, Tissue) -> bool) -> Vec<DVec3> {
     ct.tissue
         .iter()
         .enumerate()
         .filter(|&(idx, &t)| keep(idx, t))
-        .map(|(idx, _)| ct.volume.voxel_centre(ct.volume.ijk(idx)))
+        .map(|(idx, _)| ct.truth_centre(idx))
         .collect()
 }
 
@@ -241,7 +241,7 @@ pub fn score_head_points(points: &[DVec3], ct: &HeadCt) -> HeadSheetMetrics {
 /// Centres of the vault voxels where the bone is at most [`THIN_VAULT`] voxels thick.
 fn thin_vault_voxels(ct: &HeadCt) -> Vec<DVec3> {
     voxel_centres(ct, |idx, t| {
-        t.is_vault() && ct.vault_thickness[idx] <= THIN_VAULT * ct.pixel
+        t.is_vault() && f64::from(ct.vault_thickness[idx]) <= THIN_VAULT * ct.pixel
     })
 }
 

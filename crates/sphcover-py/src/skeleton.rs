@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sphcover_core::{DMat3, DVec3, TriMesh, Volume, VoxelValues};
 use sphcover_skeleton::{
-    NmsParams, SkeletonParams, SkeletonStats, check_voxel_grid,
+    Material, MaterialChoice, NmsParams, SkeletonParams, SkeletonStats, check_voxel_grid,
     extract_skeleton_from_samples_until, extract_skeleton_until, nms_skeleton,
 };
 
@@ -35,6 +35,21 @@ fn ridge_params(
     params.sigma = sigma.unwrap_or(params.sigma);
     params.seed = seed;
     Ok(params)
+}
+
+/// The command line's `--material` values.
+fn material_choice(name: &str) -> PyResult<MaterialChoice> {
+    Ok(match name {
+        "auto" => MaterialChoice::Auto,
+        "bone" => MaterialChoice::Given(Material::Bone),
+        "tissue" => MaterialChoice::Given(Material::Tissue),
+        "off" => MaterialChoice::Off,
+        other => {
+            return Err(bad_input(format!(
+                "material {other:?} is not one of 'auto', 'bone', 'tissue', 'off'"
+            )));
+        }
+    })
 }
 
 /// The volume of `values[i, j, k]` at `affine · (i, j, k, 1)`.
@@ -65,13 +80,14 @@ pub fn volume(
 /// The sheet of a voxel volume (`method` `"ridge"`), or the ridge points of the baseline
 /// (`"nms"`).
 #[pyfunction]
-#[pyo3(signature = (values, affine, *, threshold = None, sigma = None, eps = None, method = "ridge", seed = 0, threads = None, progress = None))]
+#[pyo3(signature = (values, affine, *, threshold = None, material = "auto", sigma = None, eps = None, method = "ridge", seed = 0, threads = None, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn skeleton_volume<'py>(
     py: Python<'py>,
     values: PyReadonlyArray3<'py, f64>,
     affine: PyReadonlyArray2<'py, f64>,
     threshold: Option<f64>,
+    material: &str,
     sigma: Option<f64>,
     eps: Option<f64>,
     method: &str,
@@ -91,7 +107,8 @@ pub fn skeleton_volume<'py>(
     }
     match method {
         "ridge" => {
-            let params = ridge_params(threshold, eps, sigma, seed)?;
+            let mut params = ridge_params(threshold, eps, sigma, seed)?;
+            params.material = material_choice(material)?;
             let (sheet, stats) = run(py, progress, threads, move |context| {
                 extract_skeleton_until(&volume, &params, &|s| context.stage(s), context.stop())
                     .map_err(skeleton_error)
@@ -185,6 +202,18 @@ fn sheet_dict<'py>(
     d.set_item("tunnels_closed", s.tunnels)?;
     d.set_item("flap_triangles_collapsed", s.flap_triangles)?;
     d.set_item("thickness_exceeds_r_max", s.thickness_exceeds_r_max())?;
+    match &s.material {
+        Some(m) => {
+            let material = PyDict::new(py);
+            material.set_item("name", m.material.map(Material::name))?;
+            material.set_item("automatic", m.automatic)?;
+            material.set_item("air_hu", m.levels.air)?;
+            material.set_item("soft_tissue_hu", m.levels.soft_tissue)?;
+            material.set_item("window", m.window.map(|(lo, hi)| vec![lo, hi]))?;
+            d.set_item("material", material)?;
+        }
+        None => d.set_item("material", py.None())?,
+    }
     match &s.resampled {
         Some(r) => {
             let resampled = PyDict::new(py);

@@ -309,6 +309,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "components": s.components,
         "euler_characteristic": s.euler_characteristic,
         "tunnels_closed": s.tunnels,
+        "material_holes_filled": s.material_holes,
         "flap_triangles_collapsed": s.flap_triangles,
         "resampled": s.resampled.map(|r| serde_json::json!({
             "factors": r.resampling.factors,
@@ -343,7 +344,7 @@ fn summary(s: &SkeletonStats, output: &str) -> String {
         s.triangles,
         s.cleaning.dropped_triangles,
         s.cleaning.dropped_components,
-        s.cleaning.holes_filled,
+        s.cleaning.holes_filled + s.material_holes,
         s.tunnels,
         s.components,
         if s.components == 1 { "" } else { "s" },

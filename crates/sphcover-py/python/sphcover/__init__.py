@@ -303,6 +303,7 @@ def skeleton(
     affine=None,
     *,
     threshold: Optional[float] = None,
+    material: str = "auto",
     sigma: Optional[float] = None,
     eps: Optional[float] = None,
     method: str = "ridge",
@@ -316,8 +317,10 @@ def skeleton(
     ``volume`` is a :class:`Volume` or an ``(nx, ny, nz)`` array indexed ``[i, j, k]`` with
     ``affine`` the 4×4 voxel-to-world matrix (identity when omitted): what nibabel's
     ``img.get_fdata()`` and ``img.affine`` give. The object is brighter than the background.
-    Keywords are the command line's: ``threshold`` (default: from the histogram), ``sigma``,
-    ``eps``, ``method`` (``"ridge"``, or ``"nms"`` for the baseline's ridge points), ``seed``.
+    Keywords are the command line's: ``threshold`` (default: from the histogram),
+    ``material`` (on a CT in Hounsfield units: ``"auto"``, ``"bone"``, ``"tissue"`` or
+    ``"off"``; ``stats["material"]`` says what was chosen and why), ``sigma``, ``eps``,
+    ``method`` (``"ridge"``, or ``"nms"`` for the baseline's ridge points), ``seed``.
     As the command line does, the grid is checked first: voxels more than 8:1 anisotropic or
     axes oblique to the world's raise :class:`BadInputError` (resample first), several frames
     too; voxels more than 2:1 apart are resampled along the coarse axes (Catmull–Rom, same
@@ -343,8 +346,8 @@ def skeleton(
     d = _with_progress(
         progress,
         lambda callback: _sphcover.skeleton_volume(
-            values, affine, threshold=threshold, sigma=sigma, eps=eps, method=method,
-            seed=seed, threads=threads, progress=callback,
+            values, affine, threshold=threshold, material=material, sigma=sigma, eps=eps,
+            method=method, seed=seed, threads=threads, progress=callback,
         ),
     )
     if method == "nms":

@@ -105,6 +105,7 @@ def skeleton_volume(
     affine: F64,
     *,
     threshold: Optional[float] = None,
+    material: str = "auto",
     sigma: Optional[float] = None,
     eps: Optional[float] = None,
     method: str = "ridge",

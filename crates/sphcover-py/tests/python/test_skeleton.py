@@ -99,3 +99,27 @@ def test_thick_slices_are_resampled_and_the_sheet_stays_in_world_coordinates():
     assert resampled["input_dims"] == [48, 48, 12] and resampled["dims"] == [48, 48, 23]
     assert sheet.stats["components"] == 1
     assert np.max(np.abs(sheet.vertices @ normal - offset)) < 0.3
+
+
+def head_phantom(n=40):
+    """A CT in HU of 1 mm voxels: a ball of soft tissue (+40, radius 16) in air holding a bone
+    shell (+1200, radii 11-13), as the command line's test builds it."""
+    i, j, k = np.meshgrid(*[np.arange(n, dtype=np.float64)] * 3, indexing="ij")
+    r = np.sqrt((i - 19.5) ** 2 + (j - 19.5) ** 2 + (k - 19.5) ** 2)
+    return np.where((r >= 11.0) & (r <= 13.0), 1200.0, np.where(r <= 16.0, 40.0, -1000.0))
+
+
+def test_a_ct_takes_its_thin_material_and_says_why():
+    sheet = sphcover.skeleton(head_phantom())
+    material = sheet.stats["material"]
+    assert material["name"] == "bone" and material["automatic"]
+    assert material["air_hu"] == pytest.approx(-1000.0, abs=5.0)
+    assert material["soft_tissue_hu"] == pytest.approx(40.0, abs=5.0)
+    assert material["window"] == pytest.approx([40.0, 420.0], abs=5.0)
+    radii = np.linalg.norm(sheet.vertices - 19.5, axis=1)
+    assert np.all(np.abs(radii - 12.0) < 1.0)
+    # Without materials the air/body split is taken, and the report says no material.
+    whole = sphcover.skeleton(head_phantom(), material="off")
+    assert whole.stats["material"] is None and whole.stats["threshold"] < -100.0
+    with pytest.raises(sphcover.BadInputError, match="not one of"):
+        sphcover.skeleton(head_phantom(), material="metal")

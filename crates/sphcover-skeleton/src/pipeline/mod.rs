@@ -376,10 +376,7 @@ fn check_repairs(r: &SheetRepairs) -> Result<(), SkeletonError> {
             h.max_perimeter_voxels,
         ));
         values.push(("material_holes.step_voxels", h.step_voxels));
-        values.push((
-            "material_holes.min_clearance_voxels",
-            h.min_clearance_voxels,
-        ));
+        values.push(("material_holes.on_sheet_voxels", h.on_sheet_voxels));
     }
     if let Some(h) = &r.junction_holes {
         values.push(("junction_holes.min_angle_degrees", h.min_angle_degrees));
