@@ -1,6 +1,6 @@
 //! End-to-end benchmark harness for `sphcover`, with peers side by side.
 //!
-//! Two binaries live here:
+//! Four binaries live here:
 //!
 //! * `recon-bench` generates the standard synthetic scans of ground-truth meshes
 //!   (`sphcover_evaluation::scan_simulation`), runs `sphcover recon` and any peer given as a command
@@ -8,11 +8,15 @@
 //!   against the ground truth (`sphcover_evaluation::recon_metrics`) and prints one markdown
 //!   table;
 //! * `skeleton-bench` runs `sphcover skeleton` with `--method ridge` and `--method nms` on the
-//!   CT phantoms and tabulates cost and topology.
+//!   CT phantoms and tabulates cost and topology;
+//! * `head-ct-bench` does the same on the generated clinical head CT
+//!   (`sphcover_evaluation::head_ct_phantom`) with the clinical scores of
+//!   `sphcover_evaluation::head_sheet_metrics`;
+//! * `recon-score` scores one reconstruction against its ground truth as JSON.
 //!
 //! A tool that fails or is missing gets a row that says so; the run goes on. The
 //! per-function criterion benchmarks live next to each crate (`cargo bench -p
-//! sphcover-core`). This library holds what both binaries share: peer command templates,
+//! sphcover-core`). This library holds what the binaries share: peer command templates,
 //! measured runs and markdown tables.
 //!
 //! ```
