@@ -32,6 +32,22 @@ pub const SKELETON_MEMORY_MODEL: SkeletonMemoryModel = SkeletonMemoryModel {
     bytes_per_voxel: 29.8,
 };
 
+/// The same for a CT in Hounsfield units, whose material is windowed: the material stage
+/// holds the volume smoothed and the squared depths of two masks (f64 each) beside the
+/// input, and the windowed copy stays for the stages after it. Fitted to the generated head
+/// CT on 1.5, 2.9 and 4.8 mm slices (`docs/benchmarks.md`, *Memory*), every run within 10%.
+pub const CT_MEMORY_MODEL: SkeletonMemoryModel = SkeletonMemoryModel {
+    base_bytes: 7.53e6,
+    bytes_per_voxel: 49.0,
+};
+
+/// Whether the file stores integers of 16 bits or more, as CT scanners store Hounsfield
+/// units: the header's best guess that the material stage will run.
+pub fn stores_ct(header: &sphcover_core::io::VolumeInfo) -> bool {
+    let name = header.datatype_name();
+    (name.starts_with("int") || name.starts_with("uint")) && !name.ends_with('8')
+}
+
 impl SkeletonMemoryModel {
     /// The predicted peak, in bytes, for a grid of `voxels` voxels.
     pub fn peak_bytes(&self, voxels: usize) -> u64 {
@@ -47,14 +63,18 @@ pub struct SkeletonGrid {
     pub input: [usize; 3],
     /// Dimensions of the grid the stages run on (the input's unless resampled).
     pub processed: [usize; 3],
+    /// Predicted with [`CT_MEMORY_MODEL`]: the volume will likely be windowed to a material.
+    pub ct: bool,
 }
 
 impl SkeletonGrid {
-    /// The grid of an input of `dims` voxels resampled as `resampling` says.
-    pub fn new(dims: [usize; 3], resampling: Option<&Resampling>) -> SkeletonGrid {
+    /// The grid of an input of `dims` voxels resampled as `resampling` says, of a CT when
+    /// `ct`.
+    pub fn new(dims: [usize; 3], resampling: Option<&Resampling>, ct: bool) -> SkeletonGrid {
         SkeletonGrid {
             input: dims,
             processed: resampling.map_or(dims, |r| r.dims(dims)),
+            ct,
         }
     }
 
@@ -62,7 +82,12 @@ impl SkeletonGrid {
     /// values (at most 8 bytes each) when the stages run on a resampled copy.
     pub fn peak_bytes(&self) -> u64 {
         let voxels = |[nx, ny, nz]: [usize; 3]| nx.saturating_mul(ny).saturating_mul(nz);
-        let peak = SKELETON_MEMORY_MODEL.peak_bytes(voxels(self.processed));
+        let model = if self.ct {
+            CT_MEMORY_MODEL
+        } else {
+            SKELETON_MEMORY_MODEL
+        };
+        let peak = model.peak_bytes(voxels(self.processed));
         if self.processed == self.input {
             return peak;
         }
@@ -159,11 +184,31 @@ mod tests {
         }
     }
 
+    /// The head CT's grids (input, processed) and peak RSS in MiB.
+    const MEASURED_CT: [([usize; 3], [usize; 3], u64); 3] = [
+        ([256, 256, 108], [256, 256, 108], 312),
+        ([256, 256, 56], [256, 256, 111], 344),
+        ([256, 256, 34], [256, 256, 100], 365),
+    ];
+
+    #[test]
+    fn the_ct_model_reproduces_the_head_ct_within_10_percent() {
+        for (input, processed, mib) in MEASURED_CT {
+            let grid = SkeletonGrid {
+                input,
+                processed,
+                ct: true,
+            };
+            let error = grid.peak_bytes() as f64 / (mib << 20) as f64 - 1.0;
+            assert!(error.abs() < 0.10, "{input:?}: {error:+.3}");
+        }
+    }
+
     #[test]
     fn a_resampled_grid_is_predicted_with_the_input_beside_it() {
         let size = sphcover_core::DVec3::new(0.5, 0.5, 2.5);
         let resampling = Resampling::of(size).unwrap();
-        let grid = SkeletonGrid::new([100, 100, 40], Some(&resampling));
+        let grid = SkeletonGrid::new([100, 100, 40], Some(&resampling), false);
         assert_eq!(grid.processed, [100, 100, 118]);
         let model = SKELETON_MEMORY_MODEL.peak_bytes(100 * 100 * 118);
         assert_eq!(grid.peak_bytes(), model + 8 * 100 * 100 * 40);
@@ -171,7 +216,7 @@ mod tests {
             grid.to_string(),
             "100 x 100 x 118 voxels (resampled from 100 x 100 x 40)"
         );
-        let direct = SkeletonGrid::new([100, 100, 40], None);
+        let direct = SkeletonGrid::new([100, 100, 40], None, false);
         assert_eq!(
             direct.peak_bytes(),
             SKELETON_MEMORY_MODEL.peak_bytes(400_000)

@@ -36,7 +36,11 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     // Everything the header decides is checked before the voxels are read.
     let header = io::read_volume_info(&args.input)?;
     let resampling = check_volume(args, &header, reporter)?;
-    let grid = crate::skeleton_memory::SkeletonGrid::new(header.dims(), resampling.as_ref());
+    let grid = crate::skeleton_memory::SkeletonGrid::new(
+        header.dims(),
+        resampling.as_ref(),
+        args.material != MaterialArg::Off && crate::skeleton_memory::stores_ct(&header),
+    );
     crate::skeleton_memory::check_budget(args, grid, reporter)?;
     let limit = MemoryLimit::from_flag(args.max_memory);
     let stage = reporter.stage("read volume");
@@ -223,7 +227,7 @@ fn report_material(m: &MaterialReport, reporter: &Reporter) {
     };
     match (m.material, m.automatic) {
         (Some(material), true) => reporter.note(&format!(
-            "{levels}: {} is the thin material, above {:.0} HU (90% of it within {:.1} mm of its surface; thin is within {:.1}){window}; choose another with --material or --threshold",
+            "{levels}: {} is the thin material, above {:.0} HU (90% of it within {:.1} mm of its surface; thin is within {:.1} mm){window}; choose another with --material or --threshold",
             material.name(),
             m.candidates.last().map_or(f64::NAN, |c| c.threshold),
             m.candidates.last().and_then(|c| c.depth_p90).unwrap_or(f64::NAN),
@@ -235,7 +239,7 @@ fn report_material(m: &MaterialReport, reporter: &Reporter) {
             material.threshold(&m.levels)
         )),
         (None, true) => reporter.warn(&format!(
-            "{levels}, but no material is thin (depth of 90% of its voxels: {}; thin is within {:.1}): the threshold splits the two largest classes; choose a material with --material or --threshold",
+            "{levels}, but no material is thin (depth of 90% of its voxels in mm: {}; thin is within {:.1} mm): the threshold splits the two largest classes; choose a material with --material or --threshold",
             depths(),
             m.thin_depth
         )),
