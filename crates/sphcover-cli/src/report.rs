@@ -95,9 +95,31 @@ impl Reporter {
     }
 }
 
-/// The progress message for a pipeline stage as it starts: `3/11 cover`.
-pub fn stage_message(stage: StageProgress) -> String {
-    format!("{}/{} {}", stage.index + 1, stage.count, stage.name)
+impl Reporter {
+    /// A bar over the stages of a pipeline, with the running stage's name and the elapsed
+    /// time ticking during long stages; hidden when bars are off. Each stage is shown with
+    /// [`show_stage`] as it starts; the caller finishes the bar with `finish_and_clear`.
+    pub fn stage_bar(&self, message: &str) -> ProgressBar {
+        if !self.bars {
+            return ProgressBar::hidden();
+        }
+        let bar = ProgressBar::with_draw_target(Some(1), ProgressDrawTarget::stderr());
+        let style = ProgressStyle::with_template(
+            "{spinner} {msg:<32} [{bar:30}] {pos}/{len} stages {elapsed_precise}",
+        )
+        .map(|s| s.progress_chars("=> "));
+        bar.set_style(style.unwrap_or_else(|_| ProgressStyle::default_bar()));
+        bar.set_message(message.to_owned());
+        bar.enable_steady_tick(Duration::from_millis(100));
+        bar
+    }
+}
+
+/// Moves a [`Reporter::stage_bar`] to `stage` as it starts: the stages before it are done.
+pub fn show_stage(bar: &ProgressBar, stage: StageProgress) {
+    bar.set_length(stage.count as u64);
+    bar.set_position(stage.index as u64);
+    bar.set_message(stage.name);
 }
 
 /// A timed stage of a command.

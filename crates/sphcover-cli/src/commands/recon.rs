@@ -14,7 +14,7 @@ use sphcover_recon::{
 use crate::args::{ReconArgs, ReconMethodArg};
 use crate::exit::BadInput;
 use crate::memory_limit::MemoryLimit;
-use crate::report::{Reporter, stage_message};
+use crate::report::{Reporter, show_stage};
 
 /// Runs `sphcover recon`.
 pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
@@ -32,10 +32,8 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         None => None,
     };
 
-    let bar = reporter.progress(None, "reconstructing");
-    let result = reconstruct(&cloud, &params, &|stage| {
-        bar.set_message(stage_message(stage))
-    });
+    let bar = reporter.stage_bar("reconstructing");
+    let result = reconstruct(&cloud, &params, &|stage| show_stage(&bar, stage));
     bar.finish_and_clear();
     let recon = result.map_err(|e| {
         let input = args.input.display();

@@ -13,7 +13,7 @@ use sphcover_skeleton::{
 use crate::args::{MaterialArg, SkeletonArgs, SkeletonMethod};
 use crate::exit::BadInput;
 use crate::memory_limit::MemoryLimit;
-use crate::report::{Reporter, stage_message};
+use crate::report::{Reporter, show_stage};
 
 /// Runs `sphcover skeleton`.
 pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
@@ -57,10 +57,9 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
 
     match args.method {
         SkeletonMethod::Ridge => {
-            let bar = reporter.progress(None, "extracting the skeletal sheet");
-            let result = extract_skeleton(&volume, &ridge_params(args), &|stage| {
-                bar.set_message(stage_message(stage));
-            });
+            let bar = reporter.stage_bar("extracting the skeletal sheet");
+            let result =
+                extract_skeleton(&volume, &ridge_params(args), &|stage| show_stage(&bar, stage));
             bar.finish_and_clear();
             let (sheet, stats) = result.map_err(|e| bad(args, e))?;
             write_sheet(args, &sheet, &stats, reporter)?;
@@ -127,10 +126,10 @@ fn run_on_samples(args: &SkeletonArgs, property: &str, reporter: &Reporter) -> a
         reporter,
     )?;
     reporter.detail(&format!("  {} samples with `{property}`", positions.len()));
-    let bar = reporter.progress(None, "extracting the skeletal sheet of the samples");
+    let bar = reporter.stage_bar("extracting the skeletal sheet of the samples");
     let result =
         extract_skeleton_from_samples(&positions, &values, &ridge_params(args), &|stage| {
-            bar.set_message(stage_message(stage));
+            show_stage(&bar, stage)
         });
     bar.finish_and_clear();
     let (sheet, stats) = result.map_err(|e| bad(args, e))?;
