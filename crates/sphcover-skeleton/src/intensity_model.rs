@@ -71,10 +71,20 @@ pub fn estimate_intensity_model(
     volume: &Volume,
     threshold: Option<f64>,
 ) -> Result<IntensityModel, SkeletonError> {
+    estimate_with_smoothed(volume, threshold, None)
+}
+
+/// [`estimate_intensity_model`], reusing `smooth` (the volume smoothed by `OTSU_SMOOTHING`
+/// voxels with non-finite values at the lowest value) when the caller has it already.
+pub(crate) fn estimate_with_smoothed(
+    volume: &Volume,
+    threshold: Option<f64>,
+    smooth: Option<&[f64]>,
+) -> Result<IntensityModel, SkeletonError> {
     let (lo, hi) = volume.value_range().ok_or(SkeletonError::NoFiniteValue)?;
-    let automatic = || {
-        let smooth = smoothed_values(volume, OTSU_SMOOTHING, lo);
-        midpoint_threshold(&smooth, lo, hi)
+    let automatic = || match smooth {
+        Some(smooth) => midpoint_threshold(smooth, lo, hi),
+        None => midpoint_threshold(&smoothed_values(volume, OTSU_SMOOTHING, lo), lo, hi),
     };
     model_from_values(
         (0..volume.len()).map(|i| volume.value(i)),

@@ -7,7 +7,7 @@ use sphcover_core::{Cover, Stage, Threshold, Volume, VolumeCoverParams, VolumeCo
 use super::{SkeletonParams, voxel_length};
 use crate::error::SkeletonError;
 use crate::gaussian_filter::smoothed_values;
-use crate::intensity_model::{IntensityModel, OTSU_SMOOTHING, estimate_intensity_model};
+use crate::intensity_model::{IntensityModel, OTSU_SMOOTHING, estimate_with_smoothed};
 use crate::material::{
     Material, MaterialCandidate, MaterialChoice, MaterialReport, THIN_DEPTH, ct_levels, depth_p90,
     windowed_volume,
@@ -120,8 +120,8 @@ pub(super) fn volume_front_stages<'a>() -> Vec<Stage<VolumeFront<'a>, SkeletonEr
 /// The material (on a CT in Hounsfield units) and its window, then the histogram, threshold
 /// (the material's, the caller's or the two-class one) and noise; the fit tolerance ε.
 fn intensity_model(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
-    let threshold = choose_material(ctx)?;
-    let mut intensity = estimate_intensity_model(ctx.source(), threshold)?;
+    let (threshold, smooth) = choose_material(ctx)?;
+    let mut intensity = estimate_with_smoothed(ctx.source(), threshold, smooth.as_deref())?;
     if ctx
         .material
         .as_ref()
@@ -166,18 +166,22 @@ fn cover(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
 
 /// On a CT in Hounsfield units (see [`crate::material`]), the material's threshold and
 /// window: the caller's threshold, the given material's, or the first thin material's.
-/// Returns the threshold for the intensity model (`None`: its two-class threshold).
-fn choose_material(ctx: &mut VolumeFront<'_>) -> Result<Option<f64>, SkeletonError> {
+/// Returns the threshold for the intensity model (`None`: its two-class threshold), and the
+/// smoothed input for that threshold when the volume is the input (not a CT).
+#[allow(clippy::type_complexity)]
+fn choose_material(
+    ctx: &mut VolumeFront<'_>,
+) -> Result<(Option<f64>, Option<Vec<f64>>), SkeletonError> {
     let (params, volume) = (ctx.params, ctx.volume);
     if params.material == MaterialChoice::Off {
-        return Ok(params.threshold);
+        return Ok((params.threshold, None));
     }
     let (lo, _) = volume.value_range().ok_or(SkeletonError::NoFiniteValue)?;
     let smooth = smoothed_values(volume, OTSU_SMOOTHING, lo);
     let Some(levels) = ct_levels(&smooth) else {
         return match params.material {
             MaterialChoice::Given(m) => Err(SkeletonError::NotHounsfield { material: m.name() }),
-            _ => Ok(params.threshold),
+            _ => Ok((params.threshold, Some(smooth))),
         };
     };
     let thin_depth = THIN_DEPTH * volume.voxel_size().min_element();
@@ -214,5 +218,8 @@ fn choose_material(ctx: &mut VolumeFront<'_>) -> Result<Option<f64>, SkeletonErr
         window,
         thin_depth,
     });
-    Ok(threshold)
+    // A material's threshold is given to the intensity model; without one, the two-class
+    // threshold is of the input, whose smoothing is at hand.
+    let smooth = (ctx.windowed.is_none()).then_some(smooth);
+    Ok((threshold, smooth))
 }
