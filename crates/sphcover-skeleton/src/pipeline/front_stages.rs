@@ -168,7 +168,6 @@ fn cover(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
 /// window: the caller's threshold, the given material's, or the first thin material's.
 /// Returns the threshold for the intensity model (`None`: its two-class threshold), and the
 /// smoothed input for that threshold when the volume is the input (not a CT).
-#[allow(clippy::type_complexity)]
 fn choose_material(
     ctx: &mut VolumeFront<'_>,
 ) -> Result<(Option<f64>, Option<Vec<f64>>), SkeletonError> {
