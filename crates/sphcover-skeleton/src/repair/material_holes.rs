@@ -10,10 +10,11 @@ use sphcover_core::{PointIndex, TriMesh};
 use super::part_surface::PartSurface;
 
 /// Largest share of the vertices of the inner half of a hole's web (by ring) lying on the
-/// existing sheet. The webs of outlines lie on the sheet; the middles of holes do not.
-/// Measured on the generated head CT (4.8 mm slices): the outlines of the holder and of the
-/// open vault 51 % and 70 %, a hole in the temporal bone 24 % (where pieces of a second layer
-/// reach into it), the others under 10 %.
+/// existing sheet. The web of an open sheet's outline lies on the sheet (all of it on the
+/// phantoms' plates); the middles of holes do not. Measured on the generated head CT (4.8 mm
+/// slices): holes in the vault under 10 %, a temporal hole with layers of its rim reaching
+/// over it 24 %; loops in the holder arc where a second layer overlaps it 51 % and 70 %
+/// (left open).
 pub const MAX_WEB_ON_SHEET: f64 = 0.35;
 
 /// Parameters of [`fill_material_holes`]; lengths in voxels.
