@@ -94,8 +94,8 @@ pub use intensity_model::{
     IntensityModel, estimate_intensity_model, estimate_sample_intensity_model, otsu_threshold,
 };
 pub use material::{
-    CtLevels, MATERIAL_SMOOTHING, Material, MaterialCandidate, MaterialChoice, MaterialReport,
-    THIN_DEPTH, ct_levels,
+    CtLevels, MATERIAL_CREST, MATERIAL_SMOOTHING, Material, MaterialCandidate, MaterialChoice,
+    MaterialReport, THIN_DEPTH, ct_levels,
 };
 pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};

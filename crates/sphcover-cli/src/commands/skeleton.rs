@@ -58,8 +58,9 @@ pub fn run(args: &SkeletonArgs, reporter: &Reporter) -> anyhow::Result<()> {
     match args.method {
         SkeletonMethod::Ridge => {
             let bar = reporter.stage_bar("extracting the skeletal sheet");
-            let result =
-                extract_skeleton(&volume, &ridge_params(args), &|stage| show_stage(&bar, stage));
+            let result = extract_skeleton(&volume, &ridge_params(args), &|stage| {
+                show_stage(&bar, stage)
+            });
             bar.finish_and_clear();
             let (sheet, stats) = result.map_err(|e| bad(args, e))?;
             write_sheet(args, &sheet, &stats, reporter)?;
