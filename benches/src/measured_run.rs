@@ -38,6 +38,22 @@ pub enum RunOutcome {
     NotStarted(String),
 }
 
+impl RunOutcome {
+    /// Why the run left nothing to score, as a table's status says it (`timeout` is the
+    /// limit it ran under); `None` when it exited with status 0.
+    pub fn failure(&self, timeout: Duration) -> Option<String> {
+        match self {
+            RunOutcome::Success => None,
+            RunOutcome::Failed { code, message } => Some(format!(
+                "failed ({}): {message}",
+                code.map_or_else(|| "signal".to_string(), |c| format!("exit {c}"))
+            )),
+            RunOutcome::TimedOut => Some(format!("timed out after {} s", timeout.as_secs())),
+            RunOutcome::NotStarted(m) => Some(format!("not started: {m}")),
+        }
+    }
+}
+
 /// What one run cost.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunMeasurement {
@@ -264,6 +280,32 @@ mod tests {
 
     fn argv(s: &[&str]) -> Vec<String> {
         s.iter().map(|x| x.to_string()).collect()
+    }
+
+    #[test]
+    fn failures_say_why_and_success_says_nothing() {
+        let limit = Duration::from_secs(30);
+        assert_eq!(RunOutcome::Success.failure(limit), None);
+        let failed = RunOutcome::Failed {
+            code: Some(2),
+            message: "bad input".into(),
+        };
+        assert_eq!(failed.failure(limit).unwrap(), "failed (exit 2): bad input");
+        let killed = RunOutcome::Failed {
+            code: None,
+            message: String::new(),
+        };
+        assert_eq!(killed.failure(limit).unwrap(), "failed (signal): ");
+        assert_eq!(
+            RunOutcome::TimedOut.failure(limit).unwrap(),
+            "timed out after 30 s"
+        );
+        assert_eq!(
+            RunOutcome::NotStarted("no such file".into())
+                .failure(limit)
+                .unwrap(),
+            "not started: no such file"
+        );
     }
 
     #[test]

@@ -20,7 +20,7 @@ use anyhow::{Context, bail};
 use clap::Parser;
 use sphcover_benches::command_template::split_words;
 use sphcover_benches::markdown_table::{MarkdownTable, fixed};
-use sphcover_benches::measured_run::{RunOutcome, run_measured};
+use sphcover_benches::measured_run::run_measured;
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::TriMesh;
 use sphcover_core::io::{self, NonFinitePolicy, ReadOptions};
@@ -159,14 +159,10 @@ fn run(args: Args) -> anyhow::Result<()> {
                 fixed(run.cpu_seconds, 1),
                 fixed(run.peak_mib, 0),
             ];
-            let status = match &run.outcome {
-                RunOutcome::Success => score_output(&output, &ct, &mut cells),
-                RunOutcome::Failed { code, message } => format!(
-                    "failed ({}): {message}",
-                    code.map_or_else(|| "signal".to_string(), |c| format!("exit {c}"))
-                ),
-                RunOutcome::TimedOut => format!("timed out after {} s", timeout.as_secs()),
-                RunOutcome::NotStarted(m) => format!("not started: {m}"),
+            let status = match run.outcome.failure(timeout) {
+                Some(why) => why,
+                None if output.is_file() => score_output(&output, &ct, &mut cells),
+                None => "exited 0 but wrote no output".to_string(),
             };
             cells.resize(COLUMNS - 1, "–".to_string());
             cells.push(short_message(&status, 120));

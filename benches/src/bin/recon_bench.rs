@@ -17,7 +17,7 @@ use anyhow::{Context, bail};
 use clap::Parser;
 use sphcover_benches::command_template::{CommandTemplate, split_words};
 use sphcover_benches::markdown_table::{MarkdownTable, fixed, format_count, parse_count};
-use sphcover_benches::measured_run::{RunMeasurement, RunOutcome, run_measured};
+use sphcover_benches::measured_run::{RunMeasurement, run_measured};
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptions, WriteOptions};
 use sphcover_core::{DVec3, TriMesh};
@@ -366,9 +366,10 @@ fn run_tool(
         })
     });
     let run = median_or_failed(runs);
-    let scores = match &run.outcome {
-        RunOutcome::Success if !output.is_file() => Err("exited 0 but wrote no output".into()),
-        RunOutcome::Success => {
+    let scores = match run.outcome.failure(timeout) {
+        Some(why) => Err(why),
+        None if !output.is_file() => Err("exited 0 but wrote no output".into()),
+        None => {
             let opts = ReadOptions {
                 non_finite: NonFinitePolicy::Drop,
                 ..ReadOptions::default()
@@ -377,12 +378,6 @@ fn run_tool(
                 .map_err(|e| format!("unreadable output: {e}"))
                 .and_then(|rec| score_reconstruction(&rec, gt, params).map_err(|e| e.to_string()))
         }
-        RunOutcome::Failed { code, message } => Err(format!(
-            "failed ({}): {message}",
-            code.map_or_else(|| "signal".to_string(), |c| format!("exit {c}"))
-        )),
-        RunOutcome::TimedOut => Err(format!("timed out after {} s", timeout.as_secs())),
-        RunOutcome::NotStarted(m) => Err(format!("not started: {m}")),
     };
     ToolResult {
         run: Some(run),

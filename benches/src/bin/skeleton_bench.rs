@@ -24,7 +24,7 @@ use anyhow::{Context, bail};
 use clap::Parser;
 use sphcover_benches::command_template::split_words;
 use sphcover_benches::markdown_table::{MarkdownTable, fixed};
-use sphcover_benches::measured_run::{RunOutcome, run_measured};
+use sphcover_benches::measured_run::run_measured;
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::io::{self, NonFinitePolicy, ReadOptions};
 use sphcover_core::{MeshTopology, TriMesh};
@@ -160,17 +160,10 @@ fn run(args: Args) -> anyhow::Result<()> {
                 fixed(run.cpu_seconds, 2),
                 fixed(run.peak_mib, 0),
             ]);
-            let status = match &run.outcome {
-                RunOutcome::Success if output.is_file() => {
-                    score_output(&output, truth.as_ref(), &mut cells)
-                }
-                RunOutcome::Success => "exited 0 but wrote no output".to_string(),
-                RunOutcome::Failed { code, message } => format!(
-                    "failed ({}): {message}",
-                    code.map_or_else(|| "signal".to_string(), |c| format!("exit {c}"))
-                ),
-                RunOutcome::TimedOut => format!("timed out after {} s", timeout.as_secs()),
-                RunOutcome::NotStarted(m) => format!("not started: {m}"),
+            let status = match run.outcome.failure(timeout) {
+                Some(why) => why,
+                None if output.is_file() => score_output(&output, truth.as_ref(), &mut cells),
+                None => "exited 0 but wrote no output".to_string(),
             };
             cells.resize(COLUMNS - 1, "–".to_string());
             cells.push(short_message(&status, 120));
