@@ -252,12 +252,11 @@ fn drop_fragments(mesh: &mut TriMesh, params: &Limits, stats: &mut CleaningStats
     stats.dropped_triangles = before - mesh.triangles.len();
 }
 
-fn fill_small_holes(
-    mesh: &mut TriMesh,
-    params: &Limits,
-    is_material: &impl Fn(DVec3) -> bool,
-    stats: &mut CleaningStats,
-) {
+/// The loops of boundary edges (edges of one triangle) whose vertices each have exactly two
+/// boundary edges and which have at most `max_edges` edges, each as its vertices in order,
+/// from the lowest boundary vertex up; a walk that meets a branching or an already walked
+/// vertex, or grows past `max_edges`, is no loop.
+pub(crate) fn simple_boundary_loops(mesh: &TriMesh, max_edges: usize) -> Vec<Vec<u32>> {
     let mut edge_count: HashMap<(u32, u32), u32> = HashMap::new();
     for tri in &mesh.triangles {
         for k in 0..3 {
@@ -279,6 +278,7 @@ fn fill_small_holes(
     let mut visited: HashMap<u32, bool> = HashMap::new();
     let mut starts: Vec<u32> = adjacency.keys().copied().collect();
     starts.sort_unstable();
+    let mut loops = Vec::new();
     for start in starts {
         if visited.contains_key(&start) || adjacency[&start].len() != 2 {
             continue;
@@ -297,14 +297,25 @@ fn fill_small_holes(
             loop_vertices.push(cur);
             let n = if next[0] == prev { next[1] } else { next[0] };
             (prev, cur) = (cur, n);
-            if loop_vertices.len() > params.max_hole_edges {
+            if loop_vertices.len() > max_edges {
                 simple = false;
                 break;
             }
         }
-        if !simple || loop_vertices.len() < 3 {
-            continue;
+        if simple && loop_vertices.len() >= 3 {
+            loops.push(loop_vertices);
         }
+    }
+    loops
+}
+
+fn fill_small_holes(
+    mesh: &mut TriMesh,
+    params: &Limits,
+    is_material: &impl Fn(DVec3) -> bool,
+    stats: &mut CleaningStats,
+) {
+    for loop_vertices in simple_boundary_loops(mesh, params.max_hole_edges) {
         let pos: Vec<DVec3> = loop_vertices
             .iter()
             .map(|&v| mesh.vertices[v as usize])

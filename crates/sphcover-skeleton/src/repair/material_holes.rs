@@ -2,11 +2,12 @@
 //!
 //! The method is described on [`fill_material_holes()`].
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
 use glam::DVec3;
 use sphcover_core::{PointIndex, TriMesh};
 
+use super::cleaning::simple_boundary_loops;
 use super::part_surface::PartSurface;
 
 /// Largest share of the vertices of the inner half of a hole's web (by ring) lying on the
@@ -63,7 +64,7 @@ pub fn fill_material_holes(
 ) -> usize {
     let max_perimeter = params.max_perimeter_voxels * voxel;
     let step = params.step_voxels * voxel;
-    let loops = simple_boundary_loops(mesh);
+    let loops = loops_along_their_triangles(mesh);
     if loops.is_empty() {
         return 0;
     }
@@ -231,67 +232,31 @@ fn mid_surface_near(
     Some(inside + normal * (0.5 * (up - down)))
 }
 
-/// The loops of boundary edges whose vertices each have exactly two boundary edges, each
-/// ordered so that most of its triangles run along it (the sheet is not oriented: ridge
+/// The simple boundary loops of `mesh` ([`simple_boundary_loops`]), each ordered so that
+/// most of its edges run as their triangles run along them (the sheet is not oriented: ridge
 /// patches take the winding of their fans).
-fn simple_boundary_loops(mesh: &TriMesh) -> Vec<Vec<u32>> {
-    let mut uses: HashMap<(u32, u32), u32> = HashMap::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
+fn loops_along_their_triangles(mesh: &TriMesh) -> Vec<Vec<u32>> {
+    let loops = simple_boundary_loops(mesh, usize::MAX);
+    if loops.is_empty() {
+        return loops;
     }
-    let mut neighbours: HashMap<u32, Vec<u32>> = HashMap::new();
-    let mut forward: HashSet<(u32, u32)> = HashSet::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            if uses[&(a.min(b), a.max(b))] == 1 {
-                neighbours.entry(a).or_default().push(b);
-                neighbours.entry(b).or_default().push(a);
-                forward.insert((a, b));
-            }
-        }
-    }
-    let mut starts: Vec<u32> = neighbours.keys().copied().collect();
-    starts.sort_unstable();
-    let mut seen: HashSet<u32> = HashSet::new();
-    let mut loops = Vec::new();
-    for start in starts {
-        if !seen.insert(start) || neighbours[&start].len() != 2 {
-            continue;
-        }
-        let mut path = vec![start];
-        let (mut prev, mut cur) = (start, neighbours[&start][0]);
-        let simple = loop {
-            if cur == start {
-                break true;
-            }
-            let around = &neighbours[&cur];
-            if around.len() != 2 || !seen.insert(cur) {
-                break false;
-            }
-            path.push(cur);
-            let next = if around[0] == prev {
-                around[1]
-            } else {
-                around[0]
-            };
-            (prev, cur) = (cur, next);
-        };
-        if !simple || path.len() < 3 {
-            continue;
-        }
-        let along = (0..path.len())
-            .filter(|&k| forward.contains(&(path[k], path[(k + 1) % path.len()])))
-            .count();
-        if 2 * along < path.len() {
-            path.reverse();
-        }
-        loops.push(path);
-    }
+    let directed: HashSet<(u32, u32)> = mesh
+        .triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+        .collect();
     loops
+        .into_iter()
+        .map(|mut rim| {
+            let along = (0..rim.len())
+                .filter(|&k| directed.contains(&(rim[k], rim[(k + 1) % rim.len()])))
+                .count();
+            if 2 * along < rim.len() {
+                rim.reverse();
+            }
+            rim
+        })
+        .collect()
 }
 
 /// Adds the web's vertices and triangles, wound against the rim's triangles.
