@@ -89,8 +89,8 @@ pub use pipeline::{
     ToleranceNote, Trim, UNSEEN_REACH, default_depth, reconstruct, reconstruct_until, stage_names,
 };
 pub use polygonise::{
-    GridStep, PolygoniseError, PolygoniseParams, PolygoniseStats, UnseenTrim, polygonise,
-    polygonise_blending,
+    FieldPiece, GridStep, PiecewiseFunction, PolygoniseError, PolygoniseParams, PolygoniseStats,
+    UnseenTrim, polygonise, polygonise_blending, polygonise_piecewise,
 };
 pub use scan_statistics::{ScanStatistics, ScanStatisticsParams, scan_statistics};
 pub use vertex_colors::nearest_sample_colors;

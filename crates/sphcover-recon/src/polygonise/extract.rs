@@ -22,7 +22,6 @@ pub(super) fn extract(
     search: &Search,
     grid: &Grid,
     params: &PolygoniseParams,
-    blend: Option<&[f64]>,
     stats: &mut PolygoniseStats,
 ) -> TriMesh {
     // Ascending cell order, whatever order the search found them in.
@@ -103,19 +102,15 @@ pub(super) fn extract(
     let mut normals = None;
     let mut blended = None;
     if params.project || params.normals {
-        let fg: Vec<Option<ValueGradient>> = match blend {
-            // Lengths were checked on entry.
-            Some(values) => match search.eval.values_gradients_blends(&vertices, values) {
-                Ok(fgb) => {
-                    blended = Some(
-                        fgb.par_iter()
-                            .map(|r| r.map_or(0.0, |(_, b)| b))
-                            .collect::<Vec<f64>>(),
-                    );
-                    fgb.into_par_iter().map(|r| r.map(|(vg, _)| vg)).collect()
-                }
-                Err(_) => search.eval.values_gradients(&vertices),
-            },
+        let fg: Vec<Option<ValueGradient>> = match search.eval.values_gradients_blends(&vertices) {
+            Some(fgb) => {
+                blended = Some(
+                    fgb.par_iter()
+                        .map(|r| r.map_or(0.0, |(_, b)| b))
+                        .collect::<Vec<f64>>(),
+                );
+                fgb.into_par_iter().map(|r| r.map(|(vg, _)| vg)).collect()
+            }
             None => search.eval.values_gradients(&vertices),
         };
         // The gradient before the Newton step serves as the normal: the step is shorter than
@@ -210,14 +205,8 @@ pub(super) fn extract(
         triangles.extend(tris);
         stats.open_quads += open;
     }
-    if blended.is_none()
-        && let Some(values) = blend
-    {
-        blended = search.eval.blend(&vertices, values).ok().map(|b| {
-            b.into_iter()
-                .map(|v| v.unwrap_or(0.0))
-                .collect::<Vec<f64>>()
-        });
+    if blended.is_none() {
+        blended = search.eval.blend(&vertices);
     }
     let mut mesh = TriMesh::new(vertices, triangles);
     mesh.normals = if params.normals { normals } else { None };

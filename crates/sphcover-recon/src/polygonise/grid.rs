@@ -9,9 +9,9 @@ use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
-use sphcover_core::{Aabb, PuEvaluator};
+use sphcover_core::Aabb;
 
-use super::{GridStep, PolygoniseError};
+use super::{GridStep, PiecewiseFunction, PolygoniseError};
 
 /// Cells along an axis stay below this so that three indices pack into a `u64`.
 const GRID_LIMIT: i64 = 1 << 21;
@@ -19,12 +19,12 @@ const GRID_LIMIT: i64 = 1 << 21;
 pub(super) fn grid_step(
     step: GridStep,
     seeds: &[DVec3],
-    radii: &[f64],
+    field: &PiecewiseFunction<'_>,
 ) -> Result<f64, PolygoniseError> {
     let h = match step {
         GridStep::Depth(d) => Aabb::from_points(seeds).longest_edge() / f64::from(1u32 << d),
         GridStep::Absolute(s) => s,
-        GridStep::SmallestRadius(k) => k * radii.iter().copied().fold(f64::INFINITY, f64::min),
+        GridStep::SmallestRadius(k) => k * field.smallest_radius(),
     };
     if h.is_finite() && h > 0.0 {
         Ok(h)
@@ -51,16 +51,10 @@ pub(super) struct Grid {
 pub(super) type Index3 = [i64; 3];
 
 impl Grid {
-    /// The grid of step `step` over the box where `eval`'s function can be defined (the
-    /// expanded balls), with one spare cell on every side.
-    pub(super) fn around(eval: &PuEvaluator<'_>, step: f64) -> Result<Grid, PolygoniseError> {
-        let cover = eval.cover();
-        let mut defined = Aabb::EMPTY;
-        for (&c, &r) in cover.centres().iter().zip(cover.radii()) {
-            let r = r * eval.sigma();
-            defined.add(c - DVec3::splat(r));
-            defined.add(c + DVec3::splat(r));
-        }
+    /// The grid of step `step` over the box where `field` can be defined (the expanded
+    /// balls), with one spare cell on every side.
+    pub(super) fn around(field: &PiecewiseFunction<'_>, step: f64) -> Result<Grid, PolygoniseError> {
+        let defined = field.defined_box();
         let extent = defined.longest_edge();
         let cells_per_axis = (extent / step).ceil() + 3.0;
         if cells_per_axis.is_nan() || cells_per_axis >= GRID_LIMIT as f64 {

@@ -7,6 +7,7 @@ mod bricks;
 mod cell;
 mod extract;
 mod fans;
+mod field;
 mod grid;
 mod search;
 mod trim;
@@ -21,6 +22,7 @@ use rayon::prelude::*;
 use bricks::brick_of;
 use extract::extract;
 use fans::resolve_fans;
+pub use field::{FieldPiece, PiecewiseFunction};
 use grid::{Grid, KeyMap, grid_step, pack_clamped, unpack_clamped};
 use search::{Search, project_seeds};
 pub use trim::UnseenTrim;
@@ -118,6 +120,15 @@ pub enum PolygoniseError {
     /// The seeds could not be indexed for trimming.
     #[error(transparent)]
     TooManySeeds(#[from] PointIndexError),
+    /// The pieces of a [`PiecewiseFunction`] are not one per box of its split planes, or
+    /// the planes are not finite and ascending.
+    #[error("{pieces} pieces for {boxes} boxes between ascending split planes")]
+    PieceLayout {
+        /// Pieces given.
+        pieces: usize,
+        /// Boxes the split planes make.
+        boxes: usize,
+    },
     /// The values to blend at the vertices are not one per support.
     #[error("{found} values to blend at the vertices for a cover of {expected} supports")]
     BlendLengthMismatch {
@@ -259,33 +270,36 @@ pub fn polygonise_blending(
     params: &PolygoniseParams,
     blend: Option<&[f64]>,
 ) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
+    check_params(params)?;
+    let field = PiecewiseFunction::single(FieldPiece { eval, blend })?;
+    polygonise_piecewise(&field, seeds, params)
+}
+
+/// [`polygonise_blending`] of a function given piecewise (the tiles of a tiled
+/// reconstruction): every point, grid vertex or mesh vertex, is answered by the one piece
+/// whose box holds it, so the cells on both sides of a seam read the same values at their
+/// shared corners and the mesh is as closed across seams as anywhere else. The blend is
+/// attached when every piece carries values to blend.
+pub fn polygonise_piecewise(
+    field: &PiecewiseFunction<'_>,
+    seeds: &[DVec3],
+    params: &PolygoniseParams,
+) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
     let start = Instant::now();
     check_params(params)?;
-    if let Some(values) = blend
-        && values.len() != eval.cover().len()
-    {
-        return Err(PolygoniseError::BlendLengthMismatch {
-            expected: eval.cover().len(),
-            found: values.len(),
-        });
-    }
     let finite_seeds: Vec<DVec3> = seeds.iter().copied().filter(|p| p.is_finite()).collect();
     if finite_seeds.is_empty() {
         return Err(PolygoniseError::NoSeeds { given: seeds.len() });
     }
-    let cover = eval.cover();
-    if cover.is_empty() {
-        return Err(PolygoniseError::EmptyCover);
-    }
-    let step = grid_step(params.step, &finite_seeds, cover.radii())?;
-    let grid = Grid::around(eval, step)?;
+    let step = grid_step(params.step, &finite_seeds, field)?;
+    let grid = Grid::around(field, step)?;
 
     let mut stats = PolygoniseStats {
         step,
         seeds_dropped: seeds.len() - finite_seeds.len(),
         ..PolygoniseStats::default()
     };
-    let mut search = Search::new(eval, &grid, params.max_cells);
+    let mut search = Search::new(field, &grid, params.max_cells);
     let reach = params.seed_reach * step;
     // Clean samples lie in or next to a cell the surface crosses: searching from all their
     // cells at once evaluates `f` in a few large batches, instead of one thin wavefront
@@ -319,7 +333,7 @@ pub fn polygonise_blending(
         .map(|(&p, _)| p)
         .collect();
     stats.seeds_projected = unmet.len();
-    for (p, seed) in project_seeds(eval, &unmet).into_iter().zip(&unmet) {
+    for (p, seed) in project_seeds(field, &unmet).into_iter().zip(&unmet) {
         match p {
             Some((q, residual)) if residual <= step && q.distance(*seed) <= reach => {
                 let cell = grid.cell_of(q);
@@ -344,7 +358,7 @@ pub fn polygonise_blending(
     stats.search_time = start.elapsed();
 
     let extraction_start = Instant::now();
-    let mut mesh = extract(&search, &grid, params, blend, &mut stats);
+    let mut mesh = extract(&search, &grid, params, &mut stats);
     stats.extraction_time = extraction_start.elapsed();
     if let Some(limit) = params.trim {
         stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;

@@ -10,9 +10,8 @@ use std::time::Duration;
 
 use glam::DVec3;
 use rayon::prelude::*;
-use sphcover_core::PuEvaluator;
 
-use super::PolygoniseError;
+use super::{PiecewiseFunction, PolygoniseError};
 use super::bricks::{Brick, BrickCache, BrickReader};
 use super::cell::{ActiveCell, NO_SHEET, cell_sheets, cells_around_edge, corner_offset, inside};
 use super::grid::{Grid, Index3, KeyMap, pack};
@@ -22,7 +21,10 @@ const SEED_NEWTON_STEPS: usize = 2;
 
 /// Pulls each seed onto `f = 0` with Newton steps; `(projected point, |f| / ‖∇f‖ there)`, or
 /// `None` where `f` is undefined or flat.
-pub(super) fn project_seeds(eval: &PuEvaluator<'_>, seeds: &[DVec3]) -> Vec<Option<(DVec3, f64)>> {
+pub(super) fn project_seeds(
+    eval: &PiecewiseFunction<'_>,
+    seeds: &[DVec3],
+) -> Vec<Option<(DVec3, f64)>> {
     let mut points: Vec<Option<(DVec3, f64)>> =
         seeds.iter().map(|&p| Some((p, f64::INFINITY))).collect();
     // The last round only measures the distance at the final point.
@@ -51,7 +53,7 @@ pub(super) fn project_seeds(eval: &PuEvaluator<'_>, seeds: &[DVec3]) -> Vec<Opti
 
 /// The breadth-first search over active cells.
 pub(super) struct Search<'e, 'c> {
-    pub(super) eval: &'e PuEvaluator<'c>,
+    pub(super) eval: &'e PiecewiseFunction<'c>,
     pub(super) grid: &'e Grid,
     max_cells: usize,
     /// Slot in `bricks` of each brick key.
@@ -65,7 +67,7 @@ pub(super) struct Search<'e, 'c> {
 }
 
 impl<'e, 'c> Search<'e, 'c> {
-    pub(super) fn new(eval: &'e PuEvaluator<'c>, grid: &'e Grid, max_cells: usize) -> Self {
+    pub(super) fn new(eval: &'e PiecewiseFunction<'c>, grid: &'e Grid, max_cells: usize) -> Self {
         Search {
             eval,
             grid,
@@ -199,6 +201,7 @@ fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
 mod tests {
     use super::*;
     use crate::polygonise::tests::cover_of;
+    use sphcover_core::PuEvaluator;
     use sphcover_evaluation::{sphere, torus};
 
     /// The search from seeds on every component finds exactly the active cells (with the
@@ -218,8 +221,13 @@ mod tests {
         }
         let cover = cover_of(&cloud);
         let eval = PuEvaluator::new(&cover, 1.0).unwrap();
-        let grid = Grid::around(&eval, 0.025).unwrap();
-        let mut search = Search::new(&eval, &grid, usize::MAX);
+        let field = PiecewiseFunction::single(super::super::FieldPiece {
+            eval: &eval,
+            blend: None,
+        })
+        .unwrap();
+        let grid = Grid::around(&field, 0.025).unwrap();
+        let mut search = Search::new(&field, &grid, usize::MAX);
         // One seed per component is enough.
         let seeds = [cloud.positions[0], shifted[0]];
         search
