@@ -157,6 +157,15 @@ pub struct ReconArgs {
     /// Seed of the random choices (cover expansion order).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Build the cover and its function in N×N×N tiles (or NX,NY,NZ), one after the other,
+    /// each from the samples of its box and a halo; the surface is meshed once from the
+    /// tiles' functions, without seams. For scans whose cover would not fit in memory.
+    #[arg(long, value_name = "N|NX,NY,NZ", value_parser = parse_tiles)]
+    pub tiles: Option<[usize; 3]>,
+    /// With --tiles: how far beyond its box a tile takes samples, relative to the longest
+    /// bounding-box edge.
+    #[arg(long, value_name = "H", requires = "tiles", default_value_t = sphcover_recon::Tiling::DEFAULT_HALO)]
+    pub halo: f64,
     /// Also write the input points with their confidence and outlier label (PLY
     /// properties `confidence` and `quality` = 1 for outliers).
     #[arg(long, value_name = "FILE")]
@@ -175,6 +184,24 @@ pub struct ReconArgs {
     pub max_memory: Option<u64>,
     #[command(flatten)]
     pub read: InputArgs,
+}
+
+/// `--tiles N` or `--tiles NX,NY,NZ`.
+fn parse_tiles(text: &str) -> Result<[usize; 3], String> {
+    let counts: Vec<usize> = text
+        .split(',')
+        .map(|n| n.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{text}: give N or NX,NY,NZ, whole numbers of tiles"))?;
+    let tiles = match counts[..] {
+        [n] => [n; 3],
+        [x, y, z] => [x, y, z],
+        _ => return Err(format!("{text}: give N or NX,NY,NZ tiles")),
+    };
+    if tiles.contains(&0) {
+        return Err(format!("{text}: at least one tile along each axis"));
+    }
+    Ok(tiles)
 }
 
 /// Arguments of `sphcover cover`.

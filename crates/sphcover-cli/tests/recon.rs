@@ -446,3 +446,82 @@ fn a_single_view_is_not_wrapped_in_invented_surface_by_default() {
         "the default keeps {kept:.2} of the closed surface's area"
     );
 }
+
+#[test]
+fn tiled_kitten_is_one_closed_surface_beside_the_single_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("real/kitten.ply");
+    let single = dir.path().join("single.ply");
+    let tiled = dir.path().join("tiled.ply");
+    let report = dir.path().join("report.json");
+    let run = sphcover(&[
+        "recon",
+        input.to_str().unwrap(),
+        "-o",
+        single.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let run = recon_with_report(&input, &tiled, &report, &["--tiles", "2,2,1", "-v"]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    let stderr = text(&run.stderr);
+    assert_eq!(stderr.matches("  tile [").count(), 4, "{stderr}");
+
+    let single = io::read_mesh(&single, &ReadOptions::default()).unwrap();
+    let mesh = io::read_mesh(&tiled, &ReadOptions::default()).unwrap();
+    let topology = MeshTopology::of(&mesh);
+    assert!(
+        topology.is_closed_oriented_manifold(),
+        "{}",
+        summary(&topology)
+    );
+    assert_eq!(
+        (topology.components, topology.euler_characteristic()),
+        (1, 0)
+    );
+    // Every vertex of the tiled surface lies within one grid step (1/64 of the box at the
+    // kitten's depth 6) of the single run's surface.
+    let index = sphcover_core::PointIndex::new(&single.vertices).unwrap();
+    let step = sphcover_core::Aabb::from_points(&single.vertices).longest_edge() / 64.0;
+    let mut nearest = Vec::new();
+    for &v in &mesh.vertices {
+        index.nearest_k_with_distances(v, 1, &mut nearest);
+        assert!(nearest[0].0.sqrt() < step, "{v:?}: {}", nearest[0].0.sqrt());
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(report["tiles"].as_array().map(Vec::len), Some(4));
+}
+
+#[test]
+fn bad_tilings_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("real/kitten.ply");
+    let out = dir.path().join("out.ply");
+    let (input, output) = (input.to_str().unwrap(), out.to_str().unwrap());
+    for (extra, says) in [
+        (&["--tiles", "0"][..], "at least one tile"),
+        (&["--tiles", "2,2"][..], "NX,NY,NZ"),
+        (&["--halo", "0.2"][..], "--tiles"),
+        (&["--tiles", "2", "--halo", "2"][..], "halo"),
+        (
+            &["--tiles", "2", "--method", "graphcut"][..],
+            "cannot be tiled",
+        ),
+    ] {
+        let mut args = vec!["recon", input, "-o", output];
+        args.extend(extra);
+        let run = sphcover(&args);
+        assert_eq!(
+            run.status.code(),
+            Some(2),
+            "{extra:?}: {}",
+            text(&run.stderr)
+        );
+        assert!(
+            text(&run.stderr).contains(says),
+            "{extra:?}: {}",
+            text(&run.stderr)
+        );
+        assert!(!out.exists());
+    }
+}

@@ -86,7 +86,8 @@ pub use options::{
 };
 pub use pipeline::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Reconstruction,
-    ToleranceNote, Trim, UNSEEN_REACH, default_depth, reconstruct, reconstruct_until, stage_names,
+    TileStats, Tiling, ToleranceNote, Trim, UNSEEN_REACH, default_depth, reconstruct,
+    reconstruct_tiled, reconstruct_tiled_until, reconstruct_until, stage_names, tiled_stage_names,
 };
 pub use polygonise::{
     FieldPiece, GridStep, PiecewiseFunction, PolygoniseError, PolygoniseParams, PolygoniseStats,

@@ -7,8 +7,8 @@ use serde_json::json;
 use sphcover_core::PointCloud;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
-    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction,
-    ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget, reconstruct,
+    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction, Tiling,
+    ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget, reconstruct, reconstruct_tiled,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -33,7 +33,17 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     };
 
     let bar = reporter.stage_bar("reconstructing");
-    let result = reconstruct(&cloud, &params, &|stage| show_stage(&bar, stage));
+    let progress = |stage| show_stage(&bar, stage);
+    let result = match args.tiles {
+        Some(tiles) => {
+            let tiling = Tiling {
+                tiles,
+                halo: args.halo,
+            };
+            reconstruct_tiled(&cloud, &params, &tiling, &progress)
+        }
+        None => reconstruct(&cloud, &params, &progress),
+    };
     bar.finish_and_clear();
     let recon = result.map_err(|e| {
         let input = args.input.display();
@@ -184,6 +194,20 @@ fn fit_budget(
 /// The library's parameters for the command line's options; an option out of range is bad
 /// input named by its flag.
 fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
+    if args.tiles.is_some() {
+        if args.method == ReconMethodArg::Graphcut {
+            return Err(
+                BadInput(format!("--tiles: {}", ReconError::NotTileable("graphcut"))).into(),
+            );
+        }
+        if !(0.0..=1.0).contains(&args.halo) {
+            return Err(BadInput(format!(
+                "--halo {} must lie in [0, 1] (a share of the longest bounding-box edge)",
+                args.halo
+            ))
+            .into());
+        }
+    }
     let trim = match args.trim.as_deref() {
         None => TrimOption::Unseen,
         Some("off") => TrimOption::Off,
@@ -252,7 +276,17 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
         "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}",
         s.supports, s.cover.supports_over_eps, s.cover.max_error, s.graph_mean_degree
     ));
-    if s.cut.is_some() {
+    for t in &s.tiles {
+        reporter.detail(&format!(
+            "  tile {:?}: {} samples in its box, {} with the halo, {} supports, {:.3} s",
+            t.position,
+            t.own_samples,
+            t.samples,
+            t.supports,
+            t.time.as_secs_f64()
+        ));
+    }
+    if s.cut.is_some() || s.inconsistent_supports > 0 {
         let kept = match s.confirmed_supports {
             0 => String::new(),
             n => format!(", {n} of them kept (their samples fit them)"),
@@ -318,6 +352,13 @@ fn report_json(
         "inconsistent_supports": s.inconsistent_supports,
         "confirmed_supports": s.confirmed_supports,
         "unseen_area_fraction": s.unseen_area_fraction,
+        "tiles": s.tiles.iter().map(|t| json!({
+            "position": t.position,
+            "own_samples": t.own_samples,
+            "samples": t.samples,
+            "supports": t.supports,
+            "seconds": t.time.as_secs_f64(),
+        })).collect::<Vec<_>>(),
         "depth": s.depth,
         "eps_requested": params.cover.eps,
         "eps": s.eps,

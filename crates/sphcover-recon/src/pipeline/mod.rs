@@ -4,6 +4,7 @@
 
 mod spread;
 mod stages;
+mod tiled;
 
 use sphcover_core::{
     Cover, CoverError, DVec3, Normalisation, ParameterError, PointCloud, PointIndexError, SigError,
@@ -25,7 +26,8 @@ use crate::scan_statistics::{ScanStatistics, ScanStatisticsParams};
 use crate::vertex_refinement::{
     VertexRefinementError, VertexRefinementParams, VertexRefinementStats,
 };
-use stages::{ReconContext, built, stage_list};
+use stages::{ReconContext, back_stages, built, front_stages, stage_list};
+pub use tiled::{TileStats, Tiling};
 
 /// Which reconstruction to run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -262,6 +264,11 @@ pub enum ReconError {
     /// Nothing was left to mesh.
     #[error("the reconstruction is empty: {0}")]
     Empty(&'static str),
+    /// The method builds no function that tiles can share ([`reconstruct_tiled`]).
+    #[error(
+        "the {0} method cannot be tiled: its surface comes from the dual complex of the whole cover, not from a function each tile can build"
+    )]
+    NotTileable(&'static str),
     /// The caller asked the pipeline to stop ([`reconstruct_until`]).
     #[error(transparent)]
     Stopped(#[from] Stopped),
@@ -425,6 +432,8 @@ pub struct ReconStats {
     pub euler_characteristic: i64,
     /// Wall time per stage, in order.
     pub stages: Vec<(&'static str, Duration)>,
+    /// What each tile did, in a tiled reconstruction ([`reconstruct_tiled`]).
+    pub tiles: Vec<TileStats>,
 }
 
 /// The product of [`reconstruct`].
@@ -491,8 +500,97 @@ pub fn reconstruct_until(
 ) -> Result<Reconstruction, ReconError> {
     check_params(params)?;
     let stages = stage_list(params, cloud);
+    run_pipeline(ReconContext::new(cloud, params), &stages, progress, stop)
+}
+
+/// [`reconstruct`] in tiles, for scans whose cover, graph and diffusion would not fit in
+/// memory at once.
+///
+/// The frame, the normals (when the input has none) and the scan statistics are those of
+/// the whole scan, so every tile works at the same tolerance, depth and orientation. The
+/// samples' bounding box is then cut into [`Tiling::tiles`] equal boxes; one tile after the
+/// other, the cover, the graph cut, the confidence and the diffusion are built from the
+/// samples of the tile's box and a halo of [`Tiling::halo`] around it (the outermost boxes
+/// reach to infinity), and only the tile's function is kept. A sample's confidence and
+/// outlier label are those of the tile whose box holds it.
+///
+/// The surface is then polygonised once, from the function that each tile's function
+/// defines inside its own box ([`polygonise_piecewise`](crate::polygonise_piecewise)):
+/// every grid vertex takes its value from one tile, so the cells on the two sides of a seam
+/// agree on their shared corners and the mesh has no crack, duplicate face or seam boundary.
+/// Within the halo the tiles' functions nearly agree, so the surface steps by far less than
+/// a grid cell at a seam. The cleaning, refinement and topology stages run on the whole
+/// mesh as in [`reconstruct`]. The result's cover holds the supports of every tile.
+///
+/// ```
+/// use sphcover_core::{DVec3, MeshTopology, PointCloud};
+/// use sphcover_recon::{ReconParams, Tiling, reconstruct_tiled};
+///
+/// // 6,000 points on a sphere of radius 2, in 2 × 2 × 2 tiles.
+/// let positions = sphcover_core::synthetic::fibonacci_sphere(6000);
+/// let mut cloud = PointCloud::from_positions(positions.iter().map(|p| 2.0 * *p).collect());
+/// cloud.normals = Some(positions);
+/// let result = reconstruct_tiled(&cloud, &ReconParams::default(), &Tiling::cubes(2), &|_| {})?;
+/// assert_eq!(result.stats.tiles.len(), 8);
+/// let topology = MeshTopology::of(&result.mesh);
+/// assert!(topology.is_closed_oriented_manifold());
+/// assert_eq!((topology.components, topology.euler_characteristic()), (1, 2));
+/// assert!(result.mesh.vertices.iter().all(|v| (v.length() - 2.0).abs() < 0.05));
+/// # Ok::<(), sphcover_recon::ReconError>(())
+/// ```
+pub fn reconstruct_tiled(
+    cloud: &PointCloud,
+    params: &ReconParams,
+    tiling: &Tiling,
+    progress: &(dyn Fn(StageProgress) + Sync),
+) -> Result<Reconstruction, ReconError> {
+    reconstruct_tiled_until(cloud, params, tiling, progress, &StopRequest::new())
+}
+
+/// [`reconstruct_tiled`], ending with [`ReconError::Stopped`] before the first stage that
+/// starts after `stop` was requested.
+pub fn reconstruct_tiled_until(
+    cloud: &PointCloud,
+    params: &ReconParams,
+    tiling: &Tiling,
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<Reconstruction, ReconError> {
+    check_params(params)?;
+    tiling.check()?;
+    if params.method == Method::GraphCut {
+        return Err(ReconError::NotTileable(params.method.name()));
+    }
+    let stages = tiled_stage_list(params, cloud);
     let mut ctx = ReconContext::new(cloud, params);
-    let times = run_stages_until(&mut ctx, &stages, progress, stop)?;
+    ctx.tiling = Some(*tiling);
+    run_pipeline(ctx, &stages, progress, stop)
+}
+
+/// The stages of [`reconstruct_tiled`] for `params` on `cloud`, in order.
+pub fn tiled_stage_names(params: &ReconParams, cloud: &PointCloud) -> Vec<&'static str> {
+    tiled_stage_list(params, cloud)
+        .iter()
+        .map(|s| s.name)
+        .collect()
+}
+
+fn tiled_stage_list<'a>(params: &ReconParams, cloud: &PointCloud) -> Vec<stages::ReconStage<'a>> {
+    let mut stages = front_stages(cloud);
+    stages.extend(tiled::tiled_stages());
+    stages.extend(back_stages(params, cloud));
+    stages
+}
+
+/// Runs `stages` over `ctx` and gathers the product.
+fn run_pipeline<'a>(
+    mut ctx: ReconContext<'a>,
+    stages: &[stages::ReconStage<'a>],
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<Reconstruction, ReconError> {
+    let cloud = ctx.cloud;
+    let times = run_stages_until(&mut ctx, stages, progress, stop)?;
     let conf = built(ctx.confidence.take(), "sample confidence");
 
     // Per input point, in input order.

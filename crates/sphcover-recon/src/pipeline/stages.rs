@@ -14,6 +14,7 @@ use sphcover_core::{
 };
 use sphcover_ops::{OpsError, PairGeometry};
 
+use super::tiled::{TiledFunctions, Tiling};
 use super::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, UNSEEN_REACH,
     default_depth,
@@ -34,7 +35,7 @@ use crate::vertex_refinement::{RefinementSamples, RefinementScale, refine_vertic
 pub(super) type ReconStage<'a> = Stage<ReconContext<'a>, ReconError>;
 
 /// Fewest points with finite coordinates that span a surface.
-const MIN_POINTS: usize = 4;
+pub(super) const MIN_POINTS: usize = 4;
 
 /// What the stages of one reconstruction share. Per-sample arrays are indexed by slot: slot
 /// `s` is input point `kept[s]`.
@@ -72,6 +73,10 @@ pub(super) struct ReconContext<'a> {
     pub mesh: TriMesh,
     /// The topology of `mesh`, when the cleaning left its triangles as they were.
     pub unchanged_topology: Option<MeshTopology>,
+    /// How a tiled reconstruction splits the samples.
+    pub tiling: Option<Tiling>,
+    /// The tiles' functions, between the stage that builds them and the polygonisation.
+    pub tiled: Option<TiledFunctions>,
     pub stats: ReconStats,
 }
 
@@ -97,6 +102,8 @@ impl<'a> ReconContext<'a> {
             confidence: None,
             mesh: TriMesh::default(),
             unchanged_topology: None,
+            tiling: None,
+            tiled: None,
             stats: ReconStats {
                 method: params.method,
                 points: cloud.len(),
@@ -130,37 +137,57 @@ pub(super) fn built<T>(slot: Option<T>, what: &str) -> T {
 
 /// The stages `params` asks for, in order. `has_normals`: the input carries normals.
 pub(super) fn stage_list<'a>(params: &ReconParams, cloud: &PointCloud) -> Vec<ReconStage<'a>> {
+    let mut stages = front_stages(cloud);
+    stages.push(Stage::new("cover", build_cover));
+    match function_stages(params.method) {
+        Some(function) => {
+            stages.extend(function);
+            stages.push(Stage::new("polygonise", polygonise_cover));
+        }
+        None => stages.extend([
+            Stage::new("graph cut", cut_dual_complex),
+            Stage::new("confidence", confidence_of_cover),
+        ]),
+    }
+    stages.extend(back_stages(params, cloud));
+    stages
+}
+
+/// The stages before the cover: the unit frame, normals when the input has none, the scan
+/// statistics.
+pub(super) fn front_stages<'a>(cloud: &PointCloud) -> Vec<ReconStage<'a>> {
     let mut stages = vec![Stage::new("normalise", normalise)];
     // The noise estimate reads the normals, given or estimated.
     if cloud.normals.is_none() {
         stages.push(Stage::new("normals", estimate_sample_normals));
     }
     stages.push(Stage::new("scan statistics", measure_scan));
-    stages.push(Stage::new("cover", build_cover));
-    stages.extend(match params.method {
+    stages
+}
+
+/// The stages from the cover to the function that `method` polygonises, after the cover;
+/// `None` for [`Method::GraphCut`], whose surface comes from the dual complex instead.
+pub(super) fn function_stages<'a>(method: Method) -> Option<Vec<ReconStage<'a>>> {
+    Some(match method {
         Method::Integrated => vec![
             Stage::new("graph", build_graph),
             Stage::new("graph cut", cut_graph),
             Stage::new("confidence", confidence_over_supports),
             Stage::new("diffusion", diffuse_functions),
-            Stage::new("polygonise", polygonise_cover),
         ],
         Method::Diffusion => vec![
             Stage::new("graph", build_graph_and_geometry),
             Stage::new("confidence", confidence_over_supports),
             Stage::new("diffusion", diffuse_functions),
-            Stage::new("polygonise", polygonise_cover),
         ],
-        Method::PartitionOfUnity => vec![
-            Stage::new("confidence", confidence_of_cover),
-            Stage::new("polygonise", polygonise_cover),
-        ],
-        Method::GraphCut => vec![
-            Stage::new("graph cut", cut_dual_complex),
-            Stage::new("confidence", confidence_of_cover),
-        ],
-    });
-    stages.push(Stage::new("clean", clean));
+        Method::PartitionOfUnity => vec![Stage::new("confidence", confidence_of_cover)],
+        Method::GraphCut => return None,
+    })
+}
+
+/// The stages after the surface: cleaning, refinement, colours, topology.
+pub(super) fn back_stages<'a>(params: &ReconParams, cloud: &PointCloud) -> Vec<ReconStage<'a>> {
+    let mut stages = vec![Stage::new("clean", clean)];
     if params.refine.is_some() {
         stages.push(Stage::new("refine", refine));
     }
@@ -260,7 +287,7 @@ fn estimate_sample_normals(ctx: &mut ReconContext<'_>) -> Result<(), ReconError>
 }
 
 /// The surface cover of the samples that are not isolated (thesis §3.4.1).
-fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+pub(super) fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let mut cover_params = ctx.params.cover.clone();
     cover_params.eps = ctx.stats.eps;
     // Isolated samples are left out of the cover (copied only when there are some).
@@ -510,6 +537,20 @@ fn zero_functions(cover: &mut Cover, zeroed: &[bool]) -> Result<(), ReconError> 
 /// Surface nets from the confident, non-outlier samples, so a sheet that no confident sample
 /// touches (floating outlier surfaces) is never meshed.
 fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let seeds = polygonisation_seeds(ctx)?;
+    let poly = polygonisation_params(ctx, &seeds);
+    let eval = PuEvaluator::new(ctx.cover(), 1.0)?;
+    let blend = Some(&ctx.confidence().support_confidence[..]);
+    let (mesh, stats) = polygonise_blending(&eval, &seeds, &poly, blend)?;
+    ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
+    ctx.stats.polygonise = Some(stats);
+    ctx.mesh = mesh;
+    Ok(())
+}
+
+/// The confident samples that are not outliers (every sample that is not an outlier when
+/// none reaches [`ReconParams::seed_confidence`]).
+pub(super) fn polygonisation_seeds(ctx: &ReconContext<'_>) -> Result<Vec<DVec3>, ReconError> {
     let (params, conf) = (ctx.params, ctx.confidence());
     let confident = |threshold: f64| -> Vec<DVec3> {
         ctx.points
@@ -526,8 +567,13 @@ fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     if seeds.is_empty() {
         return Err(ReconError::Empty("every sample is an outlier"));
     }
-    let eval = PuEvaluator::new(ctx.cover(), 1.0)?;
-    let poly = PolygoniseParams {
+    Ok(seeds)
+}
+
+/// The grid step of the depth, and the trimming `params` ask for at the scan's spacing.
+pub(super) fn polygonisation_params(ctx: &ReconContext<'_>, seeds: &[DVec3]) -> PolygoniseParams {
+    let params = ctx.params;
+    PolygoniseParams {
         step: GridStep::Absolute(1.0 / f64::from(1u32 << ctx.stats.depth)),
         trim: match params.trim {
             Trim::Off | Trim::Unseen => None,
@@ -536,16 +582,10 @@ fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         },
         unseen: (params.trim == Trim::Unseen).then(|| UnseenTrim {
             near: 3.0 * ctx.scan.spacing,
-            reach: (UNSEEN_REACH * Aabb::from_points(&seeds).diagonal())
-                .max(3.0 * ctx.scan.spacing),
+            reach: (UNSEEN_REACH * Aabb::from_points(seeds).diagonal()).max(3.0 * ctx.scan.spacing),
         }),
         ..PolygoniseParams::default()
-    };
-    let (mesh, stats) = polygonise_blending(&eval, &seeds, &poly, Some(&conf.support_confidence))?;
-    ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
-    ctx.stats.polygonise = Some(stats);
-    ctx.mesh = mesh;
-    Ok(())
+    }
 }
 
 /// The surface confidence at the vertices, and components far smaller than the largest

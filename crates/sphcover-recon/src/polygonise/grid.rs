@@ -53,7 +53,10 @@ pub(super) type Index3 = [i64; 3];
 impl Grid {
     /// The grid of step `step` over the box where `field` can be defined (the expanded
     /// balls), with one spare cell on every side.
-    pub(super) fn around(field: &PiecewiseFunction<'_>, step: f64) -> Result<Grid, PolygoniseError> {
+    pub(super) fn around(
+        field: &PiecewiseFunction<'_>,
+        step: f64,
+    ) -> Result<Grid, PolygoniseError> {
         let defined = field.defined_box();
         let extent = defined.longest_edge();
         let cells_per_axis = (extent / step).ceil() + 3.0;

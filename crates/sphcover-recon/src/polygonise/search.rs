@@ -11,10 +11,10 @@ use std::time::Duration;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{PiecewiseFunction, PolygoniseError};
 use super::bricks::{Brick, BrickCache, BrickReader};
 use super::cell::{ActiveCell, NO_SHEET, cell_sheets, cells_around_edge, corner_offset, inside};
 use super::grid::{Grid, Index3, KeyMap, pack};
+use super::{PiecewiseFunction, PolygoniseError};
 
 /// Newton steps that pull a seed onto `f = 0`.
 const SEED_NEWTON_STEPS: usize = 2;
