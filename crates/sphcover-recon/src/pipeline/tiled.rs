@@ -33,8 +33,9 @@ pub struct Tiling {
 
 impl Tiling {
     /// The halo [`Tiling::cubes`] gives: 0.1 of the longest edge. On the 2M-point bunny in
-    /// 2×2×2 tiles a halo of 0.05 left the Hausdorff-99 distance 3% from the single run's, in
-    /// surface filled in far from the samples; 0.1 keeps it within 2%.
+    /// 2×2×2 tiles (clean, and with noise, outliers and holes) the Hausdorff-99 distance
+    /// differs from the single run's by 2.7–2.8% with a halo of 0.05, and by at most 1.2%
+    /// with 0.1; 0.2 costs a third more time and gains nothing.
     pub const DEFAULT_HALO: f64 = 0.1;
 
     /// `n × n × n` tiles with the default halo.
