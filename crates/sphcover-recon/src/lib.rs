@@ -86,8 +86,9 @@ pub use options::{
 };
 pub use pipeline::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Reconstruction,
-    TileStats, Tiling, ToleranceNote, Trim, UNSEEN_REACH, default_depth, reconstruct,
-    reconstruct_tiled, reconstruct_tiled_until, reconstruct_until, stage_names, tiled_stage_names,
+    SequentialTiles, TileFunction, TileInput, TileRunner, TileStats, Tiling, ToleranceNote, Trim,
+    UNSEEN_REACH, default_depth, reconstruct, reconstruct_tiled, reconstruct_tiled_with,
+    reconstruct_until, stage_names, tile_function, tiled_stage_names,
 };
 pub use polygonise::{
     FieldPiece, GridStep, PiecewiseFunction, PolygoniseError, PolygoniseParams, PolygoniseStats,

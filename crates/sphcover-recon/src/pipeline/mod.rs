@@ -4,6 +4,7 @@
 
 mod spread;
 mod stages;
+mod tile_bytes;
 mod tiled;
 
 use sphcover_core::{
@@ -27,7 +28,9 @@ use crate::vertex_refinement::{
     VertexRefinementError, VertexRefinementParams, VertexRefinementStats,
 };
 use stages::{ReconContext, back_stages, built, front_stages, stage_list};
-pub use tiled::{TileStats, Tiling};
+pub use tiled::{
+    SequentialTiles, TileFunction, TileInput, TileRunner, TileStats, Tiling, tile_function,
+};
 
 /// Which reconstruction to run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -269,6 +272,9 @@ pub enum ReconError {
         "the {0} method cannot be tiled: its surface comes from the dual complex of the whole cover, not from a function each tile can build"
     )]
     NotTileable(&'static str),
+    /// A [`TileRunner`] failed or returned something other than the tiles' functions.
+    #[error("tiles: {0}")]
+    TileRunner(String),
     /// The caller asked the pipeline to stop ([`reconstruct_until`]).
     #[error(transparent)]
     Stopped(#[from] Stopped),
@@ -544,15 +550,25 @@ pub fn reconstruct_tiled(
     tiling: &Tiling,
     progress: &(dyn Fn(StageProgress) + Sync),
 ) -> Result<Reconstruction, ReconError> {
-    reconstruct_tiled_until(cloud, params, tiling, progress, &StopRequest::new())
+    reconstruct_tiled_with(
+        cloud,
+        params,
+        tiling,
+        &SequentialTiles,
+        progress,
+        &StopRequest::new(),
+    )
 }
 
-/// [`reconstruct_tiled`], ending with [`ReconError::Stopped`] before the first stage that
-/// starts after `stop` was requested.
-pub fn reconstruct_tiled_until(
+/// [`reconstruct_tiled`] with the tiles' functions run by `runner` (a distributed engine's
+/// tasks, for instance: each is [`tile_function`] of one [`TileInput`]), ending with
+/// [`ReconError::Stopped`] before the first stage that starts after `stop` was requested.
+/// The surface is the same whichever runner ran the tiles.
+pub fn reconstruct_tiled_with(
     cloud: &PointCloud,
     params: &ReconParams,
     tiling: &Tiling,
+    runner: &dyn TileRunner,
     progress: &(dyn Fn(StageProgress) + Sync),
     stop: &StopRequest,
 ) -> Result<Reconstruction, ReconError> {
@@ -564,6 +580,7 @@ pub fn reconstruct_tiled_until(
     let stages = tiled_stage_list(params, cloud);
     let mut ctx = ReconContext::new(cloud, params);
     ctx.tiling = Some(*tiling);
+    ctx.runner = Some(runner);
     run_pipeline(ctx, &stages, progress, stop)
 }
 

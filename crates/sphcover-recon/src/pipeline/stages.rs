@@ -14,7 +14,7 @@ use sphcover_core::{
 };
 use sphcover_ops::{OpsError, PairGeometry};
 
-use super::tiled::{TiledFunctions, Tiling};
+use super::tiled::{TileRunner, TiledFunctions, Tiling};
 use super::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, UNSEEN_REACH,
     default_depth,
@@ -77,6 +77,8 @@ pub(super) struct ReconContext<'a> {
     pub tiling: Option<Tiling>,
     /// The tiles' functions, between the stage that builds them and the polygonisation.
     pub tiled: Option<TiledFunctions>,
+    /// What runs the tiles' functions.
+    pub runner: Option<&'a dyn TileRunner>,
     pub stats: ReconStats,
 }
 
@@ -104,6 +106,7 @@ impl<'a> ReconContext<'a> {
             unchanged_topology: None,
             tiling: None,
             tiled: None,
+            runner: None,
             stats: ReconStats {
                 method: params.method,
                 points: cloud.len(),

@@ -15,9 +15,10 @@ use super::stages::{
     ReconContext, ReconStage, build_cover, built, function_stages, polygonisation_params,
     polygonisation_seeds,
 };
-use super::{ReconError, ReconParams, ReconStats, default_depth};
+use super::{ReconError, ReconParams, default_depth};
 use crate::confidence::{ConfidenceStats, SampleConfidence};
 use crate::polygonise::{FieldPiece, PiecewiseFunction, polygonise_piecewise};
+use crate::scan_statistics::ScanStatistics;
 
 /// How a reconstruction is split into tiles (see
 /// [`reconstruct_tiled`](super::reconstruct_tiled)).
@@ -145,10 +146,92 @@ pub(super) fn tiled_stages<'a>() -> [ReconStage<'a>; 2] {
     ]
 }
 
-/// Every tile's cover and function, one tile after the other (each with every thread), and
-/// the samples' confidence from the tile whose box holds them.
+/// What one tile's function is built from: the samples of its box and halo, in the unit frame
+/// of the whole scan, and what was measured on the whole scan. Plain arrays, so that a task
+/// on another machine can be handed one ([`TileRunner`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileInput {
+    /// The tile's position along x, y and z.
+    pub position: [usize; 3],
+    /// The tile's own box (unbounded on the outer sides); the function answers inside it.
+    pub own_box: Aabb,
+    /// The samples of the box and the halo, in the unit frame.
+    pub points: Vec<DVec3>,
+    /// Their outward normals, given or estimated on the whole scan.
+    pub normals: Vec<DVec3>,
+    /// Their scanner confidence, when the input has one.
+    pub scanner: Option<Vec<f64>>,
+    /// Which of them are isolated (left out of the cover, outliers).
+    pub isolated: Vec<bool>,
+    /// Which of them lie in the tile's own box: the tile gives those their confidence.
+    pub own: Vec<bool>,
+    /// The whole scan's sample spacing (unit frame).
+    pub spacing: f64,
+    /// The whole scan's noise σ (unit frame).
+    pub noise: f64,
+    /// The cover tolerance of the whole scan.
+    pub eps: f64,
+    /// Whether isolated samples are left out of the cover.
+    pub drop_isolated: bool,
+    /// The polygonisation depth of the whole scan.
+    pub depth: u32,
+}
+
+/// One tile's product ([`tile_function`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileFunction {
+    /// The tile's cover after diffusion, keeping the supports that reach into its box.
+    pub cover: Cover,
+    /// The confidence of each of those supports, blended at the vertices.
+    pub support_confidence: Vec<f64>,
+    /// The confidence of each sample of the tile's own box, in the order of
+    /// [`TileInput::points`].
+    pub confidence: Vec<f64>,
+    /// The outlier label of each sample of the tile's own box, in the same order.
+    pub outliers: Vec<bool>,
+    /// Supports the graph cut found inconsistent.
+    pub inconsistent_supports: usize,
+    /// Inconsistent supports kept because their samples fit them.
+    pub confirmed_supports: usize,
+}
+
+/// Runs the tiles' [`tile_function`]s: one after the other in this process
+/// ([`SequentialTiles`]), or as tasks of a distributed engine. A runner must return, in tile
+/// order, exactly what [`tile_function`] returns for each input, so that the surface is the
+/// same whichever ran it.
+pub trait TileRunner: Sync {
+    /// The function of each of `count` tiles; `input(t)` builds tile `t`'s input.
+    fn run(
+        &self,
+        count: usize,
+        input: &(dyn Fn(usize) -> TileInput + Sync),
+        params: &ReconParams,
+    ) -> Result<Vec<Option<TileFunction>>, ReconError>;
+}
+
+/// Runs the tiles one after the other in this process, each with every thread, building
+/// each tile's input only when its turn comes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SequentialTiles;
+
+impl TileRunner for SequentialTiles {
+    fn run(
+        &self,
+        count: usize,
+        input: &(dyn Fn(usize) -> TileInput + Sync),
+        params: &ReconParams,
+    ) -> Result<Vec<Option<TileFunction>>, ReconError> {
+        (0..count)
+            .map(|t| tile_function(&input(t), params))
+            .collect()
+    }
+}
+
+/// Every tile's cover and function by the context's runner, and the samples' confidence from
+/// the tile whose box holds them.
 fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let tiling = built(ctx.tiling, "tiling");
+    let runner = built(ctx.runner, "tile runner");
     // The tiles split the box of the samples the cover takes, not the outliers' extent.
     let inliers: Vec<DVec3> = ctx
         .points
@@ -169,57 +252,102 @@ fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         .params
         .depth
         .unwrap_or_else(|| default_depth(ctx.points.len()));
+    let [nx, ny, _] = tiling.tiles;
+    let position = |t: usize| [t % nx, (t / nx) % ny, t / (nx * ny)];
+    let slots_of = |t: usize| -> Vec<usize> {
+        let grown = tile_box(&splits, position(t), tiling.halo);
+        (0..ctx.points.len())
+            .into_par_iter()
+            .filter(|&s| grown.contains(ctx.points[s]))
+            .collect()
+    };
+    let input = |t: usize| -> TileInput {
+        let slots = slots_of(t);
+        let pick = |v: &[DVec3]| -> Vec<DVec3> { slots.iter().map(|&s| v[s]).collect() };
+        TileInput {
+            position: position(t),
+            own_box: tile_box(&splits, position(t), 0.0),
+            points: pick(&ctx.points),
+            normals: pick(&ctx.normals),
+            scanner: ctx
+                .scanner
+                .as_ref()
+                .map(|c| slots.iter().map(|&s| c[s]).collect()),
+            isolated: slots.iter().map(|&s| ctx.scan.isolated[s]).collect(),
+            own: slots.iter().map(|&s| owner[s] as usize == t).collect(),
+            spacing: ctx.scan.spacing,
+            noise: ctx.scan.noise,
+            eps: ctx.stats.eps,
+            drop_isolated: ctx.drop_isolated,
+            depth,
+        }
+    };
+    let start = Instant::now();
     let tile_params = ReconParams {
         depth: Some(depth),
         ..ctx.params.clone()
     };
+    let functions = runner.run(tiling.count(), &input, &tile_params)?;
+    let elapsed = start.elapsed();
+    if functions.len() != tiling.count() {
+        return Err(ReconError::TileRunner(format!(
+            "{} tile functions returned for {} tiles",
+            functions.len(),
+            tiling.count()
+        )));
+    }
+
     let samples = ctx.points.len();
     let mut confidence = vec![0.0; samples];
     let mut outliers = vec![true; samples];
-    let mut pieces = Vec::with_capacity(tiling.count());
-    let mut tile_stats = Vec::with_capacity(tiling.count());
-    let [nx, ny, nz] = tiling.tiles;
-    for iz in 0..nz {
-        for iy in 0..ny {
-            for ix in 0..nx {
-                let start = Instant::now();
-                let t = ix + nx * (iy + ny * iz);
-                let grown = tile_box(&splits, [ix, iy, iz], tiling.halo);
-                let slots: Vec<usize> = (0..samples)
-                    .into_par_iter()
-                    .filter(|&s| grown.contains(ctx.points[s]))
-                    .collect();
-                let mut stats = TileStats {
-                    position: [ix, iy, iz],
-                    own_samples: owner.iter().filter(|&&o| o as usize == t).count(),
-                    samples: slots.len(),
-                    ..TileStats::default()
-                };
-                let piece = tile_function(ctx, &tile_params, &slots)?;
-                if let Some((cover, mut conf, counts)) = piece {
-                    let own_box = tile_box(&splits, [ix, iy, iz], 0.0);
-                    let (cover, kept) = supports_reaching(cover, &own_box)?;
-                    conf.support_confidence = kept
-                        .iter()
-                        .map(|&i| conf.support_confidence[i as usize])
-                        .collect();
-                    ctx.stats.inconsistent_supports += counts.inconsistent_supports;
-                    ctx.stats.confirmed_supports += counts.confirmed_supports;
-                    for (k, &s) in slots.iter().enumerate() {
-                        if owner[s] as usize == t {
-                            confidence[s] = conf.confidence[k];
-                            outliers[s] = conf.outliers[k];
-                        }
-                    }
-                    stats.supports = cover.len();
-                    pieces.push((cover, conf.support_confidence));
-                } else {
-                    pieces.push((empty_cover(ctx.params)?, Vec::new()));
+    let mut pieces = Vec::with_capacity(functions.len());
+    let mut tile_stats = Vec::with_capacity(functions.len());
+    for (t, function) in functions.into_iter().enumerate() {
+        let slots = slots_of(t);
+        let own: Vec<usize> = slots
+            .iter()
+            .copied()
+            .filter(|&s| owner[s] as usize == t)
+            .collect();
+        let mut stats = TileStats {
+            position: position(t),
+            own_samples: own.len(),
+            samples: slots.len(),
+            ..TileStats::default()
+        };
+        match function {
+            Some(f) => {
+                if f.confidence.len() != own.len()
+                    || f.outliers.len() != own.len()
+                    || f.support_confidence.len() != f.cover.len()
+                {
+                    return Err(ReconError::TileRunner(format!(
+                        "tile {:?}: {} confidences and {} outlier labels for {} samples, {} support confidences for {} supports",
+                        stats.position,
+                        f.confidence.len(),
+                        f.outliers.len(),
+                        own.len(),
+                        f.support_confidence.len(),
+                        f.cover.len()
+                    )));
                 }
-                stats.time = start.elapsed();
-                tile_stats.push(stats);
+                for (k, &s) in own.iter().enumerate() {
+                    confidence[s] = f.confidence[k];
+                    outliers[s] = f.outliers[k];
+                }
+                ctx.stats.inconsistent_supports += f.inconsistent_supports;
+                ctx.stats.confirmed_supports += f.confirmed_supports;
+                stats.supports = f.cover.len();
+                pieces.push((f.cover, f.support_confidence));
             }
+            None => pieces.push((empty_cover(ctx.params)?, Vec::new())),
         }
+        tile_stats.push(stats);
+    }
+    // The runner may run the tiles at once: the stage's time is shared out by samples.
+    let total: usize = tile_stats.iter().map(|s| s.samples).sum::<usize>().max(1);
+    for s in &mut tile_stats {
+        s.time = elapsed.mul_f64(s.samples as f64 / total as f64);
     }
     ctx.stats.depth = depth;
     ctx.stats.supports = pieces.iter().map(|(c, _)| c.len()).sum();
@@ -241,36 +369,52 @@ fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     Ok(())
 }
 
-/// The cover and sample confidence of one tile, from the samples at `slots`, by the
-/// method's stages; `None` when too few of them are left for a cover.
-fn tile_function(
-    ctx: &ReconContext<'_>,
+/// One tile's function: the cover, graph cut, confidence and diffusion of
+/// [`ReconParams::method`] on the tile's samples, keeping the supports that reach into its
+/// box; `None` when too few samples are left for a cover (a tile holding a few far outliers
+/// alone measures no surface). Depends on nothing but its arguments, so any worker gives
+/// the same result.
+pub fn tile_function(
+    input: &TileInput,
     params: &ReconParams,
-    slots: &[usize],
-) -> Result<Option<(Cover, SampleConfidence, ReconStats)>, ReconError> {
-    let in_cover = slots
-        .iter()
-        .filter(|&&s| !(ctx.drop_isolated && ctx.scan.isolated[s]))
+) -> Result<Option<TileFunction>, ReconError> {
+    let n = input.points.len();
+    let lengths = [
+        input.normals.len(),
+        input.isolated.len(),
+        input.own.len(),
+        input.scanner.as_ref().map_or(n, Vec::len),
+    ];
+    if lengths.iter().any(|&l| l != n) {
+        return Err(ReconError::TileRunner(format!(
+            "tile {:?}: {n} points with {lengths:?} normals, isolated flags, own flags and scanner confidences",
+            input.position
+        )));
+    }
+    let in_cover = (0..n)
+        .filter(|&s| !(input.drop_isolated && input.isolated[s]))
         .count();
-    // A tile holding a few stray samples alone (far outliers) measures no surface.
     if in_cover < super::stages::MIN_POINTS.max(params.scan.k + 1) {
         return Ok(None);
     }
-    let pick = |v: &[DVec3]| -> Vec<DVec3> { slots.iter().map(|&s| v[s]).collect() };
-    let mut tile = ReconContext::new(ctx.cloud, params);
-    tile.points = pick(&ctx.points);
-    tile.normals = pick(&ctx.normals);
-    tile.scanner = ctx
-        .scanner
-        .as_ref()
-        .map(|c| slots.iter().map(|&s| c[s]).collect());
+    let params = ReconParams {
+        depth: Some(input.depth),
+        ..params.clone()
+    };
+    let nothing = sphcover_core::PointCloud::default();
+    let mut tile = ReconContext::new(&nothing, &params);
+    tile.points = input.points.clone();
+    tile.normals = input.normals.clone();
+    tile.scanner = input.scanner.clone();
     tile.index = Some(PointIndex::new(&tile.points)?);
-    tile.scan = ctx.scan.clone();
-    tile.scan.isolated = slots.iter().map(|&s| ctx.scan.isolated[s]).collect();
-    tile.scan.isolated_count = tile.scan.isolated.iter().filter(|&&i| i).count();
-    tile.drop_isolated = ctx.drop_isolated && tile.scan.isolated_count > 0;
-    tile.stats.eps = ctx.stats.eps;
-    tile.stats.noise_floor = ctx.stats.noise_floor;
+    tile.scan = ScanStatistics {
+        spacing: input.spacing,
+        noise: input.noise,
+        isolated: input.isolated.clone(),
+        isolated_count: input.isolated.iter().filter(|&&i| i).count(),
+    };
+    tile.drop_isolated = input.drop_isolated && tile.scan.isolated_count > 0;
+    tile.stats.eps = input.eps;
     let function =
         function_stages(params.method).ok_or(ReconError::NotTileable(params.method.name()))?;
     build_cover(&mut tile)?;
@@ -278,8 +422,20 @@ fn tile_function(
         (stage.run)(&mut tile)?;
     }
     let cover = built(tile.cover.take(), "cover");
-    let confidence = built(tile.confidence.take(), "sample confidence");
-    Ok(Some((cover, confidence, tile.stats)))
+    let conf = built(tile.confidence.take(), "sample confidence");
+    let (cover, kept) = supports_reaching(cover, &input.own_box)?;
+    let own = |s: &usize| input.own[*s];
+    Ok(Some(TileFunction {
+        support_confidence: kept
+            .iter()
+            .map(|&i| conf.support_confidence[i as usize])
+            .collect(),
+        confidence: (0..n).filter(own).map(|s| conf.confidence[s]).collect(),
+        outliers: (0..n).filter(own).map(|s| conf.outliers[s]).collect(),
+        cover,
+        inconsistent_supports: tile.stats.inconsistent_supports,
+        confirmed_supports: tile.stats.confirmed_supports,
+    }))
 }
 
 /// The supports of `cover` whose ball reaches into `own` (the only ones the tile's function
@@ -481,6 +637,52 @@ mod tests {
         assert_eq!(one.mesh, three.mesh);
         assert_eq!(one.confidence, three.confidence);
         assert_eq!(one.outliers, three.outliers);
+    }
+
+    /// Tiles run in reverse order, each through bytes as another process would get and
+    /// return them.
+    struct ThroughBytes;
+
+    impl TileRunner for ThroughBytes {
+        fn run(
+            &self,
+            count: usize,
+            input: &(dyn Fn(usize) -> TileInput + Sync),
+            params: &ReconParams,
+        ) -> Result<Vec<Option<TileFunction>>, ReconError> {
+            let mut out: Vec<Option<TileFunction>> = vec![None; count];
+            for t in (0..count).rev() {
+                let sent = TileInput::from_bytes(&input(t).to_bytes())?;
+                out[t] = tile_function(&sent, params)?
+                    .map(|f| TileFunction::from_bytes(&f.to_bytes()))
+                    .transpose()?;
+            }
+            Ok(out)
+        }
+    }
+
+    #[test]
+    fn any_runner_gives_the_sequential_runs_surface() {
+        let cloud = torus(0.3, 0.12, 5000);
+        let params = ReconParams::default();
+        let tiling = Tiling {
+            tiles: [2, 1, 3],
+            halo: 0.1,
+        };
+        let stop = sphcover_core::StopRequest::new();
+        let here = reconstruct_tiled(&cloud, &params, &tiling, &|_| {}).unwrap();
+        let there = super::super::reconstruct_tiled_with(
+            &cloud,
+            &params,
+            &tiling,
+            &ThroughBytes,
+            &|_| {},
+            &stop,
+        )
+        .unwrap();
+        assert_eq!(here.mesh, there.mesh);
+        assert_eq!(here.confidence, there.confidence);
+        assert_eq!(here.cover, there.cover);
     }
 
     #[test]
