@@ -6,9 +6,11 @@ use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sphcover_core::PointCloud;
+use pyo3::types::{PyBytes, PyList};
 use sphcover_recon::{
-    BudgetFit, Method, NoiseOption, ReconOptions, ReconParams, Reconstruction, ToleranceNote,
-    TrimOption, fit_memory_budget, reconstruct_until,
+    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction,
+    SequentialTiles, TileFunction, TileInput, TileRunner, Tiling, ToleranceNote, TrimOption,
+    fit_memory_budget, reconstruct_tiled_with, reconstruct_until, tile_function,
 };
 
 use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
@@ -72,7 +74,8 @@ fn noise_option(value: Option<&Bound<'_, PyAny>>) -> PyResult<Option<NoiseOption
     points, normals = None, confidence = None, colors = None, *, method_name = "integrated", eps = None,
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
     normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
-    threads = None, progress = None, max_memory = None, noise = None,
+    threads = None, progress = None, max_memory = None, noise = None, tiles = None, halo = 0.1,
+    map_tiles = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct<'py>(
@@ -96,6 +99,9 @@ pub fn reconstruct<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     max_memory: Option<&Bound<'py, PyAny>>,
     noise: Option<&Bound<'py, PyAny>>,
+    tiles: Option<[usize; 3]>,
+    halo: f64,
+    map_tiles: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let budget = byte_size(max_memory)?;
     let options = ReconOptions {
@@ -112,6 +118,15 @@ pub fn reconstruct<'py>(
         seed,
     };
     let mut params = options.params().map_err(option_error)?;
+    let tiling = tiles.map(|tiles| Tiling { tiles, halo });
+    if let Some(tiling) = &tiling {
+        tiling.check().map_err(|e| bad_input(e.to_string()))?;
+        if params.method == Method::GraphCut {
+            return Err(bad_input(
+                ReconError::NotTileable(params.method.name()).to_string(),
+            ));
+        }
+    }
     let positions = points_from_py(&points, "points")?;
     let n = Some(positions.len());
     let normals = match (normals, estimate_normals) {
@@ -150,14 +165,120 @@ pub fn reconstruct<'py>(
     };
     let run_params = params.clone();
     let recon = run(py, progress, threads, move |context| {
-        reconstruct_until(&cloud, &run_params, &|s| context.stage(s), context.stop())
-            .map_err(recon_error)
+        let progress = |s| context.stage(s);
+        match (tiling, map_tiles) {
+            (None, _) => reconstruct_until(&cloud, &run_params, &progress, context.stop()),
+            (Some(tiling), None) => reconstruct_tiled_with(
+                &cloud,
+                &run_params,
+                &tiling,
+                &SequentialTiles,
+                &progress,
+                context.stop(),
+            ),
+            (Some(tiling), Some(map)) => reconstruct_tiled_with(
+                &cloud,
+                &run_params,
+                &tiling,
+                &PythonTiles(map),
+                &progress,
+                context.stop(),
+            ),
+        }
+        .map_err(recon_error)
     })?;
     let note = ToleranceNote::of(&params, &recon.stats).map(|n| (n, n.message("eps", "noise")));
     if let Some((ToleranceNote::BelowFloor { .. }, message)) = &note {
         warn(py, message)?;
     }
     into_dict(py, recon, &params, note.map(|(_, message)| message), memory)
+}
+
+/// Tiles run by a Python callable `map_tiles(inputs) -> functions`: a list of tile inputs
+/// as bytes in, a list of the same length of `tile_function`'s results (bytes, or None for a
+/// tile without a cover) out, in the same order. A distributed engine's map (Dask's
+/// `client.map` and `client.gather`) fits it.
+struct PythonTiles(Py<PyAny>);
+
+impl TileRunner for PythonTiles {
+    fn run(
+        &self,
+        count: usize,
+        input: &(dyn Fn(usize) -> TileInput + Sync),
+        _params: &ReconParams,
+    ) -> Result<Vec<Option<TileFunction>>, ReconError> {
+        // Built without the interpreter: the calling thread keeps reporting progress.
+        let inputs: Vec<Vec<u8>> = (0..count).map(|t| input(t).to_bytes()).collect();
+        let returned: Vec<Option<Vec<u8>>> = Python::attach(|py| {
+            let blobs = PyList::new(py, inputs.iter().map(|b| PyBytes::new(py, b)))?;
+            drop(inputs);
+            let results = self.0.bind(py).call1((blobs,))?;
+            results
+                .try_iter()?
+                .map(|item| item?.extract::<Option<Vec<u8>>>())
+                .collect::<PyResult<Vec<_>>>()
+        })
+        .map_err(|e| ReconError::TileRunner(format!("map_tiles raised {e}")))?;
+        if returned.len() != count {
+            return Err(ReconError::TileRunner(format!(
+                "map_tiles returned {} results for {count} tiles",
+                returned.len()
+            )));
+        }
+        returned
+            .into_iter()
+            .map(|r| r.map(|b| TileFunction::from_bytes(&b)).transpose())
+            .collect()
+    }
+}
+
+/// One tile's function ([`sphcover_recon::tile_function`]) from its input as bytes, with the
+/// reconstruction's options (the keywords of `reconstruct`); bytes, or None for a tile
+/// with too few samples for a cover. What a worker of a distributed engine runs.
+#[pyfunction]
+#[pyo3(signature = (
+    tile, *, method_name = "integrated", eps = None, k = None, trim_value = None, depth = None,
+    normal_fit = None, position_fit = None, normal_neighbours = 12, refine = true, seed = 0,
+    noise = None, threads = None,
+))]
+#[allow(clippy::too_many_arguments)]
+pub fn tile_function_bytes<'py>(
+    py: Python<'py>,
+    tile: &[u8],
+    method_name: &str,
+    eps: Option<f64>,
+    k: Option<f64>,
+    trim_value: Option<&Bound<'py, PyAny>>,
+    depth: Option<u32>,
+    normal_fit: Option<f64>,
+    position_fit: Option<f64>,
+    normal_neighbours: usize,
+    refine: bool,
+    seed: u64,
+    noise: Option<&Bound<'py, PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<Option<Bound<'py, PyBytes>>> {
+    let options = ReconOptions {
+        method: method(method_name)?,
+        eps,
+        noise: noise_option(noise)?,
+        k,
+        trim: trim(trim_value)?,
+        depth,
+        normal_fit,
+        position_fit,
+        normal_neighbours,
+        refine,
+        seed,
+    };
+    let params = options.params().map_err(option_error)?;
+    let input = TileInput::from_bytes(tile).map_err(|e| bad_input(e.to_string()))?;
+    let function = run(py, None, threads, move |_| {
+        tile_function(&input, &params)
+            .map(|f| f.map(|f| f.to_bytes()))
+            .map_err(recon_error)
+    })?;
+    Ok(function.map(|b| PyBytes::new(py, &b)))
 }
 
 fn into_dict<'py>(

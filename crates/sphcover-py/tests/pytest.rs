@@ -2,7 +2,8 @@
 //!
 //! CI runs only `cargo test --workspace --locked` (the README's command, `.ci/run`), so the
 //! Python tests run from here: a fresh virtual environment in a temporary directory gets
-//! maturin, NumPy, SciPy, pytest and trimesh (small, pure Python: its conversions then run;
+//! maturin, NumPy, SciPy, pytest, Dask's `distributed` (the tiled reconstruction's tests start
+//! a local cluster) and trimesh (small, pure Python: its conversions then run;
 //! Open3D is too large to fetch on every run, so its test is skipped) from the package index; maturin builds the package's wheel
 //! and cargo the `sphcover` command it is compared with, both with the `python-test` profile
 //! into `<target>/python-check` (never the outer `cargo test`'s build directory, whose lock
@@ -99,8 +100,9 @@ fn python_package_passes_its_pytest_suite() {
             "scipy",
             "pytest",
             "trimesh",
+            "distributed",
         ]),
-        "installing maturin, numpy, scipy, pytest and trimesh from the package index (is it reachable?)",
+        "installing maturin, numpy, scipy, pytest, trimesh and distributed from the package index (is it reachable?)",
     );
 
     let root = workspace();

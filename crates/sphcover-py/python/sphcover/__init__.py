@@ -44,6 +44,8 @@ __all__ = [
     "regular_triangulation",
     "skeleton",
     "skeleton_from_samples",
+    "tile_function",
+    "dask_map_tiles",
     "write",
 ]
 
@@ -229,6 +231,10 @@ def reconstruct(
     progress: Progress = None,
     max_memory: Union[None, int, str] = None,
     noise: Union[None, str, float] = None,
+    tiles: Union[None, int, tuple] = None,
+    halo: float = 0.1,
+    client: Any = None,
+    map_tiles: Optional[Callable[[list], list]] = None,
 ) -> Mesh:
     """Reconstructs a surface mesh from scanned points, as ``sphcover recon`` does.
 
@@ -250,6 +256,15 @@ def reconstruct(
     ``UserWarning``), and a given ``depth`` that does not fit, or no depth at all, raises
     :class:`BadInputError` before any work (``stats["memory"]`` records the decision).
 
+    ``tiles`` (``N`` for N×N×N, or ``(nx, ny, nz)``) builds the cover and its function tile
+    by tile, each from the samples of its box and a ``halo`` (relative to the longest
+    bounding-box edge), as ``sphcover recon --tiles`` does. The tiles run one after the other
+    in this process; with ``client`` (a ``dask.distributed.Client``) they run as tasks of
+    that cluster (see :func:`dask_map_tiles`), and a task whose worker dies runs again
+    elsewhere. ``map_tiles`` runs them on any other engine: it takes the list of tile inputs
+    (bytes) and returns the list of :func:`tile_function` results, in order. The surface is
+    the same, byte for byte, whichever ran the tiles.
+
     Returns a :class:`Mesh` with per-vertex normals, the per-vertex confidence of the surface
     as ``values`` (``confidence``), the statistics, and ``point_confidence``, ``outliers``,
     ``cover`` of the input points. Written with :func:`write` to PLY it is the command line's
@@ -261,6 +276,27 @@ def reconstruct(
         normals = cloud.normals if normals is None else normals
         confidence = cloud.confidence if confidence is None else confidence
         colors = cloud.colors if colors is None else colors
+    if isinstance(tiles, int):
+        tiles = (tiles, tiles, tiles)
+    options = dict(
+        method_name=method,
+        eps=eps,
+        k=k,
+        normal_fit=normal_fit,
+        position_fit=position_fit,
+        normal_neighbours=normal_neighbours,
+        seed=seed,
+        noise=noise,
+    )
+    if client is not None and map_tiles is None:
+        map_tiles = dask_map_tiles(client)
+    run_tiles = None
+    if map_tiles is not None:
+        engine = map_tiles
+
+        def run_tiles(inputs):
+            return engine(inputs, options)
+
     d = _with_progress(
         progress,
         lambda callback: _sphcover.reconstruct(
@@ -283,6 +319,9 @@ def reconstruct(
             progress=callback,
             max_memory=max_memory,
             noise=noise,
+            tiles=None if tiles is None else tuple(int(t) for t in tiles),
+            halo=halo,
+            map_tiles=run_tiles,
         ),
     )
     return Mesh(
@@ -296,6 +335,26 @@ def reconstruct(
         outliers=d["outliers"],
         cover=d["cover"],
     )
+
+
+def tile_function(tile: bytes, options: dict) -> Optional[bytes]:
+    """One tile's function from its input (bytes, as ``map_tiles`` receives them) and the
+    reconstruction's options: bytes, or None for a tile with too few samples for a cover.
+    It depends on nothing else, so any worker of any engine gives the same bytes."""
+    return _sphcover.tile_function_bytes(tile, **options)
+
+
+def dask_map_tiles(client, retries: int = 2):
+    """A ``map_tiles`` for :func:`reconstruct` that runs the tiles as tasks of a Dask
+    cluster: ``client.map`` of :func:`tile_function` over the inputs, then ``client.gather``.
+    A task whose worker dies is rescheduled by Dask's scheduler; one that raises is tried
+    ``retries`` more times."""
+
+    def map_tiles(inputs, options):
+        futures = client.map(tile_function, inputs, options=options, pure=False, retries=retries)
+        return client.gather(futures)
+
+    return map_tiles
 
 
 def skeleton(

@@ -4,7 +4,7 @@ The public functions are those of ``sphcover`` itself, which wrap these with res
 """
 
 from os import PathLike
-from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -99,7 +99,26 @@ def reconstruct(
     progress: ProgressCallback = None,
     max_memory: Union[None, int, str] = None,
     noise: Union[None, str, float] = None,
+    tiles: Optional[Tuple[int, int, int]] = None,
+    halo: float = 0.1,
+    map_tiles: Optional[Callable[[List[bytes]], List[Optional[bytes]]]] = None,
 ) -> Dict[str, Any]: ...
+def tile_function_bytes(
+    tile: bytes,
+    *,
+    method_name: str = "integrated",
+    eps: Optional[float] = None,
+    k: Optional[float] = None,
+    trim_value: Union[None, bool, float] = None,
+    depth: Optional[int] = None,
+    normal_fit: Optional[float] = None,
+    position_fit: Optional[float] = None,
+    normal_neighbours: int = 12,
+    refine: bool = True,
+    seed: int = 0,
+    noise: Union[None, str, float] = None,
+    threads: Optional[int] = None,
+) -> Optional[bytes]: ...
 def skeleton_volume(
     values: npt.NDArray[np.float64],
     affine: F64,

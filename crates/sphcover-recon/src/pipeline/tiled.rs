@@ -52,7 +52,9 @@ impl Tiling {
         self.tiles.iter().product()
     }
 
-    pub(super) fn check(&self) -> Result<(), ReconError> {
+    /// Refuses a tiling without tiles along an axis, with more than 4096 tiles, or with a
+    /// halo outside [0, 1].
+    pub fn check(&self) -> Result<(), ReconError> {
         let count = self.tiles.iter().try_fold(1usize, |n, &t| n.checked_mul(t));
         if self.tiles.contains(&0) || count.is_none_or(|n| n > MAX_TILES) {
             return Err(ReconError::InvalidParameter(

@@ -1,0 +1,78 @@
+"""Tiled reconstruction: in this process and on a local Dask cluster, against
+`sphcover recon --tiles`, byte for byte, also when a worker dies in the middle of a run."""
+
+import os
+import sys
+
+import cloudpickle
+import pytest
+from distributed import Client, LocalCluster
+
+import sphcover
+
+
+def written(tmp_path, mesh, name):
+    path = tmp_path / name
+    sphcover.write(path, mesh)
+    return path.read_bytes()
+
+
+def test_tiles_in_this_process_match_the_command_line(fixtures, run_cli, tmp_path):
+    scan = fixtures / "real" / "kitten.ply"
+    run_cli("recon", scan, "--tiles", "2", "-o", tmp_path / "cli.ply")
+    mesh = sphcover.reconstruct(sphcover.read(scan), tiles=2)
+    assert written(tmp_path, mesh, "python.ply") == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["watertight"] and mesh.stats["components"] == 1
+
+
+def killing_first_attempt(tile, options, marker):
+    """The tile's function, except that the first attempt at the first tile ends its worker
+    process at once, as a machine that goes down would."""
+    if not os.path.exists(marker):
+        with open(marker, "w"):
+            pass
+        os._exit(1)
+    return sphcover.tile_function(tile, options)
+
+
+def test_a_worker_killed_mid_run_changes_nothing(fixtures, run_cli, tmp_path):
+    scan = fixtures / "real" / "kitten.ply"
+    run_cli("recon", scan, "--tiles", "2", "-o", tmp_path / "cli.ply")
+    marker = str(tmp_path / "killed")
+    # The workers are other processes: they get this module's functions by value.
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, Client(cluster) as client:
+
+        def map_tiles(inputs, options):
+            futures = client.map(
+                killing_first_attempt,
+                inputs,
+                options=options,
+                marker=marker,
+                pure=False,
+            )
+            return client.gather(futures)
+
+        mesh = sphcover.reconstruct(sphcover.read(scan), tiles=2, map_tiles=map_tiles)
+        assert os.path.exists(marker), "no worker was killed"
+        assert written(tmp_path, mesh, "killed.ply") == (tmp_path / "cli.ply").read_bytes()
+        # The ordinary path through the cluster gives the same bytes.
+        mesh = sphcover.reconstruct(sphcover.read(scan), tiles=(2, 2, 2), client=client)
+        assert written(tmp_path, mesh, "dask.ply") == (tmp_path / "cli.ply").read_bytes()
+
+
+def test_bad_tilings_and_damaged_tiles_are_refused(fixtures):
+    cloud = sphcover.read(fixtures / "real" / "kitten.ply")
+    for options in [
+        dict(tiles=(0, 1, 1)),
+        dict(tiles=2, halo=2.0),
+        dict(tiles=2, method="graphcut"),
+    ]:
+        with pytest.raises(sphcover.BadInputError):
+            sphcover.reconstruct(cloud, **options)
+    with pytest.raises(sphcover.BadInputError, match="tile input"):
+        sphcover.tile_function(b"not a tile", {})
+    with pytest.raises(sphcover.SphcoverError, match="map_tiles"):
+        sphcover.reconstruct(cloud, tiles=2, map_tiles=lambda inputs, options: [None])
