@@ -4,9 +4,8 @@
 
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict, PyList};
 use sphcover_core::PointCloud;
-use pyo3::types::{PyBytes, PyList};
 use sphcover_recon::{
     BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction,
     SequentialTiles, TileFunction, TileInput, TileRunner, Tiling, ToleranceNote, TrimOption,
@@ -75,7 +74,7 @@ fn noise_option(value: Option<&Bound<'_, PyAny>>) -> PyResult<Option<NoiseOption
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
     normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
     threads = None, progress = None, max_memory = None, noise = None, tiles = None, halo = 0.1,
-    map_tiles = None,
+    map_tiles = None, scratch = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct<'py>(
@@ -102,6 +101,7 @@ pub fn reconstruct<'py>(
     tiles: Option<[usize; 3]>,
     halo: f64,
     map_tiles: Option<Py<PyAny>>,
+    scratch: Option<std::path::PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let budget = byte_size(max_memory)?;
     let options = ReconOptions {
@@ -176,11 +176,11 @@ pub fn reconstruct<'py>(
                 &progress,
                 context.stop(),
             ),
-            (Some(tiling), Some(map)) => reconstruct_tiled_with(
+            (Some(tiling), Some(map_tiles)) => reconstruct_tiled_with(
                 &cloud,
                 &run_params,
                 &tiling,
-                &PythonTiles(map),
+                &PythonTiles { map_tiles, scratch },
                 &progress,
                 context.stop(),
             ),
@@ -195,10 +195,54 @@ pub fn reconstruct<'py>(
 }
 
 /// Tiles run by a Python callable `map_tiles(inputs) -> functions`: a list of tile inputs
-/// as bytes in, a list of the same length of `tile_function`'s results (bytes, or None for a
-/// tile without a cover) out, in the same order. A distributed engine's map (Dask's
-/// `client.map` and `client.gather`) fits it.
-struct PythonTiles(Py<PyAny>);
+/// in, a list of the same length of `tile_function`'s results (bytes, or None for a tile
+/// without a cover) out, in the same order. A distributed engine's map (Dask's `client.map`
+/// and `client.gather`) fits it. The inputs are bytes, or with a scratch directory the paths
+/// of files holding them, written one at a time so that this process never holds them all.
+struct PythonTiles {
+    map_tiles: Py<PyAny>,
+    scratch: Option<std::path::PathBuf>,
+}
+
+impl PythonTiles {
+    /// The inputs as the callable gets them: bytes, or paths of files in the scratch
+    /// directory (removed again when `files` is dropped).
+    fn inputs(
+        &self,
+        count: usize,
+        input: &(dyn Fn(usize) -> TileInput + Sync),
+    ) -> Result<TileInputs, ReconError> {
+        let Some(dir) = &self.scratch else {
+            return Ok(TileInputs::Bytes(
+                (0..count).map(|t| input(t).to_bytes()).collect(),
+            ));
+        };
+        let mut files = ScratchFiles(Vec::with_capacity(count));
+        for t in 0..count {
+            let path = dir.join(format!("sphcover-tile-{}-{t:05}.in", std::process::id()));
+            sphcover_core::io::write_atomic(&path, &[], |w| w.write_all(&input(t).to_bytes()))
+                .map_err(|e| ReconError::TileRunner(format!("{}: {e}", path.display())))?;
+            files.0.push(path);
+        }
+        Ok(TileInputs::Files(files))
+    }
+}
+
+enum TileInputs {
+    Bytes(Vec<Vec<u8>>),
+    Files(ScratchFiles),
+}
+
+/// Tile input files, removed when dropped (after the run, or when it fails).
+struct ScratchFiles(Vec<std::path::PathBuf>);
+
+impl Drop for ScratchFiles {
+    fn drop(&mut self) {
+        for path in &self.0 {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
 
 impl TileRunner for PythonTiles {
     fn run(
@@ -208,11 +252,15 @@ impl TileRunner for PythonTiles {
         _params: &ReconParams,
     ) -> Result<Vec<Option<TileFunction>>, ReconError> {
         // Built without the interpreter: the calling thread keeps reporting progress.
-        let inputs: Vec<Vec<u8>> = (0..count).map(|t| input(t).to_bytes()).collect();
+        let inputs = self.inputs(count, input)?;
         let returned: Vec<Option<Vec<u8>>> = Python::attach(|py| {
-            let blobs = PyList::new(py, inputs.iter().map(|b| PyBytes::new(py, b)))?;
-            drop(inputs);
-            let results = self.0.bind(py).call1((blobs,))?;
+            let list = match &inputs {
+                TileInputs::Bytes(blobs) => {
+                    PyList::new(py, blobs.iter().map(|b| PyBytes::new(py, b)))?
+                }
+                TileInputs::Files(files) => PyList::new(py, files.0.iter())?,
+            };
+            let results = self.map_tiles.bind(py).call1((list,))?;
             results
                 .try_iter()?
                 .map(|item| item?.extract::<Option<Vec<u8>>>())

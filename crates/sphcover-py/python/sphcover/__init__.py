@@ -16,6 +16,7 @@ See ``docs/python.md`` in the repository for a guide.
 
 from __future__ import annotations
 
+import os
 import sys
 from typing import Any, Callable, NamedTuple, Optional, Union
 
@@ -235,6 +236,7 @@ def reconstruct(
     halo: float = 0.1,
     client: Any = None,
     map_tiles: Optional[Callable[[list], list]] = None,
+    scratch: Union[None, str, "os.PathLike[str]"] = None,
 ) -> Mesh:
     """Reconstructs a surface mesh from scanned points, as ``sphcover recon`` does.
 
@@ -262,8 +264,11 @@ def reconstruct(
     in this process; with ``client`` (a ``dask.distributed.Client``) they run as tasks of
     that cluster (see :func:`dask_map_tiles`), and a task whose worker dies runs again
     elsewhere. ``map_tiles`` runs them on any other engine: it takes the list of tile inputs
-    (bytes) and returns the list of :func:`tile_function` results, in order. The surface is
-    the same, byte for byte, whichever ran the tiles.
+    (bytes) and returns the list of :func:`tile_function` results, in order. With
+    ``scratch`` (a directory the workers can read, such as a shared file system) the inputs
+    are written there one at a time and the engine gets their paths, so this process never
+    holds them all; they are removed after the run. The surface is the same, byte for byte,
+    whichever ran the tiles.
 
     Returns a :class:`Mesh` with per-vertex normals, the per-vertex confidence of the surface
     as ``values`` (``confidence``), the statistics, and ``point_confidence``, ``outliers``,
@@ -322,6 +327,7 @@ def reconstruct(
             tiles=None if tiles is None else tuple(int(t) for t in tiles),
             halo=halo,
             map_tiles=run_tiles,
+            scratch=None if scratch is None else os.fspath(scratch),
         ),
     )
     return Mesh(
@@ -337,10 +343,14 @@ def reconstruct(
     )
 
 
-def tile_function(tile: bytes, options: dict) -> Optional[bytes]:
-    """One tile's function from its input (bytes, as ``map_tiles`` receives them) and the
-    reconstruction's options: bytes, or None for a tile with too few samples for a cover.
-    It depends on nothing else, so any worker of any engine gives the same bytes."""
+def tile_function(tile, options: dict) -> Optional[bytes]:
+    """One tile's function from its input (bytes, or the path of a file holding them, as
+    ``map_tiles`` receives them) and the reconstruction's options: bytes, or None for a tile
+    with too few samples for a cover. It depends on nothing else, so any worker of any engine
+    gives the same bytes."""
+    if isinstance(tile, (str, os.PathLike)):
+        with open(tile, "rb") as f:
+            tile = f.read()
     return _sphcover.tile_function_bytes(tile, **options)
 
 

@@ -58,9 +58,17 @@ def test_a_worker_killed_mid_run_changes_nothing(fixtures, run_cli, tmp_path):
         mesh = sphcover.reconstruct(sphcover.read(scan), tiles=2, map_tiles=map_tiles)
         assert os.path.exists(marker), "no worker was killed"
         assert written(tmp_path, mesh, "killed.ply") == (tmp_path / "cli.ply").read_bytes()
-        # The ordinary path through the cluster gives the same bytes.
+        # The ordinary path through the cluster gives the same bytes, with the inputs as
+        # bytes or as files in a scratch directory (removed afterwards).
         mesh = sphcover.reconstruct(sphcover.read(scan), tiles=(2, 2, 2), client=client)
         assert written(tmp_path, mesh, "dask.ply") == (tmp_path / "cli.ply").read_bytes()
+        scratch = tmp_path / "scratch"
+        scratch.mkdir()
+        mesh = sphcover.reconstruct(
+            sphcover.read(scan), tiles=2, client=client, scratch=scratch
+        )
+        assert written(tmp_path, mesh, "files.ply") == (tmp_path / "cli.ply").read_bytes()
+        assert list(scratch.iterdir()) == []
 
 
 def test_bad_tilings_and_damaged_tiles_are_refused(fixtures):
