@@ -133,6 +133,52 @@ fn tile_box(splits: &[Vec<f64>; 3], t: [usize; 3], halo: f64) -> Aabb {
     }
 }
 
+/// The samples of each tile's box grown by the halo, in compressed rows: tile `t`'s are
+/// `slots[start[t]..start[t + 1]]`, ascending.
+struct TileMembers {
+    start: Vec<usize>,
+    slots: Vec<u32>,
+}
+
+/// [`TileMembers`] in one pass over the samples, instead of one pass per tile: a sample lies
+/// in the grown boxes of a few tiles along each axis (two at most while the halo is less
+/// than a tile wide), found by binary search on the split planes. The boxes are closed, as
+/// in [`Aabb::contains`].
+fn tile_members(
+    points: &[DVec3],
+    splits: &[Vec<f64>; 3],
+    tiles: [usize; 3],
+    halo: f64,
+) -> TileMembers {
+    // The tiles along axis `a` whose grown interval holds `x`: tile k reaches from
+    // splits[k − 1] − halo to splits[k] + halo (the outermost to infinity).
+    let along = |a: usize, x: f64| -> std::ops::RangeInclusive<usize> {
+        let s = &splits[a];
+        let first = s.partition_point(|&plane| plane + halo < x);
+        let last = s.partition_point(|&plane| plane - halo <= x);
+        first..=last
+    };
+    let mut rows: Vec<Vec<u32>> = vec![Vec::new(); tiles.iter().product()];
+    for (slot, p) in points.iter().enumerate() {
+        for iz in along(2, p.z) {
+            for iy in along(1, p.y) {
+                for ix in along(0, p.x) {
+                    rows[ix + tiles[0] * (iy + tiles[1] * iz)].push(slot as u32);
+                }
+            }
+        }
+    }
+    let mut start = Vec::with_capacity(rows.len() + 1);
+    start.push(0);
+    for row in &rows {
+        start.push(start.last().copied().unwrap_or(0) + row.len());
+    }
+    TileMembers {
+        start,
+        slots: rows.concat(),
+    }
+}
+
 /// The tile (as `ix + nx (iy + ny iz)`) whose box holds `p`; a point on a plane belongs to
 /// the box above it, as in [`PiecewiseFunction`].
 fn tile_of(splits: &[Vec<f64>; 3], p: DVec3) -> usize {
@@ -256,16 +302,11 @@ fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         .unwrap_or_else(|| default_depth(ctx.points.len()));
     let [nx, ny, _] = tiling.tiles;
     let position = |t: usize| [t % nx, (t / nx) % ny, t / (nx * ny)];
-    let slots_of = |t: usize| -> Vec<usize> {
-        let grown = tile_box(&splits, position(t), tiling.halo);
-        (0..ctx.points.len())
-            .into_par_iter()
-            .filter(|&s| grown.contains(ctx.points[s]))
-            .collect()
-    };
+    let members = tile_members(&ctx.points, &splits, tiling.tiles, tiling.halo);
+    let slots_of = |t: usize| -> &[u32] { &members.slots[members.start[t]..members.start[t + 1]] };
     let input = |t: usize| -> TileInput {
         let slots = slots_of(t);
-        let pick = |v: &[DVec3]| -> Vec<DVec3> { slots.iter().map(|&s| v[s]).collect() };
+        let pick = |v: &[DVec3]| -> Vec<DVec3> { slots.iter().map(|&s| v[s as usize]).collect() };
         TileInput {
             position: position(t),
             own_box: tile_box(&splits, position(t), 0.0),
@@ -274,9 +315,15 @@ fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
             scanner: ctx
                 .scanner
                 .as_ref()
-                .map(|c| slots.iter().map(|&s| c[s]).collect()),
-            isolated: slots.iter().map(|&s| ctx.scan.isolated[s]).collect(),
-            own: slots.iter().map(|&s| owner[s] as usize == t).collect(),
+                .map(|c| slots.iter().map(|&s| c[s as usize]).collect()),
+            isolated: slots
+                .iter()
+                .map(|&s| ctx.scan.isolated[s as usize])
+                .collect(),
+            own: slots
+                .iter()
+                .map(|&s| owner[s as usize] as usize == t)
+                .collect(),
             spacing: ctx.scan.spacing,
             noise: ctx.scan.noise,
             eps: ctx.stats.eps,
@@ -308,7 +355,7 @@ fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         let slots = slots_of(t);
         let own: Vec<usize> = slots
             .iter()
-            .copied()
+            .map(|&s| s as usize)
             .filter(|&s| owner[s] as usize == t)
             .collect();
         let mut stats = TileStats {
@@ -749,6 +796,34 @@ mod tests {
     }
 
     proptest! {
+        /// The members found by binary search on the planes are those of a test of every
+        /// point against every grown box.
+        #[test]
+        fn tile_members_are_the_points_in_each_grown_box(
+            tiles in prop::array::uniform3(1usize..4),
+            halo in 0.0f64..0.6,
+            points in prop::collection::vec(prop::array::uniform3(-0.7f64..0.7), 0..60),
+        ) {
+            let bbox = Aabb { min: DVec3::splat(-0.5), max: DVec3::new(0.5, 0.3, 0.2) };
+            let splits = split_planes(&bbox, tiles);
+            // Points on the planes and at a halo from them, where the bounds are decided.
+            let mut points: Vec<DVec3> = points.into_iter().map(DVec3::from_array).collect();
+            if let (Some(&plane), Some(&p)) = (splits[0].first(), points.first()) {
+                points.push(DVec3::new(plane, p.y, p.z));
+                points.push(DVec3::new(plane + halo, p.y, p.z));
+                points.push(DVec3::new(plane - halo, p.y, p.z));
+            }
+            let members = tile_members(&points, &splits, tiles, halo);
+            for t in 0..tiles.iter().product() {
+                let position = [t % tiles[0], (t / tiles[0]) % tiles[1], t / (tiles[0] * tiles[1])];
+                let grown = tile_box(&splits, position, halo);
+                let brute: Vec<u32> = (0..points.len() as u32)
+                    .filter(|&s| grown.contains(points[s as usize]))
+                    .collect();
+                prop_assert_eq!(&members.slots[members.start[t]..members.start[t + 1]], &brute[..]);
+            }
+        }
+
         /// Every point lies in the box of the tile it is assigned to, and in no other tile's
         /// box without halo.
         #[test]
