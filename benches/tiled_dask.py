@@ -33,7 +33,7 @@ def main() -> int:
     parser.add_argument("scan")
     parser.add_argument("out")
     parser.add_argument("--tiles", type=int, default=2)
-    parser.add_argument("--halo", type=float, default=0.1)
+    parser.add_argument("--halo", type=float, help="default: a fifth of a tile, at most 0.1")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--threads", type=int, default=1, help="threads per worker")
     parser.add_argument("--scratch", help="directory for the tiles' inputs")
@@ -68,7 +68,7 @@ def main() -> int:
         cluster.close()
     stats = mesh.stats
     print(
-        f"{stats['points']} points in {args.tiles}^3 tiles (halo {args.halo}) on "
+        f"{stats['points']} points in {args.tiles}^3 tiles (halo {args.halo or 'default'}) on "
         f"{args.workers} workers x {args.threads} threads: read {read - start:.1f} s, "
         f"reconstruct {done - read:.1f} s; {stats['triangles']} triangles, "
         f"{stats['components']} components, watertight {stats['watertight']}"

@@ -163,9 +163,9 @@ pub struct ReconArgs {
     #[arg(long, value_name = "N|NX,NY,NZ", value_parser = parse_tiles)]
     pub tiles: Option<[usize; 3]>,
     /// With --tiles: how far beyond its box a tile takes samples, relative to the longest
-    /// bounding-box edge.
-    #[arg(long, value_name = "H", requires = "tiles", default_value_t = sphcover_recon::Tiling::DEFAULT_HALO)]
-    pub halo: f64,
+    /// bounding-box edge (default: a fifth of a tile's width, at most 0.1).
+    #[arg(long, value_name = "H", requires = "tiles")]
+    pub halo: Option<f64>,
     /// Also write the input points with their confidence and outlier label (PLY
     /// properties `confidence` and `quality` = 1 for outliers).
     #[arg(long, value_name = "FILE")]

@@ -73,7 +73,7 @@ fn noise_option(value: Option<&Bound<'_, PyAny>>) -> PyResult<Option<NoiseOption
     points, normals = None, confidence = None, colors = None, *, method_name = "integrated", eps = None,
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
     normal_neighbours = 12, estimate_normals = false, refine = true, seed = 0,
-    threads = None, progress = None, max_memory = None, noise = None, tiles = None, halo = 0.1,
+    threads = None, progress = None, max_memory = None, noise = None, tiles = None, halo = None,
     map_tiles = None, scratch = None,
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -99,7 +99,7 @@ pub fn reconstruct<'py>(
     max_memory: Option<&Bound<'py, PyAny>>,
     noise: Option<&Bound<'py, PyAny>>,
     tiles: Option<[usize; 3]>,
-    halo: f64,
+    halo: Option<f64>,
     map_tiles: Option<Py<PyAny>>,
     scratch: Option<std::path::PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
@@ -118,7 +118,10 @@ pub fn reconstruct<'py>(
         seed,
     };
     let mut params = options.params().map_err(option_error)?;
-    let tiling = tiles.map(|tiles| Tiling { tiles, halo });
+    let tiling = tiles.map(|tiles| Tiling {
+        tiles,
+        halo: halo.unwrap_or_else(|| Tiling::default_halo(tiles)),
+    });
     if let Some(tiling) = &tiling {
         tiling.check().map_err(|e| bad_input(e.to_string()))?;
         if params.method == Method::GraphCut {

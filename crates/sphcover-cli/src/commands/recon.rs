@@ -38,7 +38,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         Some(tiles) => {
             let tiling = Tiling {
                 tiles,
-                halo: args.halo,
+                halo: args.halo.unwrap_or_else(|| Tiling::default_halo(tiles)),
             };
             reconstruct_tiled(&cloud, &params, &tiling, &progress)
         }
@@ -200,10 +200,11 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
                 BadInput(format!("--tiles: {}", ReconError::NotTileable("graphcut"))).into(),
             );
         }
-        if !(0.0..=1.0).contains(&args.halo) {
+        if let Some(halo) = args.halo
+            && !(0.0..=1.0).contains(&halo)
+        {
             return Err(BadInput(format!(
-                "--halo {} must lie in [0, 1] (a share of the longest bounding-box edge)",
-                args.halo
+                "--halo {halo} must lie in [0, 1] (a share of the longest bounding-box edge)"
             ))
             .into());
         }

@@ -233,7 +233,7 @@ def reconstruct(
     max_memory: Union[None, int, str] = None,
     noise: Union[None, str, float] = None,
     tiles: Union[None, int, tuple] = None,
-    halo: float = 0.1,
+    halo: Optional[float] = None,
     client: Any = None,
     map_tiles: Optional[Callable[[list], list]] = None,
     scratch: Union[None, str, "os.PathLike[str]"] = None,
@@ -260,7 +260,7 @@ def reconstruct(
 
     ``tiles`` (``N`` for N×N×N, or ``(nx, ny, nz)``) builds the cover and its function tile
     by tile, each from the samples of its box and a ``halo`` (relative to the longest
-    bounding-box edge), as ``sphcover recon --tiles`` does. The tiles run one after the other
+    bounding-box edge; default a fifth of a tile's width, at most 0.1), as ``sphcover recon --tiles`` does. The tiles run one after the other
     in this process; with ``client`` (a ``dask.distributed.Client``) they run as tasks of
     that cluster (see :func:`dask_map_tiles`), and a task whose worker dies runs again
     elsewhere. ``map_tiles`` runs them on any other engine: it takes the list of tile inputs

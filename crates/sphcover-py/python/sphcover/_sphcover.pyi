@@ -100,7 +100,7 @@ def reconstruct(
     max_memory: Union[None, int, str] = None,
     noise: Union[None, str, float] = None,
     tiles: Optional[Tuple[int, int, int]] = None,
-    halo: float = 0.1,
+    halo: Optional[float] = None,
     map_tiles: Optional[Callable[[List[bytes]], List[Optional[bytes]]]] = None,
 ) -> Dict[str, Any]: ...
 def tile_function_bytes(

@@ -33,18 +33,30 @@ pub struct Tiling {
 }
 
 impl Tiling {
-    /// The halo [`Tiling::cubes`] gives: 0.1 of the longest edge. On the 2M-point bunny in
-    /// 2×2×2 tiles (clean, and with noise, outliers and holes) the Hausdorff-99 distance
-    /// differs from the single run's by 2.7–2.8% with a halo of 0.05, and by at most 1.2%
-    /// with 0.1; 0.2 costs a third more time and gains nothing.
-    pub const DEFAULT_HALO: f64 = 0.1;
+    /// `tiles` with the default halo ([`Tiling::default_halo`]).
+    pub fn new(tiles: [usize; 3]) -> Tiling {
+        Tiling {
+            tiles,
+            halo: Tiling::default_halo(tiles),
+        }
+    }
 
     /// `n × n × n` tiles with the default halo.
     pub fn cubes(n: usize) -> Tiling {
-        Tiling {
-            tiles: [n; 3],
-            halo: Tiling::DEFAULT_HALO,
-        }
+        Tiling::new([n; 3])
+    }
+
+    /// The default halo: a fifth of the width of a tile along the longest edge, at most 0.1
+    /// (2 tiles: 0.1; 4: 0.05). On the 2M-point bunny in 2×2×2 tiles (clean, and with noise,
+    /// outliers and holes) the Hausdorff-99 distance differs from the single run's by
+    /// 2.7–2.8% with a halo of 0.05 and by at most 1.2% with 0.1, and 0.2 costs a third more
+    /// time for nothing; a halo of a fifth of the tile keeps the samples the tiles read to
+    /// 1.4³ ≈ 2.7 times the tile's own at most, whatever the count (2.45 times on the 50M bunny
+    /// in 4×4×4 tiles, whose Chamfer and Hausdorff-99 distances came out 5% and 8% below the
+    /// single run's).
+    pub fn default_halo(tiles: [usize; 3]) -> f64 {
+        let most = tiles.iter().copied().max().unwrap_or(1).max(1);
+        (0.2 / most as f64).min(0.1)
     }
 
     /// The number of tiles.
@@ -752,6 +764,13 @@ mod tests {
         let n = cloud.len();
         assert!(result.outliers[n - 2] && result.outliers[n - 1]);
         assert!(result.mesh.vertices.iter().all(|v| v.x < 1.0));
+    }
+
+    #[test]
+    fn the_default_halo_is_a_fifth_of_a_tile_at_most_a_tenth() {
+        let halos = [[1, 1, 1], [2, 2, 2], [4, 1, 1], [3, 8, 2]].map(Tiling::default_halo);
+        assert_eq!(halos, [0.1, 0.1, 0.05, 0.025]);
+        assert_eq!(Tiling::cubes(4), Tiling::new([4; 3]));
     }
 
     #[test]
