@@ -284,13 +284,13 @@ impl TileRunner for PythonTiles {
 }
 
 /// One tile's function ([`sphcover_recon::tile_function`]) from its input as bytes, with the
-/// reconstruction's options (the keywords of `reconstruct`); bytes, or None for a tile
-/// with too few samples for a cover. What a worker of a distributed engine runs.
+/// options of `reconstruct` that the tiles' stages read (the others act on the whole
+/// surface); bytes, or None for a tile with too few samples for a cover. What a worker of a
+/// distributed engine runs.
 #[pyfunction]
 #[pyo3(signature = (
-    tile, *, method_name = "integrated", eps = None, k = None, trim_value = None, depth = None,
-    normal_fit = None, position_fit = None, normal_neighbours = 12, refine = true, seed = 0,
-    noise = None, threads = None,
+    tile, *, method_name = "integrated", eps = None, k = None, normal_fit = None,
+    position_fit = None, seed = 0, noise = None, threads = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn tile_function_bytes<'py>(
@@ -299,12 +299,8 @@ pub fn tile_function_bytes<'py>(
     method_name: &str,
     eps: Option<f64>,
     k: Option<f64>,
-    trim_value: Option<&Bound<'py, PyAny>>,
-    depth: Option<u32>,
     normal_fit: Option<f64>,
     position_fit: Option<f64>,
-    normal_neighbours: usize,
-    refine: bool,
     seed: u64,
     noise: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
@@ -314,13 +310,10 @@ pub fn tile_function_bytes<'py>(
         eps,
         noise: noise_option(noise)?,
         k,
-        trim: trim(trim_value)?,
-        depth,
         normal_fit,
         position_fit,
-        normal_neighbours,
-        refine,
         seed,
+        ..ReconOptions::default()
     };
     let params = options.params().map_err(option_error)?;
     let input = TileInput::from_bytes(tile).map_err(|e| bad_input(e.to_string()))?;

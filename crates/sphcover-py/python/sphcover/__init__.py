@@ -289,7 +289,6 @@ def reconstruct(
         k=k,
         normal_fit=normal_fit,
         position_fit=position_fit,
-        normal_neighbours=normal_neighbours,
         seed=seed,
         noise=noise,
     )

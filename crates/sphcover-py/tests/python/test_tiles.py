@@ -84,3 +84,19 @@ def test_bad_tilings_and_damaged_tiles_are_refused(fixtures):
         sphcover.tile_function(b"not a tile", {})
     with pytest.raises(sphcover.SphcoverError, match="map_tiles"):
         sphcover.reconstruct(cloud, tiles=2, map_tiles=lambda inputs, options: [None])
+
+
+def test_options_reach_the_tasks_as_they_reach_the_tiles_here(fixtures, tmp_path):
+    """The tasks rebuild the options from what `reconstruct` hands them: with options other
+    than the defaults, a plain Python map gives the in-process surface byte for byte."""
+    cloud = sphcover.read(fixtures / "real" / "kitten.ply")
+    options = dict(tiles=(2, 1, 2), eps=8e-3, k=20.0, position_fit=4.0, normal_fit=32.0, seed=3)
+    here = sphcover.reconstruct(cloud, **options)
+    mapped = sphcover.reconstruct(
+        cloud,
+        map_tiles=lambda inputs, opts: [sphcover.tile_function(t, opts) for t in inputs],
+        **options,
+    )
+    assert written(tmp_path, here, "here.ply") == written(tmp_path, mapped, "mapped.ply")
+    plain = sphcover.reconstruct(cloud, tiles=(2, 1, 2))
+    assert written(tmp_path, plain, "plain.ply") != written(tmp_path, here, "here.ply")
