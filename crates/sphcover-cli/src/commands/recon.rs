@@ -279,7 +279,7 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
     ));
     for t in &s.tiles {
         reporter.detail(&format!(
-            "  tile {:?}: {} samples in its box, {} with the halo, {} supports, {:.3} s",
+            "  tile {:?}: {} samples in its box, {} with the halo, {} supports, share of time {:.3} s",
             t.position,
             t.own_samples,
             t.samples,

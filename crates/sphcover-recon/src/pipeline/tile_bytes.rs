@@ -60,6 +60,21 @@ impl TileInput {
         let isolated = r.flags(n)?;
         let own = r.flags(n)?;
         r.end()?;
+        let bad = |what: &str| ReconError::TileRunner(format!("tile input: {what}"));
+        if !own_box.min.cmple(own_box.max).all() {
+            return Err(bad("a box whose lower corner is not below its upper one"));
+        }
+        if let Some(i) = (0..n).find(|&i| !(points[i].is_finite() && normals[i].is_finite())) {
+            return Err(bad(&format!("sample {i} is not finite")));
+        }
+        if ![spacing, noise, eps]
+            .iter()
+            .all(|x| x.is_finite() && *x >= 0.0)
+        {
+            return Err(bad(
+                "a spacing, noise or tolerance that is not a finite length",
+            ));
+        }
         Ok(TileInput {
             position,
             own_box,
@@ -346,6 +361,26 @@ mod tests {
             altered[flip % bytes.len()] ^= 0xA5;
             // Some alterations leave valid data (a coordinate changes); none may panic.
             let _ = TileInput::from_bytes(&altered);
+        }
+    }
+
+    #[test]
+    fn inputs_that_decode_but_make_no_sense_are_refused() {
+        let good = input(20, 1);
+        let mut flipped = good.clone();
+        flipped.own_box = Aabb {
+            min: good.own_box.max,
+            max: good.own_box.min,
+        };
+        let mut nan = good.clone();
+        nan.points[3].y = f64::NAN;
+        let mut negative = good.clone();
+        negative.eps = -1.0;
+        for bad in [flipped, nan, negative] {
+            assert!(matches!(
+                TileInput::from_bytes(&bad.to_bytes()),
+                Err(ReconError::TileRunner(_))
+            ));
         }
     }
 

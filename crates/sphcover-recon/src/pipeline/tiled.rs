@@ -104,12 +104,12 @@ pub struct TileStats {
     pub samples: usize,
     /// Supports of its cover.
     pub supports: usize,
-    /// Wall time of its stages.
+    /// Its share of the tiles stage's wall time, in proportion to its samples (a runner may
+    /// run the tiles at once, so their own times do not add up to the stage's).
     pub time: Duration,
 }
 
 /// The tiles' functions, between the stage that builds them and the polygonisation.
-#[derive(Debug, Default)]
 pub(super) struct TiledFunctions {
     /// Split planes along x, y and z, in the unit frame.
     splits: [Vec<f64>; 3],
