@@ -767,6 +767,23 @@ mod tests {
     }
 
     #[test]
+    fn a_flat_scan_tiles_across_its_missing_extent() {
+        // No extent along z: the planes along z coincide and the boxes between them are
+        // empty.
+        let n = 60;
+        let positions: Vec<DVec3> = (0..n * n)
+            .map(|i| DVec3::new((i % n) as f64 / n as f64, (i / n) as f64 / n as f64, 0.0))
+            .collect();
+        let mut cloud = PointCloud::from_positions(positions);
+        cloud.normals = Some(vec![DVec3::Z; n * n]);
+        let tiling = Tiling::new([2, 2, 3]);
+        let result = reconstruct_tiled(&cloud, &ReconParams::default(), &tiling, &|_| {}).unwrap();
+        assert!(result.stats.triangles > 0);
+        assert!(result.mesh.vertices.iter().all(|v| v.z.abs() < 1e-6));
+        assert!(MeshTopology::of(&result.mesh).is_manifold());
+    }
+
+    #[test]
     fn the_default_halo_is_a_fifth_of_a_tile_at_most_a_tenth() {
         let halos = [[1, 1, 1], [2, 2, 2], [4, 1, 1], [3, 8, 2]].map(Tiling::default_halo);
         assert_eq!(halos, [0.1, 0.1, 0.05, 0.025]);

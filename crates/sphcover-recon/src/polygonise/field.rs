@@ -48,8 +48,9 @@ impl<'e> PiecewiseFunction<'e> {
         PiecewiseFunction::new(vec![piece], [Vec::new(), Vec::new(), Vec::new()])
     }
 
-    /// The pieces, in the order described on the type, and the ascending split planes along
-    /// each axis; there must be `Π (splits[a].len() + 1)` pieces.
+    /// The pieces, in the order described on the type, and the split planes along each axis,
+    /// finite and in ascending order (equal planes bound a box that holds no point); there
+    /// must be `Π (splits[a].len() + 1)` pieces.
     pub fn new(
         pieces: Vec<FieldPiece<'e>>,
         splits: [Vec<f64>; 3],
@@ -57,7 +58,7 @@ impl<'e> PiecewiseFunction<'e> {
         let boxes: usize = splits.iter().map(|s| s.len() + 1).product();
         let ascending = splits
             .iter()
-            .all(|s| s.iter().all(|x| x.is_finite()) && s.windows(2).all(|w| w[0] < w[1]));
+            .all(|s| s.iter().all(|x| x.is_finite()) && s.windows(2).all(|w| w[0] <= w[1]));
         if boxes != pieces.len() || !ascending {
             return Err(PolygoniseError::PieceLayout {
                 pieces: pieces.len(),

@@ -121,8 +121,10 @@ pub enum PolygoniseError {
     #[error(transparent)]
     TooManySeeds(#[from] PointIndexError),
     /// The pieces of a [`PiecewiseFunction`] are not one per box of its split planes, or
-    /// the planes are not finite and ascending.
-    #[error("{pieces} pieces for {boxes} boxes between ascending split planes")]
+    /// the planes are not finite and in ascending order.
+    #[error(
+        "{pieces} pieces for {boxes} boxes, or split planes that are not finite and in ascending order"
+    )]
     PieceLayout {
         /// Pieces given.
         pieces: usize,
