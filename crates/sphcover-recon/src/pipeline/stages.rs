@@ -13,6 +13,7 @@ use sphcover_core::{
     TriMesh, build_surface_cover,
 };
 use sphcover_ops::{OpsError, PairGeometry};
+use std::borrow::Cow;
 
 use super::tiled::{TileRunner, TiledFunctions, Tiling};
 use super::{
@@ -552,16 +553,30 @@ fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
 }
 
 /// The confident samples that are not outliers (every sample that is not an outlier when
-/// none reaches [`ReconParams::seed_confidence`]).
-pub(super) fn polygonisation_seeds(ctx: &ReconContext<'_>) -> Result<Vec<DVec3>, ReconError> {
+/// none reaches [`ReconParams::seed_confidence`]); the samples themselves, not a copy, when
+/// every one qualifies (a clean scan: a copy would be the polygonisation's largest array).
+pub(super) fn polygonisation_seeds<'c>(
+    ctx: &'c ReconContext<'_>,
+) -> Result<Cow<'c, [DVec3]>, ReconError> {
     let (params, conf) = (ctx.params, ctx.confidence());
-    let confident = |threshold: f64| -> Vec<DVec3> {
-        ctx.points
+    let qualifies = |threshold: f64| move |(c, o): (&f64, &bool)| !*o && *c >= threshold;
+    let confident = |threshold: f64| -> Cow<'c, [DVec3]> {
+        let all = conf
+            .confidence
             .par_iter()
-            .zip(conf.confidence.par_iter().zip(conf.outliers.par_iter()))
-            .filter(|(_, (c, o))| !**o && **c >= threshold)
-            .map(|(&p, _)| p)
-            .collect()
+            .zip(conf.outliers.par_iter())
+            .all(qualifies(threshold));
+        if all {
+            return Cow::Borrowed(&ctx.points[..]);
+        }
+        Cow::Owned(
+            ctx.points
+                .par_iter()
+                .zip(conf.confidence.par_iter().zip(conf.outliers.par_iter()))
+                .filter(|(_, co)| qualifies(threshold)(*co))
+                .map(|(&p, _)| p)
+                .collect(),
+        )
     };
     let mut seeds = confident(params.seed_confidence);
     if seeds.is_empty() {

@@ -289,7 +289,12 @@ pub fn polygonise_piecewise(
 ) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
     let start = Instant::now();
     check_params(params)?;
-    let finite_seeds: Vec<DVec3> = seeds.iter().copied().filter(|p| p.is_finite()).collect();
+    // Seeds are most of a scan's samples: copied only when some must be left out.
+    let finite_seeds: std::borrow::Cow<'_, [DVec3]> = if seeds.par_iter().all(|p| p.is_finite()) {
+        std::borrow::Cow::Borrowed(seeds)
+    } else {
+        seeds.iter().copied().filter(|p| p.is_finite()).collect()
+    };
     if finite_seeds.is_empty() {
         return Err(PolygoniseError::NoSeeds { given: seeds.len() });
     }
