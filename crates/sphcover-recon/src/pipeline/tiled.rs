@@ -513,20 +513,14 @@ fn supports_reaching(cover: Cover, own: &Aabb) -> Result<(Cover, Vec<u32>), Reco
     if kept.len() == cover.len() {
         return Ok((cover, kept));
     }
-    let pick = |v: &[DVec3]| -> Vec<DVec3> { kept.iter().map(|&i| v[i as usize]).collect() };
-    let funcs = match cover.funcs() {
-        LocalFunctions::Linear { alpha, beta } => LocalFunctions::Linear {
-            alpha: pick(alpha),
-            beta: kept.iter().map(|&i| beta[i as usize]).collect(),
-        },
-        LocalFunctions::Quadratic { a, b, k } => LocalFunctions::Quadratic {
-            a: kept.iter().map(|&i| a[i as usize]).collect(),
-            b: pick(b),
-            k: kept.iter().map(|&i| k[i as usize]).collect(),
-        },
-    };
+    let centres = kept.iter().map(|&i| cover.centres()[i as usize]).collect();
+    let funcs = gather_functions(
+        kept.iter()
+            .filter_map(|&i| cover.func(i as usize))
+            .collect(),
+    );
     let radii = kept.iter().map(|&i| cover.radii()[i as usize]).collect();
-    let pruned = Cover::new(pick(cover.centres()), radii, funcs, cover.kernel())?;
+    let pruned = Cover::new(centres, radii, funcs, cover.kernel())?;
     Ok((pruned, kept))
 }
 
@@ -580,15 +574,9 @@ fn polygonise_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     Ok(())
 }
 
-/// The supports of every cover, in order, as one cover (the kernel of the first).
-fn join_covers(covers: Vec<Cover>) -> Result<Cover, ReconError> {
-    let kernel = covers.first().map(Cover::kernel).unwrap_or_default();
-    let funcs: Vec<LocalFunction> = covers
-        .iter()
-        .flat_map(|c| (0..c.len()).filter_map(|i| c.func(i)))
-        .collect();
-    let all_linear = funcs.iter().all(|f| matches!(f, LocalFunction::Linear(_)));
-    let funcs = if all_linear {
+/// `funcs` in one storage: linear when every one is, else quadratic.
+fn gather_functions(funcs: Vec<LocalFunction>) -> LocalFunctions {
+    if funcs.iter().all(|f| matches!(f, LocalFunction::Linear(_))) {
         LocalFunctions::from_linear(funcs.into_iter().filter_map(|f| match f {
             LocalFunction::Linear(g) => Some(g),
             LocalFunction::Quadratic(_) => None,
@@ -598,7 +586,18 @@ fn join_covers(covers: Vec<Cover>) -> Result<Cover, ReconError> {
             LocalFunction::Linear(g) => QuadraticFunction::from_linear(g),
             LocalFunction::Quadratic(q) => q,
         }))
-    };
+    }
+}
+
+/// The supports of every cover, in order, as one cover (the kernel of the first).
+fn join_covers(covers: Vec<Cover>) -> Result<Cover, ReconError> {
+    let kernel = covers.first().map(Cover::kernel).unwrap_or_default();
+    let funcs = gather_functions(
+        covers
+            .iter()
+            .flat_map(|c| (0..c.len()).filter_map(|i| c.func(i)))
+            .collect(),
+    );
     let mut centres = Vec::new();
     let mut radii = Vec::new();
     for c in &covers {
