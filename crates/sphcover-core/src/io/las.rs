@@ -171,7 +171,68 @@ fn record_colors(data: &[u8], record_length: usize, at: usize) -> Option<Vec<[u8
 }
 
 /// Reads a LAS file; the points must fit in `limit` bytes.
-pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
+/// Where and how a LAS file stores its points, from its public header block.
+pub(crate) struct LasLayout {
+    pub major: u8,
+    pub minor: u8,
+    pub header_size: usize,
+    pub compressed: bool,
+    pub point_format: u8,
+    pub record_length: usize,
+    pub min_length: usize,
+    /// Byte where the point records start.
+    pub offset: usize,
+    pub count: u64,
+    pub scale: DVec3,
+    pub shift: DVec3,
+}
+
+impl LasLayout {
+    /// The position of a point record.
+    #[inline]
+    pub(crate) fn position(&self, r: &[u8]) -> DVec3 {
+        let raw = DVec3::new(
+            f64::from(u32_at(r, 0) as i32),
+            f64::from(u32_at(r, 4) as i32),
+            f64::from(u32_at(r, 8) as i32),
+        );
+        raw * self.scale + self.shift
+    }
+
+    /// Decompresses the records of a LAZ file (`bytes` is the whole file).
+    pub(crate) fn decompress(&self, bytes: &[u8]) -> Result<Vec<u8>, Failure> {
+        super::laz::decompress_records(
+            bytes,
+            self.header_size,
+            u32_at(bytes, 100),
+            self.offset,
+            self.count,
+            self.record_length,
+        )
+    }
+
+    /// Decompresses the records of a LAZ file `block_points` at a time (see
+    /// [`super::laz::decompress_blocks`]).
+    pub(crate) fn decompress_blocks(
+        &self,
+        bytes: &[u8],
+        block_points: u64,
+        visit: impl FnMut(&[u8]) -> Result<(), Failure>,
+    ) -> Result<(), Failure> {
+        let layout = (
+            self.header_size,
+            u32_at(bytes, 100),
+            self.offset,
+            self.count,
+            self.record_length,
+        );
+        super::laz::decompress_blocks(bytes, layout, block_points, visit)
+    }
+}
+
+/// Checks the public header block of the LAS file `bytes` (the whole file: uncompressed
+/// records are checked against its length) and says where its points are.
+pub(crate) fn layout(bytes: &[u8]) -> Result<LasLayout, Failure> {
     if !bytes.starts_with(b"LASF") {
         let found = super::error::token_for_message(&bytes[..bytes.len().min(4)]);
         return Err(header(
@@ -304,6 +365,34 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
             ),
         ));
     }
+    Ok(LasLayout {
+        major,
+        minor,
+        header_size,
+        compressed,
+        point_format,
+        record_length,
+        min_length,
+        offset,
+        count,
+        scale: DVec3::from_array(scale),
+        shift: DVec3::from_array(shift),
+    })
+}
+
+pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> {
+    let layout = layout(bytes)?;
+    let LasLayout {
+        major,
+        minor,
+        compressed,
+        point_format,
+        record_length,
+        min_length,
+        offset,
+        count,
+        ..
+    } = layout;
     let mut budget = MemoryBudget::new(limit);
     if compressed {
         budget.reserve(count.saturating_mul(record_length as u64), || {
@@ -321,32 +410,15 @@ pub(crate) fn read(bytes: &[u8], limit: Option<u64>) -> Result<Parsed, Failure> 
     })?;
     let decompressed;
     let data = if compressed {
-        let vlr_count = u32_at(bytes, 100);
-        decompressed = super::laz::decompress_records(
-            bytes,
-            header_size,
-            vlr_count,
-            offset,
-            count,
-            record_length,
-        )?;
+        decompressed = layout.decompress(bytes)?;
         &decompressed[..]
     } else {
         // `count ≤ available`, so this fits in `usize`: it is bounded by the file size.
         &bytes[offset..offset + count as usize * record_length]
     };
-    let scale = DVec3::from_array(scale);
-    let shift = DVec3::from_array(shift);
     let (positions, values): (Vec<DVec3>, Vec<f64>) = data
         .par_chunks_exact(record_length)
-        .map(|r| {
-            let raw = DVec3::new(
-                f64::from(u32_at(r, 0) as i32),
-                f64::from(u32_at(r, 4) as i32),
-                f64::from(u32_at(r, 8) as i32),
-            );
-            (raw * scale + shift, f64::from(u16_at(r, 12)))
-        })
+        .map(|r| (layout.position(r), f64::from(u16_at(r, 12))))
         .unzip();
     let colors = rgb_offset(point_format).and_then(|at| record_colors(data, record_length, at));
 

@@ -69,6 +69,32 @@ pub(crate) fn decompress_records(
     count: u64,
     record_length: usize,
 ) -> Result<Vec<u8>, Failure> {
+    // The records grow block by block as the data yields them: a count the data does not
+    // hold fails at its end, having allocated no more than was really there.
+    let mut records: Vec<u8> = Vec::new();
+    let layout = (vlr_start, vlr_count, offset, count, record_length);
+    decompress_blocks(bytes, layout, BLOCK_POINTS, |block| {
+        records
+            .try_reserve(block.len())
+            .map_err(|_| Failure::OutOfMemory {
+                what: format!("{count} decompressed point records"),
+                bytes: count.saturating_mul(record_length as u64),
+            })?;
+        records.extend_from_slice(block);
+        Ok(())
+    })?;
+    Ok(records)
+}
+
+/// Decompresses the records as [`decompress_records`] does, `block_points` at a time, and
+/// hands each block of records to `visit`; `layout` is `(vlr_start, vlr_count, offset,
+/// count, record_length)`. Holds one block at a time.
+pub(crate) fn decompress_blocks(
+    bytes: &[u8],
+    (vlr_start, vlr_count, offset, count, record_length): (usize, u32, usize, u64, usize),
+    block_points: u64,
+    mut visit: impl FnMut(&[u8]) -> Result<(), Failure>,
+) -> Result<(), Failure> {
     let vlr = laszip_vlr(bytes, vlr_start, vlr_count)?;
     let item_length = vlr.items_size();
     if item_length != record_length as u64 {
@@ -88,32 +114,25 @@ pub(crate) fn decompress_records(
             format!("compressed point data: {e}"),
         )
     };
-    // The records grow block by block as the data yields them: a count the data does not
-    // hold fails at its end, having allocated no more than was really there.
-    let mut records: Vec<u8> = Vec::new();
+    let block_points = block_points.max(1);
     // `laz` is not written against hostile input: a panic inside it is a corrupt file here.
     let decompressed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let mut decompressor = LasZipDecompressor::new(source, vlr).map_err(|e| corrupt(&e))?;
+        let mut block = Vec::new();
         let mut remaining = count;
         while remaining > 0 {
-            let block = remaining.min(BLOCK_POINTS) as usize * record_length;
-            let start = records.len();
-            records
-                .try_reserve(block)
-                .map_err(|_| Failure::OutOfMemory {
-                    what: format!("{count} decompressed point records"),
-                    bytes: count.saturating_mul(record_length as u64),
-                })?;
-            records.resize(start + block, 0);
+            let points = remaining.min(block_points);
+            block.resize(points as usize * record_length, 0);
             decompressor
-                .decompress_many(&mut records[start..])
+                .decompress_many(&mut block)
                 .map_err(|e| corrupt(&e))?;
-            remaining -= remaining.min(BLOCK_POINTS);
+            visit(&block)?;
+            remaining -= points;
         }
         Ok(())
     }));
     match decompressed {
-        Ok(result) => result.map(|()| records),
+        Ok(result) => result,
         Err(_) => Err(corrupt(&"the decompressor failed")),
     }
 }

@@ -63,6 +63,7 @@ mod non_finite;
 mod obj;
 mod off;
 mod ply;
+mod point_stream;
 mod stl;
 mod text;
 mod vertex_property;
@@ -86,6 +87,7 @@ pub use error::{IoError, Location, Problem};
 pub use inrimage::{InrimageInfo, parse_inrimage, read_inrimage, read_inrimage_info};
 #[cfg(feature = "nifti")]
 pub use nifti::{AffineSource, NiftiInfo, parse_nifti, read_nifti, read_nifti_info};
+pub use point_stream::{PointStreamInfo, stream_points};
 pub use vertex_property::{parse_ply_with_vertex_property, read_geometry_with_vertex_property};
 #[cfg(feature = "nifti")]
 pub use volume_file::{SampleType, VolumeInfo, is_volume_path, read_volume, read_volume_info};

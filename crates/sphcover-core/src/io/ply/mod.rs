@@ -4,5 +4,5 @@ pub(crate) mod header;
 mod read;
 mod write;
 
-pub(crate) use read::{read, read_element_columns};
+pub(crate) use read::{decode_vertex_block, read, read_element_columns};
 pub(crate) use write::write;

@@ -461,6 +461,24 @@ fn walk_binary(
     Ok(pos)
 }
 
+/// The points of a block of fixed-size binary vertex records (positions, normals, confidence,
+/// values and colours), for readers that go through a file a block at a time.
+pub(crate) fn decode_vertex_block(
+    data: &[u8],
+    element: &Element,
+    roles: &VertexRoles,
+    big: bool,
+) -> PointCloud {
+    let v = decode_fixed_vertices(data, element, roles, big);
+    PointCloud {
+        positions: v.positions,
+        normals: v.normals,
+        confidence: v.confidence,
+        values: v.values,
+        colors: v.colors,
+    }
+}
+
 /// Decodes fixed-size vertex records in parallel, one pass per attribute; `collect_into_vec`
 /// writes each result at its record's index, so the output never depends on the threads.
 fn decode_fixed_vertices(
