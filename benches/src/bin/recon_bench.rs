@@ -23,6 +23,7 @@ use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptio
 use sphcover_core::{DVec3, TriMesh};
 use sphcover_evaluation::ground_truth_meshes::{icosphere, torus_mesh};
 use sphcover_evaluation::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
+use sphcover_evaluation::scan_blocks::generate_scan_in_blocks;
 use sphcover_evaluation::scan_simulation::{ScanCase, ScanParams, generate_scan};
 
 /// The ground truth used when no `--mesh` is given (relative to the workspace root).
@@ -86,6 +87,12 @@ struct Args {
     /// Uniform outliers as a fraction of the surface points, in place of each case's own.
     #[arg(long)]
     outliers: Option<f64>,
+    /// Generate each scan a block of 2^20 points at a time and write it as it goes
+    /// (`scan_blocks`: memory holds one block, for scans larger than memory), instead of
+    /// whole. Same distribution, other points than the whole generation for the same seed;
+    /// the file is named `…-blocks.ply`. Not for the scanner cases.
+    #[arg(long)]
+    stream_scans: bool,
 }
 
 /// The scan parameters of `case` with the command line's overrides, and the suffix that
@@ -254,22 +261,28 @@ fn run(args: Args) -> anyhow::Result<()> {
         for &size in &sizes {
             for &case in &cases {
                 let t0 = Instant::now();
-                let (params, suffix) = scan_params(case, size, &args);
-                let scan = generate_scan(gt, &params)
-                    .with_context(|| format!("generating {} of {mesh_name}", case.name()))?;
+                let (params, mut suffix) = scan_params(case, size, &args);
+                if args.stream_scans {
+                    suffix.push_str("-blocks");
+                }
                 let stem = format!("{mesh_name}-{}{suffix}-{}", case.name(), format_count(size));
                 let input = work.join(format!("{stem}.ply"));
-                let wopts = WriteOptions {
-                    ply_encoding: PlyEncoding::BinaryLittleEndian,
-                    precision: Precision::F32,
-                    inputs: Vec::new(),
+                let points = if args.stream_scans {
+                    write_scan_in_blocks(gt, &params, &input)?
+                } else {
+                    let scan = generate_scan(gt, &params)
+                        .with_context(|| format!("generating {} of {mesh_name}", case.name()))?;
+                    let wopts = WriteOptions {
+                        ply_encoding: PlyEncoding::BinaryLittleEndian,
+                        precision: Precision::F32,
+                        inputs: Vec::new(),
+                    };
+                    io::write_point_cloud(&input, &scan.cloud, &wopts)
+                        .with_context(|| format!("writing {}", input.display()))?;
+                    scan.cloud.len()
                 };
-                io::write_point_cloud(&input, &scan.cloud, &wopts)
-                    .with_context(|| format!("writing {}", input.display()))?;
                 eprintln!(
-                    "[{stem}] {} points ({} outliers) generated in {:.2} s",
-                    scan.cloud.len(),
-                    scan.outlier_count(),
+                    "[{stem}] {points} points generated in {:.2} s",
                     t0.elapsed().as_secs_f64()
                 );
                 for tool in &tools {
@@ -285,8 +298,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                         args.repeat,
                     );
                     let case_name = format!("{}{suffix}", case.name());
-                    let cells =
-                        row_cells(mesh_name, &case_name, scan.cloud.len(), &tool.name, &row);
+                    let cells = row_cells(mesh_name, &case_name, points, &tool.name, &row);
                     eprintln!("  {}", cells.join(" | "));
                     table.push(cells);
                 }
@@ -332,6 +344,44 @@ struct ToolResult {
 
 /// Runs `tool` on `input` `repeat` times (stopping at a failure) and scores the output.
 #[allow(clippy::too_many_arguments)]
+/// Generates the scan `params` describe a block at a time ([`generate_scan_in_blocks`]) into
+/// a binary PLY of `float` positions and normals at `path`, as `write_point_cloud` writes
+/// whole scans; returns the number of points.
+fn write_scan_in_blocks(gt: &TriMesh, params: &ScanParams, path: &Path) -> anyhow::Result<usize> {
+    const BLOCK: usize = 1 << 20;
+    let surface = params.count;
+    let per_block = |n: usize| n + (params.outliers * n as f64).round() as usize;
+    let total = (surface / BLOCK) * per_block(BLOCK) + per_block(surface % BLOCK);
+    let header = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {total}\n\
+         property float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\nend_header\n"
+    );
+    io::write_atomic(path, &[], |w| {
+        w.write_all(header.as_bytes())?;
+        let mut bytes = Vec::new();
+        let written = generate_scan_in_blocks(gt, params, BLOCK, |block| {
+            bytes.clear();
+            let normals = block.normals.as_deref().unwrap_or_default();
+            for (p, n) in block.positions.iter().zip(normals) {
+                for v in p.to_array().into_iter().chain(n.to_array()) {
+                    bytes.extend_from_slice(&(v as f32).to_le_bytes());
+                }
+            }
+            w.write_all(&bytes)
+        })
+        .map_err(|e| std::io::Error::other(e.to_string()))??;
+        if written != total {
+            return Err(std::io::Error::other(format!(
+                "{written} points generated, {total} declared"
+            )));
+        }
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", path.display()))?;
+    Ok(total)
+}
+
 fn run_tool(
     tool: &Tool,
     input: &Path,

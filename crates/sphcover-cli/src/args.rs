@@ -166,6 +166,17 @@ pub struct ReconArgs {
     /// bounding-box edge (default: a fifth of a tile's width, at most 0.1).
     #[arg(long, value_name = "H", requires = "tiles")]
     pub halo: Option<f64>,
+    /// With --tiles: read the scan from its file a block at a time into tile files, and make
+    /// every pass over the samples one tile at a time, so that memory holds one tile's
+    /// samples and the surface, not the whole scan. The scan must have normals. Binary PLY,
+    /// LAS and LAZ are streamed; other formats are read whole first.
+    #[arg(long, requires = "tiles")]
+    pub stream: bool,
+    /// With --stream: where the tile files go (a directory made inside it is removed at the
+    /// end; default: the output's directory). They take about 1.5-3 times the size of the
+    /// scan's points and normals in doubles.
+    #[arg(long, value_name = "DIR", requires = "stream")]
+    pub scratch: Option<PathBuf>,
     /// Also write the input points with their confidence and outlier label (PLY
     /// properties `confidence` and `quality` = 1 for outliers).
     #[arg(long, value_name = "FILE")]

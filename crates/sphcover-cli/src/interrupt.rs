@@ -37,6 +37,9 @@ const RANDOM_CHARS: usize = 6;
 #[derive(Clone, Debug, Default)]
 pub struct InProgressOutputs {
     outputs: Arc<[PendingOutput]>,
+    /// Where this run writes tile files (`recon --stream`), removed with the outputs'
+    /// temporary files.
+    tile_files: Option<PathBuf>,
 }
 
 /// One output and the temporary files beside it that are not this run's.
@@ -52,7 +55,13 @@ impl InProgressOutputs {
     /// The outputs of `command` (every output path on its command line), with the temporary
     /// files already beside them noted as not this run's.
     pub fn of(command: &Command) -> InProgressOutputs {
-        InProgressOutputs::for_paths(&output_paths(command))
+        let mut outputs = InProgressOutputs::for_paths(&output_paths(command));
+        if let Command::Recon(a) = command
+            && a.stream
+        {
+            outputs.tile_files = Some(crate::commands::recon::scratch_directory(a));
+        }
+        outputs
     }
 
     /// Registers `paths` as the run's outputs.
@@ -75,6 +84,7 @@ impl InProgressOutputs {
             .collect();
         InProgressOutputs {
             outputs: outputs.into(),
+            tile_files: None,
         }
     }
 
@@ -85,6 +95,20 @@ impl InProgressOutputs {
             for (name, _) in temporaries_of(&output.directory, &output.file_name) {
                 if !output.foreign.contains(&name)
                     && std::fs::remove_file(output.directory.join(&name)).is_ok()
+                {
+                    removed += 1;
+                }
+            }
+        }
+        if let Some(scratch) = &self.tile_files {
+            let ours = format!(
+                "{}{}-",
+                sphcover_recon::TILE_DIRECTORY_PREFIX,
+                std::process::id()
+            );
+            for entry in std::fs::read_dir(scratch).into_iter().flatten().flatten() {
+                if entry.file_name().to_string_lossy().starts_with(&ours)
+                    && std::fs::remove_dir_all(entry.path()).is_ok()
                 {
                     removed += 1;
                 }

@@ -38,6 +38,7 @@ fn sphcover_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(files::read, m)?)?;
     m.add_function(wrap_pyfunction!(files::write_geometry, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruction::reconstruct, m)?)?;
+    m.add_function(wrap_pyfunction!(reconstruction::reconstruct_file, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruction::tile_function_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(skeleton::skeleton_volume, m)?)?;
     m.add_function(wrap_pyfunction!(skeleton::skeleton_samples, m)?)?;

@@ -7,9 +7,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use sphcover_core::PointCloud;
 use sphcover_recon::{
-    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction,
-    SequentialTiles, TileFunction, TileInput, TileRunner, Tiling, ToleranceNote, TrimOption,
-    fit_memory_budget, reconstruct_tiled_with, reconstruct_until, tile_function,
+    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, ReconStats,
+    Reconstruction, ScanFile, SequentialTiles, TileFunction, TileInput, TileRunner, Tiling,
+    ToleranceNote, TrimOption, fit_memory_budget, reconstruct_streamed, reconstruct_tiled_with,
+    reconstruct_until, tile_function,
 };
 
 use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
@@ -197,6 +198,83 @@ pub fn reconstruct<'py>(
     into_dict(py, recon, &params, note.map(|(_, message)| message), memory)
 }
 
+/// Reconstructs the surface of a scan file too large for memory, streamed into tiles
+/// ([`reconstruct_streamed`]); returns a dict of the mesh's arrays and the statistics.
+#[pyfunction]
+#[pyo3(signature = (
+    path, *, tiles, halo = None, scratch = None, method_name = "integrated", eps = None,
+    k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
+    refine = true, seed = 0, threads = None, progress = None, noise = None,
+))]
+#[allow(clippy::too_many_arguments)]
+pub fn reconstruct_file<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+    tiles: [usize; 3],
+    halo: Option<f64>,
+    scratch: Option<std::path::PathBuf>,
+    method_name: &str,
+    eps: Option<f64>,
+    k: Option<f64>,
+    trim_value: Option<&Bound<'py, PyAny>>,
+    depth: Option<u32>,
+    normal_fit: Option<f64>,
+    position_fit: Option<f64>,
+    refine: bool,
+    seed: u64,
+    threads: Option<usize>,
+    progress: Option<&Bound<'py, PyAny>>,
+    noise: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = ReconOptions {
+        method: method(method_name)?,
+        eps,
+        noise: noise_option(noise)?,
+        k,
+        trim: trim(trim_value)?,
+        depth,
+        normal_fit,
+        position_fit,
+        refine,
+        seed,
+        ..ReconOptions::default()
+    };
+    let params = options.params().map_err(option_error)?;
+    let tiling = Tiling {
+        tiles,
+        halo: halo.unwrap_or_else(|| Tiling::default_halo(tiles)),
+    };
+    tiling.check().map_err(|e| bad_input(e.to_string()))?;
+    if params.method == Method::GraphCut {
+        return Err(bad_input(
+            ReconError::NotTileable(params.method.name()).to_string(),
+        ));
+    }
+    if threads == Some(0) {
+        return Err(bad_input("threads must be at least 1"));
+    }
+    let scratch = scratch.unwrap_or_else(std::env::temp_dir);
+    let source = ScanFile::new(path);
+    let run_params = params.clone();
+    let recon = run(py, progress, threads, move |context| {
+        let progress = |s| context.stage(s);
+        reconstruct_streamed(
+            &source,
+            &run_params,
+            &tiling,
+            &scratch,
+            &progress,
+            context.stop(),
+        )
+        .map_err(recon_error)
+    })?;
+    let note = ToleranceNote::of(&params, &recon.stats).map(|n| n.message("eps", "noise"));
+    let stats = stats_dict(py, &recon.stats)?;
+    stats.set_item("eps_requested", params.cover.eps)?;
+    stats.set_item("tolerance_note", note)?;
+    mesh_dict(py, recon.mesh, stats)
+}
+
 /// Tiles run by a Python callable `map_tiles(inputs) -> functions`: a list of tile inputs
 /// in, a list of the same length of `tile_function`'s results (bytes, or None for a tile
 /// without a cover) out, in the same order. A distributed engine's map (Dask's `client.map`
@@ -332,7 +410,7 @@ fn into_dict<'py>(
     tolerance_note: Option<String>,
     memory: Option<BudgetFit>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let stats = stats_dict(py, &recon)?;
+    let stats = stats_dict(py, &recon.stats)?;
     stats.set_item("eps_requested", params.cover.eps)?;
     stats.set_item("tolerance_note", tolerance_note)?;
     if let Some(m) = memory {
@@ -350,6 +428,19 @@ fn into_dict<'py>(
         normalisation,
         ..
     } = recon;
+    let out = mesh_dict(py, mesh, stats)?;
+    out.set_item("point_confidence", vec_to_py(py, confidence))?;
+    out.set_item("outliers", vec_to_py(py, outliers))?;
+    out.set_item("cover", Cover::new(cover, normalisation, 1.0))?;
+    Ok(out)
+}
+
+/// The mesh's arrays and `stats`, as a dict.
+fn mesh_dict<'py>(
+    py: Python<'py>,
+    mesh: sphcover_core::TriMesh,
+    stats: Bound<'py, PyDict>,
+) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     out.set_item("vertices", points_to_py(py, mesh.vertices))?;
     out.set_item("faces", crate::arrays::rows_to_py(py, mesh.triangles))?;
@@ -362,16 +453,12 @@ fn into_dict<'py>(
     if let Some(c) = mesh.colors {
         out.set_item("colors", crate::arrays::rows_to_py(py, c))?;
     }
-    out.set_item("point_confidence", vec_to_py(py, confidence))?;
-    out.set_item("outliers", vec_to_py(py, outliers))?;
-    out.set_item("cover", Cover::new(cover, normalisation, 1.0))?;
     out.set_item("stats", stats)?;
     Ok(out)
 }
 
 /// The statistics, with the names of the command line's `--report` JSON.
-fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'py, PyDict>> {
-    let s = &recon.stats;
+fn stats_dict<'py>(py: Python<'py>, s: &ReconStats) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("method", s.method.name())?;
     d.set_item("points", s.points)?;
@@ -398,6 +485,7 @@ fn stats_dict<'py>(py: Python<'py>, recon: &Reconstruction) -> PyResult<Bound<'p
     d.set_item("open_components", s.open_components)?;
     d.set_item("object_component_open", s.object_component_open)?;
     d.set_item("euler_characteristic", s.euler_characteristic)?;
+    d.set_item("tiles", s.tiles.len())?;
     d.set_item("stages_seconds", stage_times(py, &s.stages)?)?;
     d.set_item(
         "total_seconds",

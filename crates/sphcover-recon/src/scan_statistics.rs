@@ -120,27 +120,65 @@ pub fn scan_statistics(
     params: &ScanStatisticsParams,
 ) -> ScanStatistics {
     let n = points.len();
-    let k = params.k.max(3);
-    if n <= k {
+    if n <= params.k.max(3) {
         return ScanStatistics {
             isolated: vec![false; n],
             ..ScanStatistics::default()
         };
     }
+    let spacing = median(spacing_values(index, params, n, None));
+    let (isolated, isolated_count) = isolated_samples(index, params, spacing);
+    let residuals = noise_residuals(points, normals, index, params, n, &isolated, None);
+    ScanStatistics {
+        spacing,
+        noise: median(residuals),
+        isolated,
+        isolated_count,
+    }
+}
+
+/// The mean neighbour distances whose median is the spacing: every `stride`-th slot of
+/// `index`, with the stride set by the `population` of the whole scan (a part of it takes
+/// its share of the subsample), of the samples marked in `own` (all without).
+pub(crate) fn spacing_values(
+    index: &PointIndex,
+    params: &ScanStatisticsParams,
+    population: usize,
+    own: Option<&[bool]>,
+) -> Vec<f64> {
+    let k = params.k.max(3);
+    if index.slot_points().len() <= k {
+        return Vec::new();
+    }
     // The spacing is a median, which a stratified subsample pins down (every `stride`-th
     // slot: the slots follow the tree, so the subsample is spread over the whole scan); only
     // the isolation test needs every sample.
-    let stride = params.noise_stride.max(n / SPACING_SAMPLES).max(1);
+    let stride = params.noise_stride.max(population / SPACING_SAMPLES).max(1);
     let slots = index.slot_points();
-    let sampled: Vec<f64> = (0..slots.len())
+    let order = index.order();
+    (0..slots.len())
         .into_par_iter()
         .step_by(stride)
         .with_min_len(64)
+        .filter(|&s| own.is_none_or(|own| own[order[s] as usize]))
         .map_init(Vec::new, |buf, s| {
             mean_neighbour_distance(index, slots[s], k, buf)
         })
-        .collect();
-    let spacing = median(sampled);
+        .collect()
+}
+
+/// Which samples of `index` are isolated at `spacing`, and how many.
+pub(crate) fn isolated_samples(
+    index: &PointIndex,
+    params: &ScanStatisticsParams,
+    spacing: f64,
+) -> (Vec<bool>, usize) {
+    let k = params.k.max(3);
+    let slots = index.slot_points();
+    let n = index.input_len();
+    if slots.len() <= k {
+        return (vec![false; n], 0);
+    }
     let limit = params.isolation * spacing;
     // A sample has `k` other samples within `limit` among its neighbours in slot order
     // (the same tree leaf or the next) almost always; then its mean distance to its `k`
@@ -170,12 +208,31 @@ pub fn scan_statistics(
         isolated[i as usize] = o;
     }
     let isolated_count = slot_isolated.iter().filter(|&&i| i).count();
+    (isolated, isolated_count)
+}
 
-    let noise_k = (params.noise_k as f64 * n as f64 / 100_000.0)
+/// The residuals whose median is the noise: every `noise_stride`-th sample (by index, the
+/// stride set by the `population` of the whole scan) that is not isolated and is marked in
+/// `own` (all without).
+pub(crate) fn noise_residuals(
+    points: &[DVec3],
+    normals: Option<&[DVec3]>,
+    index: &PointIndex,
+    params: &ScanStatisticsParams,
+    population: usize,
+    isolated: &[bool],
+    own: Option<&[bool]>,
+) -> Vec<f64> {
+    let n = points.len();
+    let k = params.k.max(3);
+    if n <= k {
+        return Vec::new();
+    }
+    let noise_k = (params.noise_k as f64 * population as f64 / 100_000.0)
         .clamp(params.noise_k.max(k) as f64, 1024.0) as usize;
     // The subsample is fixed by the caller's order (every `noise_stride`-th sample); it is
     // queried in slot order for locality, which leaves the median unchanged.
-    let noise_stride = params.noise_stride.max(n / NOISE_SAMPLES).max(1);
+    let noise_stride = params.noise_stride.max(population / NOISE_SAMPLES).max(1);
     let mut slot_of = vec![u32::MAX; n];
     for (s, &i) in index.order().iter().enumerate() {
         slot_of[i as usize] = s as u32;
@@ -183,7 +240,7 @@ pub fn scan_statistics(
     // Non-finite points are not indexed (they have no plane): left out.
     let mut queries: Vec<u32> = (0..n)
         .step_by(noise_stride)
-        .filter(|&i| !isolated[i] && slot_of[i] != u32::MAX)
+        .filter(|&i| !isolated[i] && slot_of[i] != u32::MAX && own.is_none_or(|own| own[i]))
         .map(|i| slot_of[i])
         .collect();
     queries.sort_unstable();
@@ -192,7 +249,7 @@ pub fn scan_statistics(
     // neighbours collect a ball and select instead (exact, so the median does not move).
     // For the spacing pass (17 neighbours) such runs are no faster than single queries.
     let order = index.order();
-    let residuals: Vec<f64> = queries
+    queries
         .par_chunks(NOISE_RUN)
         .flat_map_iter(|run| {
             let mut found = Vec::with_capacity(run.len());
@@ -203,13 +260,7 @@ pub fn scan_statistics(
             });
             found.into_iter().flatten()
         })
-        .collect();
-    ScanStatistics {
-        spacing,
-        noise: median(residuals),
-        isolated,
-        isolated_count,
-    }
+        .collect()
 }
 
 /// Mean distance from `x` to its `k` nearest samples other than itself (the nearest, at
@@ -396,7 +447,7 @@ fn best_split(buffer: &mut Vec<(f64, usize)>, offsets: impl Iterator<Item = f64>
 }
 
 /// The median (upper median for an even count); 0 for no values.
-fn median(mut values: Vec<f64>) -> f64 {
+pub(crate) fn median(mut values: Vec<f64>) -> f64 {
     if values.is_empty() {
         return 0.0;
     }

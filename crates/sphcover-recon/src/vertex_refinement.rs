@@ -181,6 +181,19 @@ pub fn refine_vertices(
 ) -> Result<VertexRefinementStats, VertexRefinementError> {
     check(samples, scale, params)?;
     let normals = vertex_normals(&mesh.vertices, &mesh.triangles);
+    let moves = refinement_moves(&mesh.vertices, &normals, samples, scale, params);
+    Ok(apply_moves(&mut mesh.vertices, &normals, &moves))
+}
+
+/// What [`refine_vertices`] does to each of `vertices` (whose normals are `normals`), without
+/// moving them: the samples need not be all the scan's, only those near the vertices.
+pub(crate) fn refinement_moves(
+    vertices: &[DVec3],
+    normals: &[DVec3],
+    samples: &RefinementSamples<'_>,
+    scale: &RefinementScale,
+    params: &VertexRefinementParams,
+) -> Vec<Outcome> {
     let fit = Fit {
         index: samples.index,
         slot_points: samples.index.slot_points(),
@@ -196,16 +209,23 @@ pub fn refine_vertices(
         noise_inflation: scale.noise_ratio.max(1.0).powi(4),
     };
     // The first ball of every vertex, gathered for neighbouring vertices at once.
-    let outcomes: Vec<Outcome> = samples.index.map_within(
-        &mesh.vertices,
+    samples.index.map_within(
+        vertices,
         fit.radius,
         FitSamples::default,
-        |kept, i, near| fit.outcome(mesh.vertices[i], normals[i], near, kept),
-    );
+        |kept, i, near| fit.outcome(vertices[i], normals[i], near, kept),
+    )
+}
 
+/// Moves `vertices` along `normals` as `moves` say.
+pub(crate) fn apply_moves(
+    vertices: &mut [DVec3],
+    normals: &[DVec3],
+    moves: &[Outcome],
+) -> VertexRefinementStats {
     let mut stats = VertexRefinementStats::default();
     let mut total = 0.0;
-    for ((v, n), outcome) in mesh.vertices.iter_mut().zip(&normals).zip(&outcomes) {
+    for ((v, n), outcome) in vertices.iter_mut().zip(normals).zip(moves) {
         match *outcome {
             Outcome::Moved(d) => {
                 *v += d * *n;
@@ -220,10 +240,11 @@ pub fn refine_vertices(
     if stats.moved > 0 {
         stats.mean_move = total / stats.moved as f64;
     }
-    Ok(stats)
+    stats
 }
 
-fn check(
+/// Checks `samples`, `scale` and `params` as [`refine_vertices`] does.
+pub(crate) fn check(
     samples: &RefinementSamples<'_>,
     scale: &RefinementScale,
     params: &VertexRefinementParams,
@@ -264,7 +285,7 @@ fn check(
 
 /// What happens to one vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Outcome {
+pub(crate) enum Outcome {
     /// Moved by this signed distance along its normal.
     Moved(f64),
     OutOfReach,

@@ -5,10 +5,12 @@ use std::path::Path;
 
 use serde_json::json;
 use sphcover_core::PointCloud;
+use sphcover_core::StopRequest;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
-    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, Reconstruction, Tiling,
-    ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget, reconstruct, reconstruct_tiled,
+    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, ReconStats, ScanFile,
+    Tiling, ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget, reconstruct,
+    reconstruct_streamed, reconstruct_tiled,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -19,6 +21,9 @@ use crate::report::{Reporter, show_stage};
 /// Runs `sphcover recon`.
 pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut params = params(args)?;
+    if args.stream {
+        return run_streamed(args, &params, reporter);
+    }
     let stage = reporter.stage("read points");
     let limit = MemoryLimit::from_flag(args.max_memory);
     let mut cloud = io::read_point_cloud(&args.input, &args.read.read_options(&limit))
@@ -45,30 +50,8 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         None => reconstruct(&cloud, &params, &progress),
     };
     bar.finish_and_clear();
-    let recon = result.map_err(|e| {
-        let input = args.input.display();
-        if e.is_bad_input() {
-            let hint = if matches!(e, ReconError::Flat) {
-                " (without --trim off)"
-            } else {
-                ""
-            };
-            anyhow::Error::from(BadInput(format!("{input}: {e}{hint}")))
-        } else {
-            anyhow::Error::from(e).context(format!("{input}"))
-        }
-    })?;
-    for (name, time) in &recon.stats.stages {
-        reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
-    }
-    details(&recon, reporter);
-    match ToleranceNote::of(&params, &recon.stats) {
-        Some(note @ ToleranceNote::Raised { .. }) => {
-            reporter.note(&note.message("--eps", "--noise"))
-        }
-        Some(note) => reporter.warn(&note.message("--eps", "--noise")),
-        None => {}
-    }
+    let recon = result.map_err(|e| recon_error(args, e))?;
+    describe(&params, &recon.stats, reporter);
 
     let stage = reporter.stage("write");
     let options = WriteOptions {
@@ -104,16 +87,115 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         };
         io::write_cover(path, &recon.cover, &meta, &options)?;
     }
+    write_report(args, &params, &recon.stats, memory.as_ref())?;
+    stage.finish();
+    conclude(args, &recon.stats, reporter);
+    Ok(())
+}
+
+/// `recon --stream`: the scan read from its file tile by tile.
+fn run_streamed(args: &ReconArgs, params: &ReconParams, reporter: &Reporter) -> anyhow::Result<()> {
+    for (given, flag) in [
+        (args.points_out.is_some(), "--points-out"),
+        (args.cover_out.is_some(), "--cover-out"),
+        (args.max_memory.is_some(), "--max-memory"),
+        (args.estimate_normals, "--estimate-normals"),
+    ] {
+        if given {
+            return Err(BadInput(format!(
+                "{flag} needs the whole scan in memory, which --stream avoids: drop one of them"
+            ))
+            .into());
+        }
+    }
+    let tiles = args.tiles.unwrap_or([1; 3]);
+    let tiling = Tiling {
+        tiles,
+        halo: args.halo.unwrap_or_else(|| Tiling::default_halo(tiles)),
+    };
+    let scratch = scratch_directory(args);
+    let source = ScanFile {
+        options: args.read.read_options(&MemoryLimit::from_flag(None)),
+        ..ScanFile::new(&args.input)
+    };
+    let bar = reporter.stage_bar("reconstructing");
+    let progress = |stage| show_stage(&bar, stage);
+    let stop = StopRequest::new();
+    let result = reconstruct_streamed(&source, params, &tiling, &scratch, &progress, &stop);
+    bar.finish_and_clear();
+    let recon = result.map_err(|e| recon_error(args, e))?;
+    describe(params, &recon.stats, reporter);
+    let stage = reporter.stage("write");
+    let options = WriteOptions {
+        inputs: vec![args.input.clone()],
+        ..WriteOptions::default()
+    };
+    io::write_mesh(&args.output, &recon.mesh, &options)?;
+    write_report(args, params, &recon.stats, None)?;
+    stage.finish();
+    conclude(args, &recon.stats, reporter);
+    Ok(())
+}
+
+/// Where `recon --stream` writes its tile files: `--scratch`, else the output's directory.
+pub fn scratch_directory(args: &ReconArgs) -> std::path::PathBuf {
+    match &args.scratch {
+        Some(dir) => dir.clone(),
+        None => match args.output.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        },
+    }
+}
+
+/// A reconstruction's error for people: bad input (exit 2) named by the input file.
+fn recon_error(args: &ReconArgs, e: ReconError) -> anyhow::Error {
+    let input = args.input.display();
+    if e.is_bad_input() {
+        let hint = if matches!(e, ReconError::Flat) {
+            " (without --trim off)"
+        } else {
+            ""
+        };
+        anyhow::Error::from(BadInput(format!("{input}: {e}{hint}")))
+    } else {
+        anyhow::Error::from(e).context(format!("{input}"))
+    }
+}
+
+/// Stage times and measurements with `-v`, and the note or warning on the tolerance.
+fn describe(params: &ReconParams, stats: &ReconStats, reporter: &Reporter) {
+    for (name, time) in &stats.stages {
+        reporter.detail(&format!("  {name:<24} {:>9.3} s", time.as_secs_f64()));
+    }
+    details(stats, reporter);
+    match ToleranceNote::of(params, stats) {
+        Some(note @ ToleranceNote::Raised { .. }) => {
+            reporter.note(&note.message("--eps", "--noise"))
+        }
+        Some(note) => reporter.warn(&note.message("--eps", "--noise")),
+        None => {}
+    }
+}
+
+/// The report file, when asked for.
+fn write_report(
+    args: &ReconArgs,
+    params: &ReconParams,
+    stats: &ReconStats,
+    memory: Option<&BudgetFit>,
+) -> anyhow::Result<()> {
     if let Some(path) = &args.report {
-        let text =
-            serde_json::to_string_pretty(&report_json(args, &params, &recon, memory.as_ref()))?;
+        let text = serde_json::to_string_pretty(&report_json(args, params, stats, memory))?;
         io::write_atomic(path, std::slice::from_ref(&args.input), |w| {
             w.write_all(text.as_bytes())
         })?;
     }
-    stage.finish();
+    Ok(())
+}
 
-    let s = &recon.stats;
+/// Notes and warnings on the surface, and the summary line.
+fn conclude(args: &ReconArgs, s: &ReconStats, reporter: &Reporter) {
     if s.unseen_area_fraction > 0.0 {
         reporter.note(&format!(
             "left out {:.1}% of the surface, where the scanner did not see the object (farther than 3 sample spacings from every sample, over more than {:.0}% of the diagonal); \
@@ -161,7 +243,6 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         s.stages.iter().map(|(_, t)| t.as_secs_f64()).sum::<f64>(),
         args.output.display()
     ));
-    Ok(())
 }
 
 /// Checks the predicted peak of the run against `budget` before any heavy work (the points
@@ -267,8 +348,7 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
 }
 
 /// With `-v`: the stage counts.
-fn details(recon: &Reconstruction, reporter: &Reporter) {
-    let s = &recon.stats;
+fn details(s: &ReconStats, reporter: &Reporter) {
     reporter.detail(&format!(
         "  scan: spacing {:.2e}, noise {:.2e}, {} isolated samples; cover tolerance ε = {:.2e}",
         s.scan.spacing, s.scan.noise, s.scan.isolated_count, s.eps
@@ -330,10 +410,9 @@ fn details(recon: &Reconstruction, reporter: &Reporter) {
 fn report_json(
     args: &ReconArgs,
     params: &ReconParams,
-    recon: &Reconstruction,
+    s: &ReconStats,
     memory: Option<&BudgetFit>,
 ) -> serde_json::Value {
-    let s = &recon.stats;
     json!({
         "memory": memory.map(|m| json!({
             "budget_bytes": m.budget,

@@ -42,6 +42,7 @@ __all__ = [
     "operators",
     "read",
     "reconstruct",
+    "reconstruct_file",
     "regular_triangulation",
     "skeleton",
     "skeleton_from_samples",
@@ -339,6 +340,69 @@ def reconstruct(
         point_confidence=d["point_confidence"],
         outliers=d["outliers"],
         cover=d["cover"],
+    )
+
+
+def reconstruct_file(
+    path,
+    *,
+    tiles: Union[int, tuple],
+    halo: Optional[float] = None,
+    scratch: Union[None, str, "os.PathLike[str]"] = None,
+    method: str = "integrated",
+    eps: Optional[float] = None,
+    k: Optional[float] = None,
+    trim: Union[None, bool, float] = None,
+    depth: Optional[int] = None,
+    normal_fit: Optional[float] = None,
+    position_fit: Optional[float] = None,
+    refine: bool = True,
+    seed: int = 0,
+    threads: Optional[int] = None,
+    progress: Progress = None,
+    noise: Union[None, str, float] = None,
+) -> Mesh:
+    """Reconstructs the surface of a scan file larger than memory, as ``sphcover recon
+    --tiles N --stream`` does: the file (binary PLY, LAS or LAZ, with normals) is read a block
+    at a time into tile files in ``scratch`` (default: the system's temporary directory;
+    about 48 bytes per sample and tile that reads it), and every pass over the samples reads
+    one tile file, so this process holds one tile's samples, the tiles' functions and the
+    surface, never the whole scan. ``tiles`` is ``N`` (N×N×N) or ``(nx, ny, nz)``; the other
+    keywords are those of :func:`reconstruct`.
+
+    Returns a :class:`Mesh` with per-vertex normals, the confidence of the surface as
+    ``values`` and the statistics (no per-point labels or cover: those would take memory in
+    proportion to the scan). Raises :class:`BadInputError` for a scan without normals.
+    """
+    if isinstance(tiles, int):
+        tiles = (tiles, tiles, tiles)
+    d = _with_progress(
+        progress,
+        lambda callback: _sphcover.reconstruct_file(
+            os.fspath(path),
+            tiles=tuple(int(t) for t in tiles),
+            halo=halo,
+            scratch=None if scratch is None else os.fspath(scratch),
+            method_name=method,
+            eps=eps,
+            k=k,
+            trim_value=trim,
+            depth=depth,
+            normal_fit=normal_fit,
+            position_fit=position_fit,
+            refine=refine,
+            seed=seed,
+            threads=threads,
+            progress=callback,
+            noise=noise,
+        ),
+    )
+    return Mesh(
+        vertices=d["vertices"],
+        faces=d["faces"],
+        normals=d.get("normals"),
+        values=d.get("confidence"),
+        stats=d["stats"],
     )
 
 

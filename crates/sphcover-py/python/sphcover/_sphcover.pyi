@@ -102,6 +102,26 @@ def reconstruct(
     tiles: Optional[Tuple[int, int, int]] = None,
     halo: Optional[float] = None,
     map_tiles: Optional[Callable[[List[bytes]], List[Optional[bytes]]]] = None,
+    scratch: Optional[str] = None,
+) -> Dict[str, Any]: ...
+def reconstruct_file(
+    path: str,
+    *,
+    tiles: Tuple[int, int, int],
+    halo: Optional[float] = None,
+    scratch: Optional[str] = None,
+    method_name: str = "integrated",
+    eps: Optional[float] = None,
+    k: Optional[float] = None,
+    trim_value: Union[None, bool, float] = None,
+    depth: Optional[int] = None,
+    normal_fit: Optional[float] = None,
+    position_fit: Optional[float] = None,
+    refine: bool = True,
+    seed: int = 0,
+    threads: Optional[int] = None,
+    progress: ProgressCallback = None,
+    noise: Union[None, str, float] = None,
 ) -> Dict[str, Any]: ...
 def tile_function_bytes(
     tile: bytes,

@@ -25,6 +25,17 @@ def test_tiles_in_this_process_match_the_command_line(fixtures, run_cli, tmp_pat
     assert mesh.stats["watertight"] and mesh.stats["components"] == 1
 
 
+def test_a_streamed_file_matches_the_command_line(fixtures, run_cli, tmp_path):
+    scan = fixtures / "real" / "kitten.ply"
+    run_cli("recon", scan, "--tiles", "2", "--stream", "-o", tmp_path / "cli.ply")
+    mesh = sphcover.reconstruct_file(scan, tiles=2, scratch=tmp_path)
+    assert written(tmp_path, mesh, "python.ply") == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["watertight"] and mesh.stats["components"] == 1
+    assert mesh.stats["tiles"] == 8 and mesh.point_confidence is None
+    # The tile files went with the run.
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".sphcover-tiles")]
+
+
 def killing_first_attempt(tile, options, marker):
     """The tile's function, except that the first attempt at the first tile ends its worker
     process at once, as a machine that goes down would."""

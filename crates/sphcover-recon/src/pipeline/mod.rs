@@ -2,8 +2,10 @@
 //!
 //! The method is described on [`reconstruct()`].
 
+mod spill;
 mod spread;
 mod stages;
+mod streamed;
 mod tile_bytes;
 mod tiled;
 
@@ -27,7 +29,9 @@ use crate::scan_statistics::{ScanStatistics, ScanStatisticsParams};
 use crate::vertex_refinement::{
     VertexRefinementError, VertexRefinementParams, VertexRefinementStats,
 };
+pub use spill::TILE_DIRECTORY_PREFIX;
 use stages::{ReconContext, back_stages, built, front_stages, stage_list};
+pub use streamed::{PointBlocks, ScanFile, StreamedReconstruction};
 pub use tiled::{
     SequentialTiles, TileFunction, TileInput, TileRunner, TileStats, Tiling, tile_function,
 };
@@ -275,6 +279,18 @@ pub enum ReconError {
     /// A [`TileRunner`] failed or returned something other than the tiles' functions.
     #[error("tiles: {0}")]
     TileRunner(String),
+    /// A streamed reconstruction was given a scan without normals
+    /// ([`reconstruct_streamed`]).
+    #[error(
+        "the scan has no normals: a streamed reconstruction orients each tile's samples by the normals the scan gives (estimate them with a tool that orients them over the whole scan, or reconstruct without streaming)"
+    )]
+    NeedsNormals,
+    /// The scan could not be read ([`reconstruct_streamed`]).
+    #[error(transparent)]
+    Read(#[from] sphcover_core::io::IoError),
+    /// The tile files of a streamed reconstruction could not be written or read back.
+    #[error("tile files: {0}")]
+    Scratch(String),
     /// The caller asked the pipeline to stop ([`reconstruct_until`]).
     #[error(transparent)]
     Stopped(#[from] Stopped),
@@ -293,6 +309,8 @@ impl ReconError {
                 | ReconError::Flat
                 | ReconError::FarPoint { .. }
                 | ReconError::Empty(_)
+                | ReconError::NeedsNormals
+                | ReconError::Read(_)
                 | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. })
         )
     }
@@ -582,6 +600,76 @@ pub fn reconstruct_tiled_with(
     ctx.tiling = Some(*tiling);
     ctx.runner = Some(runner);
     run_pipeline(ctx, &stages, progress, stop)
+}
+
+/// [`reconstruct_tiled`] for scans larger than memory: the scan is read from `source` (a
+/// file, [`ScanFile`]) a block at a time, twice, and never held whole.
+///
+/// The first pass finds the box of the finite points; the second writes each sample into a
+/// file of every tile whose box, grown by the halo, holds it, in a directory made inside
+/// `scratch` and removed afterwards. Every later pass reads one tile file at a time:
+///
+/// 1. **Scan statistics.** Each tile measures the mean neighbour distances and the noise
+///    residuals of its share of the subsamples a single run takes (from the samples of its
+///    own box, with the halo's as neighbours); the spacing and the noise are the medians
+///    over all tiles' shares. Isolated samples are found at the scan's spacing, and the unit
+///    frame is fitted to the rest, as in a single run.
+/// 2. **Tiles.** Each tile's function ([`tile_function`]), as in [`reconstruct_tiled`]; the
+///    confidence and outlier label of its samples are stored beside its file.
+/// 3. **Polygonisation** of the tiles' functions, seeded from one confident sample per
+///    lattice cell of half a grid step.
+/// 4. **Trimming**: each triangle's distance to the nearest confident sample, measured by
+///    the tile whose box holds its centroid.
+/// 5. **Cleaning and refinement**: the samples' votes for the components they lie nearest
+///    to, and each vertex's move onto a quadric fitted to the samples near it, by the tile
+///    whose box holds it.
+///
+/// The process holds one tile's samples, the tiles' functions (their supports) and the
+/// surface. The scan must carry normals ([`ReconError::NeedsNormals`]): orienting estimated
+/// normals consistently takes the whole scan. The spread checks of [`reconstruct`] (points
+/// on a plane or a line, a far point) are not made, and colours are not carried to the
+/// surface.
+///
+/// ```
+/// use sphcover_core::{MeshTopology, PointCloud, StopRequest};
+/// use sphcover_recon::{ReconParams, Tiling, reconstruct_streamed};
+///
+/// // 6,000 points on a sphere of radius 2, in 2 × 2 × 2 tiles, from memory (a `ScanFile`
+/// // reads them from disk instead).
+/// let positions = sphcover_core::synthetic::fibonacci_sphere(6000);
+/// let mut cloud = PointCloud::from_positions(positions.iter().map(|p| 2.0 * *p).collect());
+/// cloud.normals = Some(positions);
+/// let scratch = std::env::temp_dir();
+/// let result = reconstruct_streamed(
+///     &cloud,
+///     &ReconParams::default(),
+///     &Tiling::cubes(2),
+///     &scratch,
+///     &|_| {},
+///     &StopRequest::new(),
+/// )?;
+/// let topology = MeshTopology::of(&result.mesh);
+/// assert!(topology.is_closed_oriented_manifold());
+/// assert_eq!((topology.components, topology.euler_characteristic()), (1, 2));
+/// assert!(result.mesh.vertices.iter().all(|v| (v.length() - 2.0).abs() < 0.05));
+/// # Ok::<(), sphcover_recon::ReconError>(())
+/// ```
+pub fn reconstruct_streamed(
+    source: &dyn PointBlocks,
+    params: &ReconParams,
+    tiling: &Tiling,
+    scratch: &std::path::Path,
+    progress: &(dyn Fn(StageProgress) + Sync),
+    stop: &StopRequest,
+) -> Result<StreamedReconstruction, ReconError> {
+    check_params(params)?;
+    tiling.check()?;
+    streamed::run_streamed(source, params, tiling, scratch, progress, stop)
+}
+
+/// The stages of [`reconstruct_streamed`] for `params`, in order.
+pub fn streamed_stage_names(params: &ReconParams) -> Vec<&'static str> {
+    streamed::streamed_stage_names(params)
 }
 
 /// The stages of [`reconstruct_tiled`] for `params` on `cloud`, in order.

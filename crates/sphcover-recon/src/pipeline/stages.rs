@@ -590,17 +590,32 @@ pub(super) fn polygonisation_seeds<'c>(
 
 /// The grid step of the depth, and the trimming `params` ask for at the scan's spacing.
 pub(super) fn polygonisation_params(ctx: &ReconContext<'_>, seeds: &[DVec3]) -> PolygoniseParams {
-    let params = ctx.params;
+    polygonisation_params_at(
+        ctx.params,
+        ctx.stats.depth,
+        ctx.scan.spacing,
+        Aabb::from_points(seeds).diagonal(),
+    )
+}
+
+/// [`polygonisation_params`] at `depth` and `spacing`, with seeds whose bounding box has
+/// the diagonal `seeds_diagonal`.
+pub(super) fn polygonisation_params_at(
+    params: &ReconParams,
+    depth: u32,
+    spacing: f64,
+    seeds_diagonal: f64,
+) -> PolygoniseParams {
     PolygoniseParams {
-        step: GridStep::Absolute(1.0 / f64::from(1u32 << ctx.stats.depth)),
+        step: GridStep::Absolute(1.0 / f64::from(1u32 << depth)),
         trim: match params.trim {
             Trim::Off | Trim::Unseen => None,
-            Trim::SampleSpacings(m) => Some(m * ctx.scan.spacing),
+            Trim::SampleSpacings(m) => Some(m * spacing),
             Trim::Distance(d) => Some(d),
         },
         unseen: (params.trim == Trim::Unseen).then(|| UnseenTrim {
-            near: 3.0 * ctx.scan.spacing,
-            reach: (UNSEEN_REACH * Aabb::from_points(seeds).diagonal()).max(3.0 * ctx.scan.spacing),
+            near: 3.0 * spacing,
+            reach: (UNSEEN_REACH * seeds_diagonal).max(3.0 * spacing),
         }),
         ..PolygoniseParams::default()
     }
@@ -709,15 +724,25 @@ fn topology(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         Some(0).filter(|_| topology.components > 0)
     };
     ctx.mesh.to_input(&ctx.normalisation());
-    let stats = &mut ctx.stats;
-    stats.triangles = ctx.mesh.triangles.len();
-    stats.vertices = ctx.mesh.vertices.len();
+    record_topology(&mut ctx.stats, &ctx.mesh, &topology, object);
+    Ok(())
+}
+
+/// The counts and topology of the finished `mesh` in `stats`; `object` is the component
+/// the samples lie nearest to.
+pub(super) fn record_topology(
+    stats: &mut ReconStats,
+    mesh: &TriMesh,
+    topology: &MeshTopology,
+    object: Option<usize>,
+) {
+    stats.triangles = mesh.triangles.len();
+    stats.vertices = mesh.vertices.len();
     stats.components = topology.components;
     stats.watertight = topology.is_watertight();
-    stats.open_components = open_components;
+    stats.open_components = topology.open_component.iter().filter(|&&o| o).count();
     stats.object_component_open = object.is_some_and(|c| topology.open_component[c]);
     stats.euler_characteristic = topology.euler_characteristic();
-    Ok(())
 }
 
 /// An open component that fewer than this share of the samples lie nearest to, and whose
@@ -738,10 +763,27 @@ fn drop_unsupported_sheets(
     points: &[DVec3],
     isolated: &[bool],
 ) -> Result<usize, ReconError> {
-    if topology.components < 2 || !topology.open_component.contains(&true) {
+    if !may_hold_sheets(topology) {
         return Ok(0);
     }
     let votes = sample_votes(mesh, topology, points, isolated)?;
+    let dropped = drop_sheets_by_votes(mesh, topology, &votes);
+    Ok(dropped.iter().filter(|&&d| d).count())
+}
+
+/// Whether `topology` has open components among others, which may be sheets around stray
+/// samples (and the object among them needs the samples' votes to be told).
+pub(super) fn may_hold_sheets(topology: &MeshTopology) -> bool {
+    topology.components > 1 && topology.open_component.contains(&true)
+}
+
+/// [`drop_unsupported_sheets`] given the samples' votes for each component; says which
+/// components went.
+pub(super) fn drop_sheets_by_votes(
+    mesh: &mut TriMesh,
+    topology: &MeshTopology,
+    votes: &[usize],
+) -> Vec<bool> {
     let mut areas = vec![0.0; topology.components];
     for (t, &c) in mesh.triangles.iter().zip(&topology.triangle_component) {
         if c != u32::MAX {
@@ -750,10 +792,7 @@ fn drop_unsupported_sheets(
     }
     let density = |c: usize| votes[c] as f64 / areas[c].max(f64::MIN_POSITIVE);
     let total: usize = votes.iter().sum();
-    let object = (0..votes.len())
-        .rev()
-        .max_by_key(|&c| votes[c])
-        .unwrap_or(0);
+    let object = most_voted(votes).unwrap_or(0);
     let drop: Vec<bool> = (0..topology.components)
         .map(|c| {
             topology.open_component[c]
@@ -771,7 +810,7 @@ fn drop_unsupported_sheets(
         });
         sphcover_core::remove_unused_vertices(mesh);
     }
-    Ok(dropped)
+    drop
 }
 
 /// The component of `mesh` that the most samples lie nearest to (see [`sample_votes`]);
@@ -783,7 +822,12 @@ fn object_component(
     isolated: &[bool],
 ) -> Result<Option<usize>, ReconError> {
     let votes = sample_votes(mesh, topology, points, isolated)?;
-    Ok((0..votes.len()).rev().max_by_key(|&c| votes[c]))
+    Ok(most_voted(&votes))
+}
+
+/// The component the most samples voted for; the first such on ties.
+pub(super) fn most_voted(votes: &[usize]) -> Option<usize> {
+    (0..votes.len()).rev().max_by_key(|&c| votes[c])
 }
 
 /// For each component of `mesh`, how many samples (every 4th, isolated ones left out) have
@@ -794,31 +838,56 @@ fn sample_votes(
     points: &[DVec3],
     isolated: &[bool],
 ) -> Result<Vec<usize>, ReconError> {
+    let (positions, components) = vertex_components(mesh, topology);
+    let voters: Vec<usize> = (0..points.len())
+        .step_by(4)
+        .filter(|&s| !isolated.get(s).copied().unwrap_or(false))
+        .collect();
+    component_votes(
+        &positions,
+        &components,
+        topology.components,
+        points,
+        &voters,
+    )
+}
+
+/// The vertices of `mesh` that some triangle uses, and the component of each.
+pub(super) fn vertex_components(mesh: &TriMesh, topology: &MeshTopology) -> (Vec<DVec3>, Vec<u32>) {
     let mut vertex_component = vec![u32::MAX; mesh.vertices.len()];
     for (t, &c) in mesh.triangles.iter().zip(&topology.triangle_component) {
         for &v in t {
             vertex_component[v as usize] = c;
         }
     }
-    let used: Vec<u32> = (0..mesh.vertices.len() as u32)
-        .filter(|&v| vertex_component[v as usize] != u32::MAX)
-        .collect();
-    let empty = vec![0usize; topology.components];
-    if used.is_empty() {
+    (0..mesh.vertices.len())
+        .filter(|&v| vertex_component[v] != u32::MAX)
+        .map(|v| (mesh.vertices[v], vertex_component[v]))
+        .unzip()
+}
+
+/// For each of `count` components, how many of the samples `voters` (indices into `points`)
+/// have their nearest vertex among `positions` on it (`components` gives each vertex's).
+pub(super) fn component_votes(
+    positions: &[DVec3],
+    components: &[u32],
+    count: usize,
+    points: &[DVec3],
+    voters: &[usize],
+) -> Result<Vec<usize>, ReconError> {
+    let empty = vec![0usize; count];
+    if positions.is_empty() {
         return Ok(empty);
     }
-    let positions: Vec<DVec3> = used.iter().map(|&v| mesh.vertices[v as usize]).collect();
-    let index = PointIndex::new(&positions)?;
-    Ok((0..points.len())
-        .into_par_iter()
-        .step_by(4)
-        .filter(|&s| !isolated.get(s).copied().unwrap_or(false))
+    let index = PointIndex::new(positions)?;
+    Ok(voters
+        .par_iter()
         .fold(
             || (empty.clone(), Vec::new()),
-            |(mut votes, mut near), s| {
+            |(mut votes, mut near), &s| {
                 index.nearest_k(points[s], 1, &mut near);
                 if let Some(&v) = near.first() {
-                    votes[vertex_component[used[v as usize] as usize] as usize] += 1;
+                    votes[components[v as usize] as usize] += 1;
                 }
                 (votes, near)
             },

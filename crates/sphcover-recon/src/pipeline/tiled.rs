@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 use sphcover_core::{
     Aabb, Cover, CoverError, DVec3, LocalFunction, LocalFunctions, PointIndex, PuEvaluator,
-    QuadraticFunction, Stage,
+    QuadraticFunction, Stage, TriMesh,
 };
 use std::time::{Duration, Instant};
 
@@ -17,7 +17,10 @@ use super::stages::{
 };
 use super::{ReconError, ReconParams, default_depth};
 use crate::confidence::{ConfidenceStats, SampleConfidence};
-use crate::polygonise::{FieldPiece, PiecewiseFunction, polygonise_piecewise};
+use crate::polygonise::{
+    FieldPiece, PiecewiseFunction, PolygoniseParams, PolygoniseStats, polygonise_piecewise,
+    polygonise_untrimmed,
+};
 use crate::scan_statistics::ScanStatistics;
 
 /// How a reconstruction is split into tiles (see
@@ -119,7 +122,7 @@ pub(super) struct TiledFunctions {
 }
 
 /// The split planes cutting `bbox` into `tiles` equal boxes along each axis.
-fn split_planes(bbox: &Aabb, tiles: [usize; 3]) -> [Vec<f64>; 3] {
+pub(super) fn split_planes(bbox: &Aabb, tiles: [usize; 3]) -> [Vec<f64>; 3] {
     std::array::from_fn(|a| {
         let (lo, hi) = (bbox.min[a], bbox.max[a]);
         (1..tiles[a])
@@ -129,7 +132,7 @@ fn split_planes(bbox: &Aabb, tiles: [usize; 3]) -> [Vec<f64>; 3] {
 }
 
 /// The box of tile `t` (the outermost reaching to infinity) grown by `halo`.
-fn tile_box(splits: &[Vec<f64>; 3], t: [usize; 3], halo: f64) -> Aabb {
+pub(super) fn tile_box(splits: &[Vec<f64>; 3], t: [usize; 3], halo: f64) -> Aabb {
     let edge = |a: usize, k: usize, low: bool| -> f64 {
         let s = &splits[a];
         match (low, k) {
@@ -152,33 +155,17 @@ struct TileMembers {
     slots: Vec<u32>,
 }
 
-/// [`TileMembers`] in one pass over the samples, instead of one pass per tile: a sample lies
-/// in the grown boxes of a few tiles along each axis (two at most while the halo is less
-/// than a tile wide), found by binary search on the split planes. The boxes are closed, as
-/// in [`Aabb::contains`].
+/// [`TileMembers`] in one pass over the samples ([`tiles_holding`]), instead of one pass per
+/// tile.
 fn tile_members(
     points: &[DVec3],
     splits: &[Vec<f64>; 3],
     tiles: [usize; 3],
     halo: f64,
 ) -> TileMembers {
-    // The tiles along axis `a` whose grown interval holds `x`: tile k reaches from
-    // splits[k − 1] − halo to splits[k] + halo (the outermost to infinity).
-    let along = |a: usize, x: f64| -> std::ops::RangeInclusive<usize> {
-        let s = &splits[a];
-        let first = s.partition_point(|&plane| plane + halo < x);
-        let last = s.partition_point(|&plane| plane - halo <= x);
-        first..=last
-    };
     let mut rows: Vec<Vec<u32>> = vec![Vec::new(); tiles.iter().product()];
-    for (slot, p) in points.iter().enumerate() {
-        for iz in along(2, p.z) {
-            for iy in along(1, p.y) {
-                for ix in along(0, p.x) {
-                    rows[ix + tiles[0] * (iy + tiles[1] * iz)].push(slot as u32);
-                }
-            }
-        }
+    for (slot, &p) in points.iter().enumerate() {
+        tiles_holding(splits, halo, p, |t| rows[t].push(slot as u32));
     }
     let mut start = Vec::with_capacity(rows.len() + 1);
     start.push(0);
@@ -191,9 +178,37 @@ fn tile_members(
     }
 }
 
+/// Calls `visit` with every tile (as `ix + nx (iy + ny iz)`, ascending) whose box grown by
+/// `halo` holds `p`: a few along each axis (two at most while the halo is less than a tile
+/// wide), found by binary search on the split planes. The boxes are closed, as in
+/// [`Aabb::contains`].
+pub(super) fn tiles_holding(
+    splits: &[Vec<f64>; 3],
+    halo: f64,
+    p: DVec3,
+    mut visit: impl FnMut(usize),
+) {
+    // The tiles along axis `a` whose grown interval holds `x`: tile k reaches from
+    // splits[k − 1] − halo to splits[k] + halo (the outermost to infinity).
+    let along = |a: usize| -> std::ops::RangeInclusive<usize> {
+        let s = &splits[a];
+        let first = s.partition_point(|&plane| plane + halo < p[a]);
+        let last = s.partition_point(|&plane| plane - halo <= p[a]);
+        first..=last
+    };
+    let (nx, ny) = (splits[0].len() + 1, splits[1].len() + 1);
+    for iz in along(2) {
+        for iy in along(1) {
+            for ix in along(0) {
+                visit(ix + nx * (iy + ny * iz));
+            }
+        }
+    }
+}
+
 /// The tile (as `ix + nx (iy + ny iz)`) whose box holds `p`; a point on a plane belongs to
 /// the box above it, as in [`PiecewiseFunction`].
-fn tile_of(splits: &[Vec<f64>; 3], p: DVec3) -> usize {
+pub(super) fn tile_of(splits: &[Vec<f64>; 3], p: DVec3) -> usize {
     let along = |a: usize| splits[a].partition_point(|&plane| plane <= p[a]);
     along(0) + (splits[0].len() + 1) * (along(1) + (splits[1].len() + 1) * along(2))
 }
@@ -439,6 +454,17 @@ pub fn tile_function(
     input: &TileInput,
     params: &ReconParams,
 ) -> Result<Option<TileFunction>, ReconError> {
+    let (product, _) = tile_function_and_samples(input.clone(), params)?;
+    Ok(product.map(|(function, _)| function))
+}
+
+/// [`tile_function`] of an input it may take apart (its samples are the tile's context's
+/// while the stages run, not a copy of them) and gives back, and the confidence and outlier
+/// label the tile gave every one of its samples, the halo's included.
+pub(super) fn tile_function_and_samples(
+    mut input: TileInput,
+    params: &ReconParams,
+) -> Result<(Option<(TileFunction, SampleLabels)>, TileInput), ReconError> {
     let n = input.points.len();
     let lengths = [
         input.normals.len(),
@@ -456,7 +482,7 @@ pub fn tile_function(
         .filter(|&s| !(input.drop_isolated && input.isolated[s]))
         .count();
     if in_cover < super::stages::MIN_POINTS.max(params.scan.k + 1) {
-        return Ok(None);
+        return Ok((None, input));
     }
     let params = ReconParams {
         depth: Some(input.depth),
@@ -464,15 +490,16 @@ pub fn tile_function(
     };
     let nothing = sphcover_core::PointCloud::default();
     let mut tile = ReconContext::new(&nothing, &params);
-    tile.points = input.points.clone();
-    tile.normals = input.normals.clone();
-    tile.scanner = input.scanner.clone();
+    tile.points = std::mem::take(&mut input.points);
+    tile.normals = std::mem::take(&mut input.normals);
+    tile.scanner = input.scanner.take();
     tile.index = Some(PointIndex::new(&tile.points)?);
+    let isolated_count = input.isolated.iter().filter(|&&i| i).count();
     tile.scan = ScanStatistics {
         spacing: input.spacing,
         noise: input.noise,
-        isolated: input.isolated.clone(),
-        isolated_count: input.isolated.iter().filter(|&&i| i).count(),
+        isolated: std::mem::take(&mut input.isolated),
+        isolated_count,
     };
     tile.drop_isolated = input.drop_isolated && tile.scan.isolated_count > 0;
     tile.stats.eps = input.eps;
@@ -486,7 +513,7 @@ pub fn tile_function(
     let conf = built(tile.confidence.take(), "sample confidence");
     let (cover, kept) = supports_reaching(cover, &input.own_box)?;
     let own = |s: &usize| input.own[*s];
-    Ok(Some(TileFunction {
+    let function = TileFunction {
         support_confidence: kept
             .iter()
             .map(|&i| conf.support_confidence[i as usize])
@@ -496,7 +523,22 @@ pub fn tile_function(
         cover,
         inconsistent_supports: tile.stats.inconsistent_supports,
         confirmed_supports: tile.stats.confirmed_supports,
-    }))
+    };
+    let labels = SampleLabels {
+        confidence: conf.confidence,
+        outliers: conf.outliers,
+    };
+    input.points = std::mem::take(&mut tile.points);
+    input.normals = std::mem::take(&mut tile.normals);
+    input.scanner = tile.scanner.take();
+    input.isolated = std::mem::take(&mut tile.scan.isolated);
+    Ok((Some((function, labels)), input))
+}
+
+/// The confidence and outlier label of each sample of a tile, in its order.
+pub(super) struct SampleLabels {
+    pub confidence: Vec<f64>,
+    pub outliers: Vec<bool>,
 }
 
 /// The supports of `cover` whose ball reaches into `own` (the only ones the tile's function
@@ -525,7 +567,7 @@ fn supports_reaching(cover: Cover, own: &Aabb) -> Result<(Cover, Vec<u32>), Reco
 }
 
 /// A cover without supports, for a tile with too few samples.
-fn empty_cover(params: &ReconParams) -> Result<Cover, ReconError> {
+pub(super) fn empty_cover(params: &ReconParams) -> Result<Cover, ReconError> {
     Ok(Cover::new(
         Vec::new(),
         Vec::new(),
@@ -543,14 +585,33 @@ fn polygonise_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let tiled = built(ctx.tiled.take(), "tiles' functions");
     let seeds = polygonisation_seeds(ctx)?;
     let poly = polygonisation_params(ctx, &seeds);
-    let evals = tiled
-        .pieces
+    let (mesh, stats) = polygonise_pieces(&tiled.pieces, &tiled.splits, &seeds, &poly, true)?;
+    ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
+    ctx.stats.polygonise = Some(stats);
+    ctx.mesh = mesh;
+    ctx.cover = Some(join_covers(
+        tiled.pieces.into_iter().map(|(c, _)| c).collect(),
+    )?);
+    Ok(())
+}
+
+/// Surface nets of the function whose piece inside each tile's box (cut by `splits`) is that
+/// tile's cover in `pieces`, blending its support confidence; trimmed as `poly` asks when
+/// `trimmed`, else as extracted ([`crate::polygonise::trim_and_resolve`] does the rest).
+pub(super) fn polygonise_pieces(
+    pieces: &[(Cover, Vec<f64>)],
+    splits: &[Vec<f64>; 3],
+    seeds: &[DVec3],
+    poly: &PolygoniseParams,
+    trimmed: bool,
+) -> Result<(TriMesh, PolygoniseStats), ReconError> {
+    let evals = pieces
         .iter()
         .map(|(cover, _)| PuEvaluator::new(cover, 1.0))
         .collect::<Result<Vec<_>, CoverError>>()?;
-    let pieces = evals
+    let field_pieces = evals
         .iter()
-        .zip(&tiled.pieces)
+        .zip(pieces)
         .map(|(eval, (cover, blend))| FieldPiece {
             eval,
             // An empty tile blends nothing; its (empty) cover answers nowhere.
@@ -561,17 +622,12 @@ fn polygonise_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
             }),
         })
         .collect();
-    let field = PiecewiseFunction::new(pieces, tiled.splits.clone())?;
-    let (mesh, stats) = polygonise_piecewise(&field, &seeds, &poly)?;
-    drop(field);
-    drop(evals);
-    ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
-    ctx.stats.polygonise = Some(stats);
-    ctx.mesh = mesh;
-    ctx.cover = Some(join_covers(
-        tiled.pieces.into_iter().map(|(c, _)| c).collect(),
-    )?);
-    Ok(())
+    let field = PiecewiseFunction::new(field_pieces, splits.clone())?;
+    Ok(if trimmed {
+        polygonise_piecewise(&field, seeds, poly)?
+    } else {
+        polygonise_untrimmed(&field, seeds, poly)?
+    })
 }
 
 /// `funcs` in one storage: linear when every one is, else quadratic.

@@ -288,13 +288,27 @@ pub fn polygonise_piecewise(
     params: &PolygoniseParams,
 ) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
     let start = Instant::now();
-    check_params(params)?;
-    // Seeds are most of a scan's samples: copied only when some must be left out.
-    let finite_seeds: std::borrow::Cow<'_, [DVec3]> = if seeds.par_iter().all(|p| p.is_finite()) {
-        std::borrow::Cow::Borrowed(seeds)
+    let (mut mesh, mut stats) = polygonise_untrimmed(field, seeds, params)?;
+    let distance2 = if params.trim.is_some() || params.unseen.is_some() {
+        Some(trim::centroid_distances_squared(&mesh, &finite(seeds))?)
     } else {
-        seeds.iter().copied().filter(|p| p.is_finite()).collect()
+        None
     };
+    trim_and_resolve(&mut mesh, distance2.as_deref(), params, &mut stats);
+    stats.total_time = start.elapsed();
+    Ok((mesh, stats))
+}
+
+/// [`polygonise_piecewise`] up to the mesh as extracted: neither trimmed nor with its fans
+/// resolved ([`trim_and_resolve`] does both).
+pub(crate) fn polygonise_untrimmed(
+    field: &PiecewiseFunction<'_>,
+    seeds: &[DVec3],
+    params: &PolygoniseParams,
+) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
+    let start = Instant::now();
+    check_params(params)?;
+    let finite_seeds = finite(seeds);
     if finite_seeds.is_empty() {
         return Err(PolygoniseError::NoSeeds { given: seeds.len() });
     }
@@ -365,20 +379,41 @@ pub fn polygonise_piecewise(
     stats.search_time = start.elapsed();
 
     let extraction_start = Instant::now();
-    let mut mesh = extract(&search, &grid, params, &mut stats);
+    let mesh = extract(&search, &grid, params, &mut stats);
     stats.extraction_time = extraction_start.elapsed();
-    if let Some(limit) = params.trim {
-        stats.trimmed_triangles = trim(&mut mesh, &finite_seeds, limit)?;
-    } else if let Some(unseen) = &params.unseen {
-        let removed = trim_unseen(&mut mesh, &finite_seeds, unseen)?;
+    stats.total_time = start.elapsed();
+    Ok((mesh, stats))
+}
+
+/// The trimming `params` ask for, given each triangle's squared centroid distance to the
+/// nearest seed (`None` when they ask for none), then the fans the extraction or the
+/// trimming left resolved.
+pub(crate) fn trim_and_resolve(
+    mesh: &mut TriMesh,
+    distance2: Option<&[f64]>,
+    params: &PolygoniseParams,
+    stats: &mut PolygoniseStats,
+) {
+    if let (Some(limit), Some(d2)) = (params.trim, distance2) {
+        stats.trimmed_triangles = trim(mesh, d2, limit);
+    } else if let (Some(unseen), Some(d2)) = (&params.unseen, distance2) {
+        let removed = trim_unseen(mesh, d2, unseen);
         stats.trimmed_triangles = removed.triangles;
         stats.unseen_area_fraction = removed.area_fraction;
     }
-    let fans = resolve_fans(&mut mesh);
+    let fans = resolve_fans(mesh);
     stats.split_vertices = fans.split_vertices;
     stats.pinch_triangles = fans.removed_triangles;
-    stats.total_time = start.elapsed();
-    Ok((mesh, stats))
+}
+
+/// The finite seeds. Seeds are most of a scan's samples: copied only when some must be left
+/// out.
+fn finite(seeds: &[DVec3]) -> std::borrow::Cow<'_, [DVec3]> {
+    if seeds.par_iter().all(|p| p.is_finite()) {
+        std::borrow::Cow::Borrowed(seeds)
+    } else {
+        seeds.iter().copied().filter(|p| p.is_finite()).collect()
+    }
 }
 
 fn check_params(params: &PolygoniseParams) -> Result<(), PolygoniseError> {

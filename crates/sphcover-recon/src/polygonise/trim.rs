@@ -10,22 +10,16 @@ use sphcover_core::{DisjointSets, PointIndex, TriMesh, remove_unused_vertices, t
 
 use super::PolygoniseError;
 
-/// Drops triangles whose centroid is farther than `limit` from every seed; returns how many.
-pub(super) fn trim(
-    mesh: &mut TriMesh,
-    seeds: &[DVec3],
-    limit: f64,
-) -> Result<usize, PolygoniseError> {
+/// Drops triangles whose centroid is farther than `limit` from every seed, given each
+/// triangle's squared distance to the nearest (`distance2`); returns how many.
+pub(super) fn trim(mesh: &mut TriMesh, distance2: &[f64], limit: f64) -> usize {
     let limit2 = limit * limit;
-    let drop: Vec<bool> = centroid_distances_squared(mesh, seeds)?
-        .into_iter()
-        .map(|d2| d2 > limit2)
-        .collect();
-    Ok(drop_triangles(mesh, &drop))
+    let drop: Vec<bool> = distance2.iter().map(|&d2| d2 > limit2).collect();
+    drop_triangles(mesh, &drop)
 }
 
 /// The squared distance from each triangle's centroid to the nearest seed.
-fn centroid_distances_squared(
+pub(crate) fn centroid_distances_squared(
     mesh: &TriMesh,
     seeds: &[DVec3],
 ) -> Result<Vec<f64>, PolygoniseError> {
@@ -73,13 +67,12 @@ pub(super) struct UnseenRemoval {
 }
 
 /// Drops the regions of surface that reach farther than `unseen.reach` from every seed (see
-/// [`UnseenTrim`]).
+/// [`UnseenTrim`]), given each triangle's squared distance to the nearest (`distance2`).
 pub(super) fn trim_unseen(
     mesh: &mut TriMesh,
-    seeds: &[DVec3],
+    distance2: &[f64],
     unseen: &UnseenTrim,
-) -> Result<UnseenRemoval, PolygoniseError> {
-    let distance2 = centroid_distances_squared(mesh, seeds)?;
+) -> UnseenRemoval {
     let near2 = unseen.near * unseen.near;
     let far: Vec<u32> = (0..distance2.len() as u32)
         .filter(|&t| distance2[t as usize] > near2)
@@ -89,7 +82,7 @@ pub(super) fn trim_unseen(
         area_fraction: 0.0,
     };
     if far.is_empty() {
-        return Ok(none);
+        return none;
     }
     // Far triangles sharing an edge are one region.
     let mut edges: Vec<([u32; 2], u32)> = far
@@ -119,7 +112,7 @@ pub(super) fn trim_unseen(
     }
     let removed = drop.iter().filter(|&&d| d).count();
     if removed == 0 {
-        return Ok(none);
+        return none;
     }
     let area = |keep: bool| -> f64 {
         mesh.triangles
@@ -131,10 +124,10 @@ pub(super) fn trim_unseen(
     };
     let (dropped_area, kept_area) = (area(false), area(true));
     drop_triangles(mesh, &drop);
-    Ok(UnseenRemoval {
+    UnseenRemoval {
         triangles: removed,
         area_fraction: dropped_area / (dropped_area + kept_area).max(f64::MIN_POSITIVE),
-    })
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,170 @@
+use super::*;
+use crate::pipeline::{reconstruct, reconstruct_streamed};
+use sphcover_core::{MeshTopology, StopRequest};
+use sphcover_evaluation::{torus, torus_signed_distance};
+
+fn scratch(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("sphcover-streamed-{name}-{}", std::process::id()))
+}
+
+fn tilted_torus(n: usize) -> (PointCloud, impl Fn(DVec3) -> f64) {
+    let tilt = glam::DMat3::from_rotation_x(0.4) * glam::DMat3::from_rotation_y(0.3);
+    let mut cloud = torus(0.3, 0.12, n);
+    for p in &mut cloud.positions {
+        *p = tilt * *p;
+    }
+    for n in cloud.normals.as_mut().into_iter().flatten() {
+        *n = tilt * *n;
+    }
+    (cloud, move |p: DVec3| {
+        torus_signed_distance(0.3, 0.12, tilt.transpose() * p)
+    })
+}
+
+fn streamed(cloud: &dyn PointBlocks, tiling: &Tiling, dir: &Path) -> StreamedReconstruction {
+    reconstruct_streamed(
+        cloud,
+        &ReconParams::default(),
+        tiling,
+        dir,
+        &|_| {},
+        &StopRequest::new(),
+    )
+    .unwrap()
+}
+
+fn area(m: &TriMesh) -> f64 {
+    m.triangles
+        .iter()
+        .map(|t| sphcover_core::triangle_area(m, t))
+        .sum()
+}
+
+#[test]
+fn streamed_tiles_join_into_one_closed_surface_as_accurate_as_the_single_run() {
+    let (cloud, truth) = tilted_torus(12_000);
+    let worst = |m: &TriMesh| {
+        m.vertices
+            .iter()
+            .map(|&v| truth(v).abs())
+            .fold(0.0, f64::max)
+    };
+    let single = reconstruct(&cloud, &ReconParams::default(), &|_| {}).unwrap();
+    let dir = scratch("torus");
+    for tiles in [[2, 2, 2], [3, 1, 2], [1, 4, 1]] {
+        let tiling = Tiling { tiles, halo: 0.1 };
+        let result = streamed(&cloud, &tiling, &dir);
+        let topology = MeshTopology::of(&result.mesh);
+        assert!(
+            topology.is_closed_oriented_manifold(),
+            "{tiles:?}: {topology:?}"
+        );
+        assert_eq!(
+            (topology.components, topology.euler_characteristic()),
+            (1, 0),
+            "{tiles:?}"
+        );
+        let own: usize = result.stats.tiles.iter().map(|t| t.own_samples).sum();
+        assert_eq!(own, cloud.len(), "{tiles:?}");
+        let (error, single_error) = (worst(&result.mesh), worst(&single.mesh));
+        assert!(
+            error < 1.5 * single_error + 1e-3,
+            "{tiles:?}: worst vertex {error:.2e} against the single run's {single_error:.2e}"
+        );
+        let ratio = area(&result.mesh) / area(&single.mesh);
+        assert!((ratio - 1.0).abs() < 0.01, "{tiles:?}: area ratio {ratio}");
+        let spacing = result.stats.scan.spacing / single.stats.scan.spacing;
+        assert!(
+            (spacing - 1.0).abs() < 0.05,
+            "{tiles:?}: spacing ratio {spacing}"
+        );
+    }
+    // Every tile directory went with its run.
+    let left = std::fs::read_dir(&dir).unwrap().count();
+    assert_eq!(left, 0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_file_streams_to_the_surface_of_the_same_points_in_memory_at_any_thread_count() {
+    let (cloud, _) = tilted_torus(6000);
+    let dir = scratch("file");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("torus.ply");
+    io::write_point_cloud(&path, &cloud, &io::WriteOptions::default()).unwrap();
+    let file = ScanFile {
+        block: 1000,
+        ..ScanFile::new(&path)
+    };
+    let tiling = Tiling::cubes(2);
+    let in_memory = streamed(&cloud, &tiling, &dir);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| streamed(&file, &tiling, &dir))
+    };
+    let (one, three) = (run(1), run(3));
+    assert_eq!(one.mesh, in_memory.mesh);
+    assert_eq!(one.mesh, three.mesh);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn outliers_far_and_near_are_left_out() {
+    let (mut cloud, truth) = tilted_torus(8000);
+    // Uniform outliers in the box (5%), and two far away along +x.
+    let mut s = 7u64;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    for _ in 0..400 {
+        cloud
+            .positions
+            .push(DVec3::new(next(), next(), next()) * 1.0);
+        cloud.normals.as_mut().unwrap().push(DVec3::Z);
+    }
+    cloud
+        .positions
+        .extend([DVec3::new(5.0, 0.1, 0.0), DVec3::new(5.2, -0.1, 0.1)]);
+    cloud.normals.as_mut().unwrap().extend([DVec3::X; 2]);
+    let dir = scratch("outliers");
+    let result = streamed(&cloud, &Tiling::cubes(2), &dir);
+    let topology = MeshTopology::of(&result.mesh);
+    assert_eq!(
+        (topology.components, topology.euler_characteristic()),
+        (1, 0)
+    );
+    assert!(result.stats.scan.isolated_count >= 2);
+    let error = result
+        .mesh
+        .vertices
+        .iter()
+        .map(|&v| truth(v).abs())
+        .fold(0.0, f64::max);
+    assert!(error < 0.02, "worst vertex {error:.3e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn scans_without_normals_are_refused_and_nothing_is_left_behind() {
+    let (mut cloud, _) = tilted_torus(2000);
+    cloud.normals = None;
+    let dir = scratch("no-normals");
+    let error = reconstruct_streamed(
+        &cloud,
+        &ReconParams::default(),
+        &Tiling::cubes(2),
+        &dir,
+        &|_| {},
+        &StopRequest::new(),
+    )
+    .unwrap_err();
+    assert!(matches!(error, ReconError::NeedsNormals), "{error}");
+    assert!(error.is_bad_input());
+    assert!(!dir.exists());
+}
