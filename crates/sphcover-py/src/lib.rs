@@ -40,6 +40,7 @@ fn sphcover_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(reconstruction::reconstruct, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruction::reconstruct_file, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruction::tile_function_bytes, m)?)?;
+    m.add_function(wrap_pyfunction!(reconstruction::streamed_tile_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(skeleton::skeleton_volume, m)?)?;
     m.add_function(wrap_pyfunction!(skeleton::skeleton_samples, m)?)?;
     m.add_function(wrap_pyfunction!(cover::surface_cover, m)?)?;

@@ -8,9 +8,10 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 use sphcover_core::PointCloud;
 use sphcover_recon::{
     BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, ReconStats,
-    Reconstruction, ScanFile, SequentialTiles, TileFunction, TileInput, TileRunner, Tiling,
+    Reconstruction, ScanFile, SequentialStreamedTiles, SequentialTiles, StreamedTile,
+    StreamedTileProduct, StreamedTileRunner, TileFunction, TileInput, TileRunner, Tiling,
     ToleranceNote, TrimOption, fit_memory_budget, reconstruct_streamed, reconstruct_tiled_with,
-    reconstruct_until, tile_function,
+    reconstruct_until, streamed_tile_function, tile_function,
 };
 
 use crate::arrays::{colors_from_py, points_from_py, points_to_py, values_from_py, vec_to_py};
@@ -204,7 +205,7 @@ pub fn reconstruct<'py>(
 #[pyo3(signature = (
     path, *, tiles, halo = None, scratch = None, method_name = "integrated", eps = None,
     k = None, trim_value = None, depth = None, normal_fit = None, position_fit = None,
-    refine = true, seed = 0, threads = None, progress = None, noise = None,
+    refine = true, seed = 0, threads = None, progress = None, noise = None, map_tiles = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct_file<'py>(
@@ -225,6 +226,7 @@ pub fn reconstruct_file<'py>(
     threads: Option<usize>,
     progress: Option<&Bound<'py, PyAny>>,
     noise: Option<&Bound<'py, PyAny>>,
+    map_tiles: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let options = ReconOptions {
         method: method(method_name)?,
@@ -258,8 +260,14 @@ pub fn reconstruct_file<'py>(
     let run_params = params.clone();
     let recon = run(py, progress, threads, move |context| {
         let progress = |s| context.stage(s);
+        let python = map_tiles.map(|map_tiles| PythonStreamedTiles { map_tiles });
+        let runner: &dyn StreamedTileRunner = match &python {
+            Some(python) => python,
+            None => &SequentialStreamedTiles,
+        };
         reconstruct_streamed(
             &source,
+            runner,
             &run_params,
             &tiling,
             &scratch,
@@ -273,6 +281,97 @@ pub fn reconstruct_file<'py>(
     stats.set_item("eps_requested", params.cover.eps)?;
     stats.set_item("tolerance_note", note)?;
     mesh_dict(py, recon.mesh, stats)
+}
+
+/// A streamed run's tiles run by a Python callable `map_tiles(tasks) -> products`: a list of
+/// tasks as bytes in, a list of the same length of `streamed_tile_function`'s products
+/// (bytes) out, in order. The workers read the tile files' directory.
+struct PythonStreamedTiles {
+    map_tiles: Py<PyAny>,
+}
+
+impl StreamedTileRunner for PythonStreamedTiles {
+    fn run(
+        &self,
+        tasks: &[StreamedTile],
+        _params: &ReconParams,
+    ) -> Result<Vec<StreamedTileProduct>, ReconError> {
+        let blobs: Vec<Vec<u8>> = tasks.iter().map(StreamedTile::to_bytes).collect();
+        let returned: Vec<Vec<u8>> = Python::attach(|py| {
+            let list = PyList::new(py, blobs.iter().map(|b| PyBytes::new(py, b)))?;
+            let results = self.map_tiles.bind(py).call1((list,))?;
+            results
+                .try_iter()?
+                .map(|item| item?.extract::<Vec<u8>>())
+                .collect::<PyResult<Vec<_>>>()
+        })
+        .map_err(|e| ReconError::TileRunner(format!("map_tiles raised {e}")))?;
+        if returned.len() != tasks.len() {
+            return Err(ReconError::TileRunner(format!(
+                "map_tiles returned {} results for {} tiles",
+                returned.len(),
+                tasks.len()
+            )));
+        }
+        returned
+            .iter()
+            .map(|b| StreamedTileProduct::from_bytes(b))
+            .collect()
+    }
+}
+
+/// One streamed tile's task ([`sphcover_recon::streamed_tile_function`]) from its bytes, with
+/// the options of `reconstruct_file` that the tiles read: the product as bytes. What a
+/// worker of a distributed engine runs; it reads and writes the run's tile files.
+#[pyfunction]
+#[pyo3(signature = (
+    task, *, method_name = "integrated", eps = None, k = None, normal_fit = None,
+    position_fit = None, seed = 0, noise = None, threads = None,
+))]
+#[allow(clippy::too_many_arguments)]
+pub fn streamed_tile_bytes<'py>(
+    py: Python<'py>,
+    task: &[u8],
+    method_name: &str,
+    eps: Option<f64>,
+    k: Option<f64>,
+    normal_fit: Option<f64>,
+    position_fit: Option<f64>,
+    seed: u64,
+    noise: Option<&Bound<'py, PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let params = tile_params(method_name, eps, k, normal_fit, position_fit, seed, noise)?;
+    let task = StreamedTile::from_bytes(task).map_err(|e| bad_input(e.to_string()))?;
+    let product = run(py, None, threads, move |_| {
+        streamed_tile_function(&task, &params)
+            .map(|p| p.to_bytes())
+            .map_err(recon_error)
+    })?;
+    Ok(PyBytes::new(py, &product))
+}
+
+/// The parameters the tiles' tasks read, from the options a worker gets.
+fn tile_params(
+    method_name: &str,
+    eps: Option<f64>,
+    k: Option<f64>,
+    normal_fit: Option<f64>,
+    position_fit: Option<f64>,
+    seed: u64,
+    noise: Option<&Bound<'_, PyAny>>,
+) -> PyResult<ReconParams> {
+    let options = ReconOptions {
+        method: method(method_name)?,
+        eps,
+        noise: noise_option(noise)?,
+        k,
+        normal_fit,
+        position_fit,
+        seed,
+        ..ReconOptions::default()
+    };
+    options.params().map_err(option_error)
 }
 
 /// Tiles run by a Python callable `map_tiles(inputs) -> functions`: a list of tile inputs
@@ -383,17 +482,7 @@ pub fn tile_function_bytes<'py>(
     noise: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
 ) -> PyResult<Option<Bound<'py, PyBytes>>> {
-    let options = ReconOptions {
-        method: method(method_name)?,
-        eps,
-        noise: noise_option(noise)?,
-        k,
-        normal_fit,
-        position_fit,
-        seed,
-        ..ReconOptions::default()
-    };
-    let params = options.params().map_err(option_error)?;
+    let params = tile_params(method_name, eps, k, normal_fit, position_fit, seed, noise)?;
     let input = TileInput::from_bytes(tile).map_err(|e| bad_input(e.to_string()))?;
     let function = run(py, None, threads, move |_| {
         tile_function(&input, &params)

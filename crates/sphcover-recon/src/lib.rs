@@ -86,10 +86,12 @@ pub use options::{
 };
 pub use pipeline::{
     DEFAULT_NOISE_TOLERANCE, Method, PointBlocks, ReconError, ReconParams, ReconStats,
-    Reconstruction, ScanFile, SequentialTiles, StreamedReconstruction, TILE_DIRECTORY_PREFIX,
-    TileFunction, TileInput, TileRunner, TileStats, Tiling, ToleranceNote, Trim, UNSEEN_REACH,
-    default_depth, reconstruct, reconstruct_streamed, reconstruct_tiled, reconstruct_tiled_with,
-    reconstruct_until, stage_names, streamed_stage_names, tile_function, tiled_stage_names,
+    Reconstruction, ScanFile, SequentialStreamedTiles, SequentialTiles, StreamedReconstruction,
+    StreamedTile, StreamedTileProduct, StreamedTileRunner, TILE_DIRECTORY_PREFIX, TileFunction,
+    TileInput, TileRunner, TileStats, Tiling, ToleranceNote, Trim, UNSEEN_REACH, default_depth,
+    reconstruct, reconstruct_streamed, reconstruct_tiled, reconstruct_tiled_with,
+    reconstruct_until, stage_names, streamed_stage_names, streamed_tile_function, tile_function,
+    tiled_stage_names,
 };
 pub use polygonise::{
     FieldPiece, GridStep, PiecewiseFunction, PolygoniseError, PolygoniseParams, PolygoniseStats,

@@ -9,8 +9,8 @@ use sphcover_core::StopRequest;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
     BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, ReconStats, ScanFile,
-    Tiling, ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget, reconstruct,
-    reconstruct_streamed, reconstruct_tiled,
+    SequentialStreamedTiles, Tiling, ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget,
+    reconstruct, reconstruct_streamed, reconstruct_tiled,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -121,7 +121,15 @@ fn run_streamed(args: &ReconArgs, params: &ReconParams, reporter: &Reporter) -> 
     let bar = reporter.stage_bar("reconstructing");
     let progress = |stage| show_stage(&bar, stage);
     let stop = StopRequest::new();
-    let result = reconstruct_streamed(&source, params, &tiling, &scratch, &progress, &stop);
+    let result = reconstruct_streamed(
+        &source,
+        &SequentialStreamedTiles,
+        params,
+        &tiling,
+        &scratch,
+        &progress,
+        &stop,
+    );
     bar.finish_and_clear();
     let recon = result.map_err(|e| recon_error(args, e))?;
     describe(params, &recon.stats, reporter);

@@ -47,6 +47,7 @@ __all__ = [
     "skeleton",
     "skeleton_from_samples",
     "tile_function",
+    "streamed_tile_function",
     "dask_map_tiles",
     "write",
 ]
@@ -361,6 +362,8 @@ def reconstruct_file(
     threads: Optional[int] = None,
     progress: Progress = None,
     noise: Union[None, str, float] = None,
+    client: Any = None,
+    map_tiles: Optional[Callable[[list, dict], list]] = None,
 ) -> Mesh:
     """Reconstructs the surface of a scan file larger than memory, as ``sphcover recon
     --tiles N --stream`` does: the file (binary PLY, LAS or LAZ, with normals) is read a block
@@ -370,12 +373,35 @@ def reconstruct_file(
     surface, never the whole scan. ``tiles`` is ``N`` (N×N×N) or ``(nx, ny, nz)``; the other
     keywords are those of :func:`reconstruct`.
 
+    With ``client`` (a ``dask.distributed.Client``) the tiles' functions, the longest part of
+    the run, are tasks of that cluster (:func:`streamed_tile_function`); ``scratch`` must then
+    be a directory every worker sees under the same path. ``map_tiles`` runs them on any
+    other engine: ``(tasks, options) -> products`` over lists of bytes, in order.
+
     Returns a :class:`Mesh` with per-vertex normals, the confidence of the surface as
     ``values`` and the statistics (no per-point labels or cover: those would take memory in
     proportion to the scan). Raises :class:`BadInputError` for a scan without normals.
     """
     if isinstance(tiles, int):
         tiles = (tiles, tiles, tiles)
+    if client is not None and map_tiles is None:
+        map_tiles = dask_map_tiles(client, function=streamed_tile_function)
+    run_tiles = None
+    if map_tiles is not None:
+        engine = map_tiles
+        options = dict(
+            method_name=method,
+            eps=eps,
+            k=k,
+            normal_fit=normal_fit,
+            position_fit=position_fit,
+            seed=seed,
+            noise=noise,
+        )
+
+        def run_tiles(tasks):
+            return engine(tasks, options)
+
     d = _with_progress(
         progress,
         lambda callback: _sphcover.reconstruct_file(
@@ -395,6 +421,7 @@ def reconstruct_file(
             threads=threads,
             progress=callback,
             noise=noise,
+            map_tiles=run_tiles,
         ),
     )
     return Mesh(
@@ -417,14 +444,24 @@ def tile_function(tile, options: dict) -> Optional[bytes]:
     return _sphcover.tile_function_bytes(tile, **options)
 
 
-def dask_map_tiles(client, retries: int = 2):
+def streamed_tile_function(task: bytes, options: dict) -> bytes:
+    """One tile of :func:`reconstruct_file` from its task (bytes, as ``map_tiles`` receives
+    them) and the reconstruction's options: its product, bytes. It reads the tile's file and
+    stores its samples' labels beside it, in the run's scratch directory, so the worker must
+    see that directory (a shared file system). It depends on nothing else, so any worker
+    gives the same bytes, also when it runs again after another worker died."""
+    return _sphcover.streamed_tile_bytes(task, **options)
+
+
+def dask_map_tiles(client, retries: int = 2, function: Callable = tile_function):
     """A ``map_tiles`` for :func:`reconstruct` that runs the tiles as tasks of a Dask
-    cluster: ``client.map`` of :func:`tile_function` over the inputs, then ``client.gather``.
-    A task whose worker dies is rescheduled by Dask's scheduler; one that raises is tried
-    ``retries`` more times."""
+    cluster: ``client.map`` of ``function`` (:func:`tile_function`, or
+    :func:`streamed_tile_function` for :func:`reconstruct_file`) over the inputs, then
+    ``client.gather``. A task whose worker dies is rescheduled by Dask's scheduler; one that
+    raises is tried ``retries`` more times."""
 
     def map_tiles(inputs, options):
-        futures = client.map(tile_function, inputs, options=options, pure=False, retries=retries)
+        futures = client.map(function, inputs, options=options, pure=False, retries=retries)
         return client.gather(futures)
 
     return map_tiles

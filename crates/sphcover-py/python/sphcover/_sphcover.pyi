@@ -122,7 +122,20 @@ def reconstruct_file(
     threads: Optional[int] = None,
     progress: ProgressCallback = None,
     noise: Union[None, str, float] = None,
+    map_tiles: Optional[Callable[[List[bytes]], List[bytes]]] = None,
 ) -> Dict[str, Any]: ...
+def streamed_tile_bytes(
+    task: bytes,
+    *,
+    method_name: str = "integrated",
+    eps: Optional[float] = None,
+    k: Optional[float] = None,
+    normal_fit: Optional[float] = None,
+    position_fit: Optional[float] = None,
+    seed: int = 0,
+    noise: Union[None, str, float] = None,
+    threads: Optional[int] = None,
+) -> bytes: ...
 def tile_function_bytes(
     tile: bytes,
     *,

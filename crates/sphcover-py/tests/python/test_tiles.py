@@ -111,3 +111,45 @@ def test_options_reach_the_tasks_as_they_reach_the_tiles_here(fixtures, tmp_path
     assert written(tmp_path, here, "here.ply") == written(tmp_path, mapped, "mapped.ply")
     plain = sphcover.reconstruct(cloud, tiles=(2, 1, 2))
     assert written(tmp_path, plain, "plain.ply") != written(tmp_path, here, "here.ply")
+
+
+def killing_first_streamed_attempt(task, options, marker):
+    """A streamed tile's task, except that the first attempt at the first task ends its
+    worker process at once."""
+    if not os.path.exists(marker):
+        with open(marker, "w"):
+            pass
+        os._exit(1)
+    return sphcover.streamed_tile_function(task, options)
+
+
+def test_a_streamed_file_on_a_cluster_with_a_killed_worker_matches_the_command_line(
+    fixtures, run_cli, tmp_path
+):
+    scan = fixtures / "real" / "kitten.ply"
+    run_cli("recon", scan, "--tiles", "2", "--stream", "-o", tmp_path / "cli.ply")
+    marker = str(tmp_path / "killed")
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, Client(cluster) as client:
+
+        def map_tiles(tasks, options):
+            futures = client.map(
+                killing_first_streamed_attempt,
+                tasks,
+                options=options,
+                marker=marker,
+                pure=False,
+            )
+            return client.gather(futures)
+
+        mesh = sphcover.reconstruct_file(scan, tiles=2, scratch=scratch, map_tiles=map_tiles)
+        assert os.path.exists(marker), "no worker was killed"
+        assert written(tmp_path, mesh, "killed.ply") == (tmp_path / "cli.ply").read_bytes()
+        # The plain Dask runner gives the same surface.
+        mesh = sphcover.reconstruct_file(scan, tiles=2, scratch=scratch, client=client)
+        assert written(tmp_path, mesh, "dask.ply") == (tmp_path / "cli.ply").read_bytes()
+    assert not list(scratch.iterdir())

@@ -31,7 +31,10 @@ use crate::vertex_refinement::{
 };
 pub use spill::TILE_DIRECTORY_PREFIX;
 use stages::{ReconContext, back_stages, built, front_stages, stage_list};
-pub use streamed::{PointBlocks, ScanFile, StreamedReconstruction};
+pub use streamed::{
+    PointBlocks, ScanFile, SequentialStreamedTiles, StreamedReconstruction, StreamedTile,
+    StreamedTileProduct, StreamedTileRunner, streamed_tile_function,
+};
 pub use tiled::{
     SequentialTiles, TileFunction, TileInput, TileRunner, TileStats, Tiling, tile_function,
 };
@@ -615,7 +618,9 @@ pub fn reconstruct_tiled_with(
 ///    over all tiles' shares. Isolated samples are found at the scan's spacing, and the unit
 ///    frame is fitted to the rest, as in a single run.
 /// 2. **Tiles.** Each tile's function ([`tile_function`]), as in [`reconstruct_tiled`]; the
-///    confidence and outlier label of its samples are stored beside its file.
+///    confidence and outlier label of its samples are stored beside its file. `runner` runs
+///    these tasks ([`streamed_tile_function`]): [`SequentialStreamedTiles`] in this process,
+///    or a distributed engine whose workers read `scratch` (a shared file system).
 /// 3. **Polygonisation** of the tiles' functions, seeded from one confident sample per
 ///    lattice cell of half a grid step.
 /// 4. **Trimming**: each triangle's distance to the nearest confident sample, measured by
@@ -632,7 +637,7 @@ pub fn reconstruct_tiled_with(
 ///
 /// ```
 /// use sphcover_core::{MeshTopology, PointCloud, StopRequest};
-/// use sphcover_recon::{ReconParams, Tiling, reconstruct_streamed};
+/// use sphcover_recon::{ReconParams, SequentialStreamedTiles, Tiling, reconstruct_streamed};
 ///
 /// // 6,000 points on a sphere of radius 2, in 2 × 2 × 2 tiles, from memory (a `ScanFile`
 /// // reads them from disk instead).
@@ -642,6 +647,7 @@ pub fn reconstruct_tiled_with(
 /// let scratch = std::env::temp_dir();
 /// let result = reconstruct_streamed(
 ///     &cloud,
+///     &SequentialStreamedTiles,
 ///     &ReconParams::default(),
 ///     &Tiling::cubes(2),
 ///     &scratch,
@@ -656,6 +662,7 @@ pub fn reconstruct_tiled_with(
 /// ```
 pub fn reconstruct_streamed(
     source: &dyn PointBlocks,
+    runner: &dyn StreamedTileRunner,
     params: &ReconParams,
     tiling: &Tiling,
     scratch: &std::path::Path,
@@ -664,7 +671,7 @@ pub fn reconstruct_streamed(
 ) -> Result<StreamedReconstruction, ReconError> {
     check_params(params)?;
     tiling.check()?;
-    streamed::run_streamed(source, params, tiling, scratch, progress, stop)
+    streamed::run_streamed(source, runner, params, tiling, scratch, progress, stop)
 }
 
 /// The stages of [`reconstruct_streamed`] for `params`, in order.

@@ -31,12 +31,19 @@ pub(super) struct TileSamples {
     pub scanner: Option<Vec<f64>>,
 }
 
+/// Where a run's tile files are and how their records are laid out: all a process needs
+/// to read a tile's samples and to store and read their labels.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct TileDirectory {
+    pub dir: PathBuf,
+    /// Whether each record carries the scanner's confidence.
+    pub scanner: bool,
+}
+
 /// The tile files of one run, in a directory removed with them.
 pub(super) struct TileFiles {
-    dir: PathBuf,
-    scanner: bool,
+    directory: TileDirectory,
     buffers: Vec<Vec<u8>>,
-    written: Vec<u64>,
     flush_at: usize,
 }
 
@@ -51,20 +58,15 @@ impl TileFiles {
         std::fs::create_dir(&dir).map_err(|e| scratch_error(&dir, &e))?;
         let flush_at = (BUFFERED / tiles.max(1)).clamp(16 << 10, 1 << 20);
         Ok(TileFiles {
-            dir,
-            scanner,
+            directory: TileDirectory { dir, scanner },
             buffers: vec![Vec::new(); tiles],
-            written: vec![0; tiles],
             flush_at,
         })
     }
 
-    fn record_bytes(&self) -> usize {
-        if self.scanner { 56 } else { 48 }
-    }
-
-    fn path(&self, tile: usize) -> PathBuf {
-        self.dir.join(format!("tile-{tile}.bin"))
+    /// Where the files are.
+    pub fn directory(&self) -> &TileDirectory {
+        &self.directory
     }
 
     /// Appends a sample to tile `tile`.
@@ -79,7 +81,7 @@ impl TileFiles {
         for v in point.to_array().into_iter().chain(normal.to_array()) {
             buffer.extend_from_slice(&v.to_le_bytes());
         }
-        if self.scanner {
+        if self.directory.scanner {
             buffer.extend_from_slice(&scanner.unwrap_or(1.0).to_le_bytes());
         }
         if buffer.len() >= self.flush_at {
@@ -89,7 +91,7 @@ impl TileFiles {
     }
 
     fn flush(&mut self, tile: usize) -> Result<(), ReconError> {
-        let path = self.path(tile);
+        let path = self.directory.path(tile);
         let buffer = std::mem::take(&mut self.buffers[tile]);
         if buffer.is_empty() {
             return Ok(());
@@ -101,7 +103,6 @@ impl TileFiles {
             .map_err(|e| scratch_error(&path, &e))?;
         file.write_all(&buffer)
             .map_err(|e| scratch_error(&path, &e))?;
-        self.written[tile] += buffer.len() as u64;
         // The buffer's allocation is kept for the tile's next records.
         self.buffers[tile] = buffer;
         self.buffers[tile].clear();
@@ -116,15 +117,30 @@ impl TileFiles {
         self.buffers = vec![Vec::new(); self.buffers.len()];
         Ok(())
     }
+}
 
-    /// Samples written to tile `tile`.
-    pub fn samples(&self, tile: usize) -> usize {
-        (self.written[tile] / self.record_bytes() as u64) as usize
+impl TileDirectory {
+    fn record_bytes(&self) -> usize {
+        if self.scanner { 56 } else { 48 }
+    }
+
+    fn path(&self, tile: usize) -> PathBuf {
+        self.dir.join(format!("tile-{tile}.bin"))
+    }
+
+    /// Samples written to tile `tile` (none when it has no file).
+    pub fn samples(&self, tile: usize) -> Result<usize, ReconError> {
+        let path = self.path(tile);
+        match std::fs::metadata(&path) {
+            Ok(m) => Ok((m.len() / self.record_bytes() as u64) as usize),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(0),
+            Err(e) => Err(scratch_error(&path, &e)),
+        }
     }
 
     /// Reads tile `tile`'s samples back.
     pub fn read(&self, tile: usize) -> Result<TileSamples, ReconError> {
-        let n = self.samples(tile);
+        let n = self.samples(tile)?;
         let mut samples = TileSamples {
             points: Vec::with_capacity(n),
             normals: Vec::with_capacity(n),
@@ -162,7 +178,7 @@ impl TileFiles {
     }
 }
 
-impl TileFiles {
+impl TileDirectory {
     fn labels_path(&self, tile: usize) -> PathBuf {
         self.dir.join(format!("tile-{tile}.labels"))
     }
@@ -192,12 +208,12 @@ impl TileFiles {
             return Ok(None);
         }
         let bytes = std::fs::read(&path).map_err(|e| scratch_error(&path, &e))?;
-        if bytes.len() != 9 * self.samples(tile) {
+        let samples = self.samples(tile)?;
+        if bytes.len() != 9 * samples {
             return Err(ReconError::Scratch(format!(
-                "{}: {} bytes for {} samples",
+                "{}: {} bytes for {samples} samples",
                 path.display(),
                 bytes.len(),
-                self.samples(tile)
             )));
         }
         let mut labels = TileLabels::default();
@@ -222,7 +238,7 @@ pub(super) struct TileLabels {
 
 impl Drop for TileFiles {
     fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
+        let _ = std::fs::remove_dir_all(&self.directory.dir);
     }
 }
 
@@ -238,7 +254,7 @@ mod tests {
     fn samples_read_back_as_written_and_the_directory_goes() {
         let scratch = std::env::temp_dir().join(format!("sphcover-spill-{}", std::process::id()));
         let mut files = TileFiles::create(&scratch, 3, true).unwrap();
-        let dir = files.dir.clone();
+        let dir = files.directory().dir.clone();
         // Few enough bytes per flush that the records cross several writes.
         files.flush_at = 100;
         for i in 0..50 {
@@ -248,11 +264,10 @@ mod tests {
                 .unwrap();
         }
         files.finish().unwrap();
-        assert_eq!(
-            (0..3).map(|t| files.samples(t)).collect::<Vec<_>>(),
-            [17, 17, 16]
-        );
-        let tile = files.read(1).unwrap();
+        let directory = files.directory().clone();
+        let counts: Vec<usize> = (0..3).map(|t| directory.samples(t).unwrap()).collect();
+        assert_eq!(counts, [17, 17, 16]);
+        let tile = directory.read(1).unwrap();
         let expected: Vec<DVec3> = (0..50)
             .filter(|i| i % 3 == 1)
             .map(|i| DVec3::new(i as f64, -(i as f64), 0.5))

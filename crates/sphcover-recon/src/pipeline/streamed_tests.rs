@@ -24,6 +24,7 @@ fn tilted_torus(n: usize) -> (PointCloud, impl Fn(DVec3) -> f64) {
 fn streamed(cloud: &dyn PointBlocks, tiling: &Tiling, dir: &Path) -> StreamedReconstruction {
     reconstruct_streamed(
         cloud,
+        &SequentialStreamedTiles,
         &ReconParams::default(),
         tiling,
         dir,
@@ -157,6 +158,7 @@ fn scans_without_normals_are_refused_and_nothing_is_left_behind() {
     let dir = scratch("no-normals");
     let error = reconstruct_streamed(
         &cloud,
+        &SequentialStreamedTiles,
         &ReconParams::default(),
         &Tiling::cubes(2),
         &dir,
@@ -167,4 +169,48 @@ fn scans_without_normals_are_refused_and_nothing_is_left_behind() {
     assert!(matches!(error, ReconError::NeedsNormals), "{error}");
     assert!(error.is_bad_input());
     assert!(!dir.exists());
+}
+
+/// Tasks run in reverse order, each through bytes as another process would get and return
+/// them.
+struct ThroughBytes;
+
+impl StreamedTileRunner for ThroughBytes {
+    fn run(
+        &self,
+        tasks: &[StreamedTile],
+        params: &ReconParams,
+    ) -> Result<Vec<StreamedTileProduct>, ReconError> {
+        let mut out = vec![None; tasks.len()];
+        for (t, task) in tasks.iter().enumerate().rev() {
+            let sent = StreamedTile::from_bytes(&task.to_bytes())?;
+            let product = streamed_tile_function(&sent, params)?;
+            out[t] = Some(StreamedTileProduct::from_bytes(&product.to_bytes())?);
+        }
+        Ok(out.into_iter().flatten().collect())
+    }
+}
+
+#[test]
+fn any_runner_gives_the_sequential_runs_surface() {
+    let (cloud, _) = tilted_torus(5000);
+    let dir = scratch("runner");
+    let tiling = Tiling {
+        tiles: [2, 1, 3],
+        halo: 0.1,
+    };
+    let here = streamed(&cloud, &tiling, &dir);
+    let there = reconstruct_streamed(
+        &cloud,
+        &ThroughBytes,
+        &ReconParams::default(),
+        &tiling,
+        &dir,
+        &|_| {},
+        &StopRequest::new(),
+    )
+    .unwrap();
+    assert_eq!(here.mesh, there.mesh);
+    assert_eq!(here.stats.supports, there.stats.supports);
+    std::fs::remove_dir_all(&dir).unwrap();
 }

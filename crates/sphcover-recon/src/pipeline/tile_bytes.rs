@@ -5,13 +5,138 @@
 //! the machine. Decoding checks every length against what is there and fails with
 //! [`ReconError::TileRunner`], never panics.
 
-use sphcover_core::{Aabb, Cover, DVec3, Kernel, LocalFunctions};
+use sphcover_core::{Aabb, Cover, DVec3, Kernel, LocalFunctions, Normalisation};
 
 use super::ReconError;
+use super::streamed::{StreamedTile, StreamedTileProduct};
 use super::tiled::{TileFunction, TileInput};
 
 const INPUT_TAG: &[u8; 8] = b"SPCTIN01";
 const FUNCTION_TAG: &[u8; 8] = b"SPCTFN01";
+const STREAMED_TILE_TAG: &[u8; 8] = b"SPCSTT01";
+const STREAMED_PRODUCT_TAG: &[u8; 8] = b"SPCSTP01";
+
+impl StreamedTile {
+    /// The task as bytes ([`StreamedTile::from_bytes`] reads them back). The directory is
+    /// stored as UTF-8 (a path that is not is stored with its invalid parts replaced).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut w = Writer(Vec::with_capacity(512));
+        w.0.extend_from_slice(STREAMED_TILE_TAG);
+        w.u64(self.tile as u64);
+        for p in self.position {
+            w.u64(p as u64);
+        }
+        let dir = self.directory.to_string_lossy();
+        w.u64(dir.len() as u64);
+        w.0.extend_from_slice(dir.as_bytes());
+        w.0.push(u8::from(self.scanner));
+        for splits in &self.input_splits {
+            w.u64(splits.len() as u64);
+            splits.iter().for_each(|&x| w.f64(x));
+        }
+        w.vec3(self.frame.centre);
+        w.f64(self.frame.scale);
+        w.vec3(self.own_box.min);
+        w.vec3(self.own_box.max);
+        w.f64(self.spacing);
+        w.f64(self.noise);
+        w.f64(self.eps);
+        w.0.push(u8::from(self.drop_isolated));
+        w.u64(u64::from(self.depth));
+        w.0
+    }
+
+    /// Reads what [`StreamedTile::to_bytes`] wrote.
+    pub fn from_bytes(bytes: &[u8]) -> Result<StreamedTile, ReconError> {
+        let mut r = Reader::new(bytes, STREAMED_TILE_TAG, "streamed tile")?;
+        let tile = r.count()?;
+        let position = [r.count()?, r.count()?, r.count()?];
+        let dir_len = r.len()?;
+        let directory = String::from_utf8(r.take(dir_len)?.to_vec())
+            .map_err(|_| r.error("a directory that is not UTF-8"))?
+            .into();
+        let scanner = r.flag()?;
+        let mut input_splits: [Vec<f64>; 3] = Default::default();
+        for splits in &mut input_splits {
+            let n = r.len()?;
+            *splits = r.f64s(n)?;
+        }
+        let frame = Normalisation {
+            centre: r.vec3()?,
+            scale: r.f64()?,
+        };
+        let own_box = Aabb {
+            min: r.vec3()?,
+            max: r.vec3()?,
+        };
+        let (spacing, noise, eps) = (r.f64()?, r.f64()?, r.f64()?);
+        let drop_isolated = r.flag()?;
+        let depth = u32::try_from(r.u64()?).map_err(|_| r.error("a depth beyond u32"))?;
+        r.end()?;
+        Ok(StreamedTile {
+            tile,
+            position,
+            directory,
+            scanner,
+            input_splits,
+            frame,
+            own_box,
+            spacing,
+            noise,
+            eps,
+            drop_isolated,
+            depth,
+        })
+    }
+}
+
+impl StreamedTileProduct {
+    /// The product as bytes ([`StreamedTileProduct::from_bytes`] reads them back).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let function = self.function.to_bytes();
+        let seeds: usize = self.seeds.iter().map(Vec::len).sum();
+        let mut w = Writer(Vec::with_capacity(function.len() + 24 * seeds + 128));
+        w.0.extend_from_slice(STREAMED_PRODUCT_TAG);
+        w.u64(function.len() as u64);
+        w.0.extend_from_slice(&function);
+        for seeds in &self.seeds {
+            w.u64(seeds.len() as u64);
+            seeds.iter().for_each(|&p| w.vec3(p));
+        }
+        for x in self.qualified {
+            w.u64(x as u64);
+        }
+        for x in [self.own_samples, self.samples, self.isolated, self.outliers] {
+            w.u64(x as u64);
+        }
+        w.0
+    }
+
+    /// Reads what [`StreamedTileProduct::to_bytes`] wrote.
+    pub fn from_bytes(bytes: &[u8]) -> Result<StreamedTileProduct, ReconError> {
+        let mut r = Reader::new(bytes, STREAMED_PRODUCT_TAG, "streamed tile product")?;
+        let function_len = r.len()?;
+        let function = TileFunction::from_bytes(r.take(function_len)?)?;
+        let mut seeds: [Vec<DVec3>; 2] = Default::default();
+        for set in &mut seeds {
+            let n = r.len()?;
+            *set = r.vec3s(n)?;
+        }
+        let qualified = [r.count()?, r.count()?];
+        let [own_samples, samples, isolated, outliers] =
+            [r.count()?, r.count()?, r.count()?, r.count()?];
+        r.end()?;
+        Ok(StreamedTileProduct {
+            function,
+            seeds,
+            qualified,
+            own_samples,
+            samples,
+            isolated,
+            outliers,
+        })
+    }
+}
 
 impl TileInput {
     /// The input as bytes ([`TileInput::from_bytes`] reads them back).
@@ -263,6 +388,12 @@ impl<'b> Reader<'b> {
             .ok_or_else(|| self.error("a count larger than the data"))
     }
 
+    /// A number of things that are not in the data (samples of a tile, its position).
+    fn count(&mut self) -> Result<usize, ReconError> {
+        let n = self.u64()?;
+        usize::try_from(n).map_err(|_| self.error("a count beyond usize"))
+    }
+
     fn f64(&mut self) -> Result<f64, ReconError> {
         Ok(f64::from_bits(self.u64()?))
     }
@@ -361,6 +492,74 @@ mod tests {
             altered[flip % bytes.len()] ^= 0xA5;
             // Some alterations leave valid data (a coordinate changes); none may panic.
             let _ = TileInput::from_bytes(&altered);
+        }
+    }
+
+    fn streamed_tile(seed: u64) -> StreamedTile {
+        let x = seed as f64;
+        StreamedTile {
+            tile: seed as usize % 8,
+            position: [1, 0, seed as usize % 3],
+            directory: format!("/scratch/.sphcover-tiles-{seed}-0").into(),
+            scanner: seed.is_multiple_of(2),
+            input_splits: [vec![0.5 * x], vec![], vec![-1.0, 2.0 + x]],
+            frame: Normalisation {
+                centre: DVec3::new(x, -x, 3.0),
+                scale: 7.5,
+            },
+            own_box: Aabb {
+                min: DVec3::new(f64::NEG_INFINITY, 0.1, -0.2),
+                max: DVec3::new(0.3, f64::INFINITY, 0.4),
+            },
+            spacing: 1e-3 * x,
+            noise: 2e-5,
+            eps: 2.5e-3,
+            drop_isolated: seed.is_multiple_of(3),
+            depth: 9,
+        }
+    }
+
+    proptest! {
+        /// Streamed tasks and products read back as written; damaged ones are refused,
+        /// never a panic.
+        #[test]
+        fn streamed_tasks_and_products_round_trip(seed in 0u64..50, cut in 0usize..2000, flip in 0usize..2000) {
+            let task = streamed_tile(seed);
+            let bytes = task.to_bytes();
+            prop_assert_eq!(StreamedTile::from_bytes(&bytes).unwrap(), task);
+            prop_assert!(StreamedTile::from_bytes(&bytes[..cut % bytes.len()]).is_err());
+            let mut altered = bytes.clone();
+            altered[flip % bytes.len()] ^= 0x5A;
+            let _ = StreamedTile::from_bytes(&altered);
+
+            let product = StreamedTileProduct {
+                function: TileFunction {
+                    cover: Cover::new(
+                        vec![DVec3::splat(0.1 * seed as f64)],
+                        vec![0.05],
+                        LocalFunctions::from_linear([sphcover_core::LinearFunction::default()]),
+                        Kernel::default(),
+                    )
+                    .unwrap(),
+                    support_confidence: vec![0.5],
+                    confidence: Vec::new(),
+                    outliers: Vec::new(),
+                    inconsistent_supports: seed as usize,
+                    confirmed_supports: 1,
+                },
+                seeds: [vec![DVec3::X; seed as usize % 5], vec![DVec3::Y; 3]],
+                qualified: [123_456_789, seed as usize],
+                own_samples: 40_000_000,
+                samples: 90_000_000,
+                isolated: 7,
+                outliers: 11,
+            };
+            let bytes = product.to_bytes();
+            prop_assert_eq!(StreamedTileProduct::from_bytes(&bytes).unwrap(), product);
+            prop_assert!(StreamedTileProduct::from_bytes(&bytes[..cut % bytes.len()]).is_err());
+            let mut altered = bytes.clone();
+            altered[flip % bytes.len()] ^= 0x5A;
+            let _ = StreamedTileProduct::from_bytes(&altered);
         }
     }
 
