@@ -7,6 +7,11 @@ using `cmp`).
     python3 benches/tiled_dask.py SCAN.ply OUT.ply --tiles 4 --halo 0.05 --workers 2 \\
         --threads 1 --scratch /tmp/tiles
 
+With `--stream` it runs `sphcover.reconstruct_file(SCAN, tiles=N, client=...)` instead
+(`sphcover recon --tiles N --stream`): the scan is read from its file into tile files in the
+scratch directory (needed then), never whole, and each tile's function is a task that reads
+its tile's file.
+
 Needs the `sphcover` package (docs/python.md) and `distributed` in the interpreter's
 environment. A real cluster takes `--scheduler ADDRESS` instead of a local one; its
 workers must then reach the scratch directory.
@@ -38,7 +43,12 @@ def main() -> int:
     parser.add_argument("--threads", type=int, default=1, help="threads per worker")
     parser.add_argument("--scratch", help="directory for the tiles' inputs")
     parser.add_argument("--scheduler", help="address of a running Dask scheduler")
+    parser.add_argument(
+        "--stream", action="store_true", help="stream the file into tile files (needs --scratch)"
+    )
     args = parser.parse_args()
+    if args.stream and not args.scratch:
+        parser.error("--stream needs --scratch")
 
     start = time.perf_counter()
     if args.scheduler:
@@ -54,13 +64,19 @@ def main() -> int:
         )
         client = Client(cluster)
     with client:
-        cloud = sphcover.read(args.scan)
-        read = time.perf_counter()
         if args.scratch:
             os.makedirs(args.scratch, exist_ok=True)
-        mesh = sphcover.reconstruct(
-            cloud, tiles=args.tiles, halo=args.halo, client=client, scratch=args.scratch
-        )
+        if args.stream:
+            read = time.perf_counter()
+            mesh = sphcover.reconstruct_file(
+                args.scan, tiles=args.tiles, halo=args.halo, client=client, scratch=args.scratch
+            )
+        else:
+            cloud = sphcover.read(args.scan)
+            read = time.perf_counter()
+            mesh = sphcover.reconstruct(
+                cloud, tiles=args.tiles, halo=args.halo, client=client, scratch=args.scratch
+            )
         done = time.perf_counter()
         sphcover.write(args.out, mesh)
         workers = client.run(peak_mib)

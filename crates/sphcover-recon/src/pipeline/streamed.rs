@@ -17,7 +17,7 @@ use sphcover_core::{
 
 use super::spill::{TileDirectory, TileFiles, TileLabels, TileSamples};
 use super::stages::{
-    MIN_POINTS, component_votes, drop_sheets_by_votes, may_hold_sheets, most_voted,
+    MIN_POINTS, built, component_votes, drop_sheets_by_votes, may_hold_sheets, most_voted,
     polygonisation_params_at, record_topology, vertex_components,
 };
 use super::tiled::{
@@ -120,9 +120,7 @@ struct Streamed<'a> {
     params: &'a ReconParams,
     tiling: Tiling,
     scratch: &'a Path,
-    /// The box of the finite points, in input coordinates, and whether they carry a
-    /// scanner's confidence.
-    bbox: Aabb,
+    /// Whether the samples carry a scanner's confidence.
     scanner: bool,
     /// The split planes in input coordinates, and the halo in input units.
     input_splits: [Vec<f64>; 3],
@@ -176,10 +174,7 @@ impl SeedSet {
 
 impl Streamed<'_> {
     fn files(&self) -> &TileFiles {
-        // The stage that makes them runs first; an empty directory stands in otherwise.
-        self.files
-            .as_ref()
-            .expect("tile files are written before they are read")
+        built(self.files.as_ref(), "tile files")
     }
 
     /// The halo in the unit frame.
@@ -189,16 +184,7 @@ impl Streamed<'_> {
 
     /// Tile `t`'s samples in the unit frame, and which lie in its own box.
     fn tile_samples(&self, t: usize) -> Result<(TileSamples, Vec<bool>), ReconError> {
-        let mut samples = self.files().directory().read(t)?;
-        let own = samples
-            .points
-            .iter()
-            .map(|&p| tile_of(&self.input_splits, p) == t)
-            .collect();
-        for p in &mut samples.points {
-            *p = self.frame.to_unit(*p);
-        }
-        Ok((samples, own))
+        read_tile(self.files().directory(), t, &self.input_splits, &self.frame)
     }
 
     /// The seeds that qualify: at the seed threshold, or at 0 when none did anywhere.
@@ -214,6 +200,26 @@ impl Streamed<'_> {
         let [nx, ny, _] = self.tiling.tiles;
         [t % nx, (t / nx) % ny, t / (nx * ny)]
     }
+}
+
+/// Tile `t`'s samples from `directory` in the unit frame `frame`, and which lie in its own
+/// box (by the split planes in input coordinates).
+fn read_tile(
+    directory: &TileDirectory,
+    t: usize,
+    input_splits: &[Vec<f64>; 3],
+    frame: &Normalisation,
+) -> Result<(TileSamples, Vec<bool>), ReconError> {
+    let mut samples = directory.read(t)?;
+    let own = samples
+        .points
+        .iter()
+        .map(|&p| tile_of(input_splits, p) == t)
+        .collect();
+    for p in &mut samples.points {
+        *p = frame.to_unit(*p);
+    }
+    Ok((samples, own))
 }
 
 type StreamedStage<'a> = Stage<Streamed<'a>, ReconError>;
@@ -259,7 +265,6 @@ pub(super) fn run_streamed(
         params,
         tiling: *tiling,
         scratch,
-        bbox: Aabb::EMPTY,
         scanner: false,
         input_splits: Default::default(),
         input_halo: 0.0,
@@ -320,7 +325,6 @@ fn bounds(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     if edge.is_nan() || edge <= 0.0 {
         return Err(ReconError::NoExtent(finite));
     }
-    ctx.bbox = bbox;
     ctx.scanner = scanner.unwrap_or(false);
     ctx.input_splits = split_planes(&bbox, ctx.tiling.tiles);
     ctx.input_halo = ctx.tiling.halo * edge;
@@ -366,6 +370,8 @@ fn measure_tiles(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     for t in 0..ctx.tiling.count() {
         let (samples, own) = ctx.tile_samples(t)?;
         if samples.points.len() <= scan.k.max(3) {
+            // Too few to measure, even with the halo: samples far from all others.
+            isolated_count += own.iter().filter(|&&o| o).count();
             continue;
         }
         let index = PointIndex::new(&samples.points)?;
@@ -530,21 +536,16 @@ pub fn streamed_tile_function(
         dir: task.directory.clone(),
         scanner: task.scanner,
     };
-    let mut samples = directory.read(task.tile)?;
-    let own: Vec<bool> = samples
-        .points
-        .iter()
-        .map(|&p| tile_of(&task.input_splits, p) == task.tile)
-        .collect();
-    for p in &mut samples.points {
-        *p = task.frame.to_unit(*p);
-    }
+    let (samples, own) = read_tile(&directory, task.tile, &task.input_splits, &task.frame)?;
     let n = samples.points.len();
-    let isolated = if task.drop_isolated && n > params.scan.k.max(3) {
+    let isolated = if !task.drop_isolated {
+        vec![false; n]
+    } else if n > params.scan.k.max(3) {
         let index = PointIndex::new(&samples.points)?;
         isolated_samples(&index, &params.scan, task.spacing).0
     } else {
-        vec![false; n]
+        // Too few to measure, even with the halo (as the statistics judged them).
+        vec![true; n]
     };
     let input = TileInput {
         position: task.position,
