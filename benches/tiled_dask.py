@@ -7,6 +7,10 @@ using `cmp`).
     python3 benches/tiled_dask.py SCAN.ply OUT.ply --tiles 4 --halo 0.05 --workers 2 \\
         --threads 1 --scratch /tmp/tiles
 
+With `--kill-a-worker` the first attempt at the first tile ends its worker's process at
+once, as a machine that goes down would; Dask runs the task again on a new worker, and the
+mesh must come out the same (`cmp` it with a run without the flag).
+
 With `--stream` it runs `sphcover.reconstruct_file(SCAN, tiles=N, client=...)` instead
 (`sphcover recon --tiles N --stream`): the scan is read from its file into tile files in the
 scratch directory (needed then), never whole, and each tile's function is a task that reads
@@ -28,6 +32,19 @@ from distributed import Client, LocalCluster
 import sphcover
 
 
+def killing_first_attempt(function, marker):
+    """`function`, except that its first call anywhere ends the calling process at once."""
+
+    def run(tile, options):
+        if not os.path.exists(marker):
+            with open(marker, "w"):
+                pass
+            os._exit(1)
+        return function(tile, options)
+
+    return run
+
+
 def peak_mib() -> float:
     """This process's peak resident set, in MiB (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -46,9 +63,14 @@ def main() -> int:
     parser.add_argument(
         "--stream", action="store_true", help="stream the file into tile files (needs --scratch)"
     )
+    parser.add_argument(
+        "--kill-a-worker",
+        action="store_true",
+        help="end the first task's worker process (needs --scratch, where a marker file goes)",
+    )
     args = parser.parse_args()
-    if args.stream and not args.scratch:
-        parser.error("--stream needs --scratch")
+    if (args.stream or args.kill_a_worker) and not args.scratch:
+        parser.error("--stream and --kill-a-worker need --scratch")
 
     start = time.perf_counter()
     if args.scheduler:
@@ -66,18 +88,30 @@ def main() -> int:
     with client:
         if args.scratch:
             os.makedirs(args.scratch, exist_ok=True)
+        function = sphcover.streamed_tile_function if args.stream else sphcover.tile_function
+        marker = None
+        if args.kill_a_worker:
+            marker = os.path.join(args.scratch, "killed-a-worker")
+            if os.path.exists(marker):
+                os.remove(marker)
+            function = killing_first_attempt(function, marker)
+        map_tiles = sphcover.dask_map_tiles(client, function=function)
         if args.stream:
             read = time.perf_counter()
             mesh = sphcover.reconstruct_file(
-                args.scan, tiles=args.tiles, halo=args.halo, client=client, scratch=args.scratch
+                args.scan, tiles=args.tiles, halo=args.halo, scratch=args.scratch,
+                map_tiles=map_tiles,
             )
         else:
             cloud = sphcover.read(args.scan)
             read = time.perf_counter()
             mesh = sphcover.reconstruct(
-                cloud, tiles=args.tiles, halo=args.halo, client=client, scratch=args.scratch
+                cloud, tiles=args.tiles, halo=args.halo, scratch=args.scratch, map_tiles=map_tiles
             )
         done = time.perf_counter()
+        if marker is not None:
+            print(f"a worker was killed: {os.path.exists(marker)}")
+            os.remove(marker)
         sphcover.write(args.out, mesh)
         workers = client.run(peak_mib)
     if cluster is not None:
