@@ -201,8 +201,13 @@ impl LasLayout {
 
     /// Decompresses the records of a LAZ file (`bytes` is the whole file).
     pub(crate) fn decompress(&self, bytes: &[u8]) -> Result<Vec<u8>, Failure> {
-        super::laz::decompress_records(
-            bytes,
+        super::laz::decompress_records(bytes, self.compression(bytes))
+    }
+
+    /// Where the compressed records are and what they decompress to: `(vlr_start,
+    /// vlr_count, offset, count, record_length)`.
+    fn compression(&self, bytes: &[u8]) -> (usize, u32, usize, u64, usize) {
+        (
             self.header_size,
             u32_at(bytes, 100),
             self.offset,
@@ -219,14 +224,7 @@ impl LasLayout {
         block_points: u64,
         visit: impl FnMut(&[u8]) -> Result<(), Failure>,
     ) -> Result<(), Failure> {
-        let layout = (
-            self.header_size,
-            u32_at(bytes, 100),
-            self.offset,
-            self.count,
-            self.record_length,
-        );
-        super::laz::decompress_blocks(bytes, layout, block_points, visit)
+        super::laz::decompress_blocks(bytes, self.compression(bytes), block_points, visit)
     }
 }
 

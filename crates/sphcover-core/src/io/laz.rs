@@ -58,21 +58,17 @@ fn laszip_vlr(bytes: &[u8], start: usize, vlr_count: u32) -> Result<LazVlr, Fail
 }
 
 /// Decompresses the `count` records of `record_length` bytes that start at byte `offset`, as
-/// the variable length records (`vlr_count` of them from byte `vlr_start`) describe. The
-/// caller has checked `count · record_length` against the memory limit; without one, the
+/// the variable length records (`vlr_count` of them from byte `vlr_start`) describe;
+/// `layout` is `(vlr_start, vlr_count, offset, count, record_length)`. The caller has checked `count · record_length` against the memory limit; without one, the
 /// records take what the data really decompresses to.
 pub(crate) fn decompress_records(
     bytes: &[u8],
-    vlr_start: usize,
-    vlr_count: u32,
-    offset: usize,
-    count: u64,
-    record_length: usize,
+    layout: (usize, u32, usize, u64, usize),
 ) -> Result<Vec<u8>, Failure> {
+    let (_, _, _, count, record_length) = layout;
     // The records grow block by block as the data yields them: a count the data does not
     // hold fails at its end, having allocated no more than was really there.
     let mut records: Vec<u8> = Vec::new();
-    let layout = (vlr_start, vlr_count, offset, count, record_length);
     decompress_blocks(bytes, layout, BLOCK_POINTS, |block| {
         records
             .try_reserve(block.len())

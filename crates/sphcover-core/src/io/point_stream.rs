@@ -153,15 +153,46 @@ fn stream_ply<E: From<IoError>>(
             },
         )));
     }
-    let count = element.count as usize;
-    for first in (0..count).step_by(block) {
-        let last = (first + block).min(count);
-        let (a, b) = (start + first * stride, start + last * stride);
-        let cloud = super::ply::decode_vertex_block(&bytes[a..b], element, &roles, big);
-        release(map, a, b);
-        visit(cloud)?;
+    let records = Records {
+        start,
+        stride,
+        count: element.count as usize,
+    };
+    records.each_block(map, block, visit, |data| {
+        super::ply::decode_vertex_block(data, element, &roles, big)
+    })?;
+    Ok(Some(element.count))
+}
+
+/// Fixed-size records in a map: `count` of `stride` bytes from byte `start`.
+struct Records {
+    start: usize,
+    stride: usize,
+    count: usize,
+}
+
+impl Records {
+    /// Decodes the records `block` at a time and hands each block to `visit`, handing the
+    /// pages of each block back to the system once decoded.
+    fn each_block<E>(
+        &self,
+        map: &memmap2::Mmap,
+        block: usize,
+        visit: &mut impl FnMut(PointCloud) -> Result<(), E>,
+        decode: impl Fn(&[u8]) -> PointCloud,
+    ) -> Result<(), E> {
+        for first in (0..self.count).step_by(block) {
+            let last = (first + block).min(self.count);
+            let (a, b) = (
+                self.start + first * self.stride,
+                self.start + last * self.stride,
+            );
+            let cloud = decode(&map[a..b]);
+            release(map, a, b);
+            visit(cloud)?;
+        }
+        Ok(())
     }
-    Ok(Some(count as u64))
 }
 
 /// LAS and LAZ positions, block by block.
@@ -201,17 +232,12 @@ fn stream_las<E: From<IoError>>(
         result.map_err(fail)?;
         return Ok(Some(layout.count));
     }
-    let count = layout.count as usize;
-    for first in (0..count).step_by(block) {
-        let last = (first + block).min(count);
-        let (a, b) = (
-            layout.offset + first * layout.record_length,
-            layout.offset + last * layout.record_length,
-        );
-        let cloud = positions(&bytes[a..b]);
-        release(map, a, b);
-        visit(cloud)?;
-    }
+    let records = Records {
+        start: layout.offset,
+        stride: layout.record_length,
+        count: layout.count as usize,
+    };
+    records.each_block(map, block, visit, positions)?;
     Ok(Some(layout.count))
 }
 
