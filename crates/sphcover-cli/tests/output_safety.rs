@@ -294,6 +294,52 @@ fn an_interrupt_stops_the_run_within_a_second_and_leaves_no_file() {
 }
 
 #[test]
+fn an_interrupt_of_a_streamed_run_removes_its_tile_files() {
+    let dir = tempfile::tempdir().unwrap();
+    // A sphere of 400K oriented points, streamed into 3×3×3 tiles at depth 9: some seconds.
+    let unit = fibonacci_sphere(400_000);
+    let mut cloud = sphcover_core::PointCloud::from_positions(unit.clone());
+    cloud.normals = Some(unit);
+    let scan = dir.path().join("sphere.ply");
+    io::write_point_cloud(&scan, &cloud, &io::WriteOptions::default()).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sphcover"))
+        .args([
+            "recon",
+            "sphere.ply",
+            "-o",
+            "mesh.ply",
+            "--tiles",
+            "3",
+            "--stream",
+        ])
+        .args(["--depth", "9"])
+        .current_dir(dir.path())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Signalled once the tile files are there.
+    let start = Instant::now();
+    while !files_in(dir.path())
+        .iter()
+        .any(|f| f.starts_with(".sphcover-tiles-"))
+    {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before its tile files were seen"
+        );
+        assert!(start.elapsed() < Duration::from_secs(20), "no tile files");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    send_signal(&child, "TERM");
+    let (status, _) = wait_at_most_10_s(&mut child);
+    let stderr = stderr_of(&mut child);
+    assert_eq!(status.code(), Some(128 + SIGTERM), "{status:?} {stderr}");
+    assert_eq!(files_in(dir.path()), ["sphere.ply"], "{stderr}");
+}
+
+#[test]
 fn an_interrupt_while_writing_removes_the_temporary_file() {
     // The depth-10 bunny as OBJ text takes a while to write: signal as soon as the
     // temporary file appears, which the handler must then remove.
