@@ -168,9 +168,9 @@ pub struct ReconArgs {
     pub halo: Option<f64>,
     /// With --tiles: read the scan from its file a block at a time into tile files, and make
     /// every pass over the samples one tile at a time, so that memory holds one tile's
-    /// samples and the surface, not the whole scan. The scan must carry normals (orienting
-    /// estimated ones takes the whole scan; LAS and LAZ files have none). Binary PLY is
-    /// streamed; other formats are read whole first.
+    /// samples and the surface, not the whole scan. Binary PLY, LAS and LAZ are streamed;
+    /// other formats are read whole first. Normals the scan lacks are estimated tile by
+    /// tile and oriented by those of a subsample of the whole scan.
     #[arg(long, requires = "tiles")]
     pub stream: bool,
     /// With --stream: where the tile files go (a directory made inside it is removed at the

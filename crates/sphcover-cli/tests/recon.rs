@@ -567,7 +567,7 @@ fn streamed_hippo_is_the_tiled_surface_and_leaves_no_tile_files() {
 }
 
 #[test]
-fn streaming_refuses_what_needs_the_whole_scan() {
+fn streaming_refuses_what_needs_the_whole_scan_and_estimates_missing_normals() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.ply");
     let hippo = fixture("real/hippo2.ply");
@@ -596,7 +596,6 @@ fn streaming_refuses_what_needs_the_whole_scan() {
             ][..],
             "--points-out needs the whole scan",
         ),
-        (bare, &["--tiles", "2", "--stream"][..], "no normals"),
     ] {
         let mut args = vec!["recon", input, "-o", output];
         args.extend(extra);
@@ -606,6 +605,17 @@ fn streaming_refuses_what_needs_the_whole_scan() {
         assert!(stderr.contains(says), "{extra:?}: {stderr}");
         assert!(!out.exists() && !points_out.exists());
     }
+    // A scan without normals is streamed too: they are estimated tile by tile.
+    let run = sphcover(&[
+        "recon", bare, "-o", output, "--tiles", "2", "--stream", "-v",
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(
+        text(&run.stderr).contains("normals estimated"),
+        "{}",
+        text(&run.stderr)
+    );
+    std::fs::remove_file(&out).unwrap();
     // No tile directory was left beside the output.
     let left: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()

@@ -99,7 +99,6 @@ fn run_streamed(args: &ReconArgs, params: &ReconParams, reporter: &Reporter) -> 
         (args.points_out.is_some(), "--points-out"),
         (args.cover_out.is_some(), "--cover-out"),
         (args.max_memory.is_some(), "--max-memory"),
-        (args.estimate_normals, "--estimate-normals"),
     ] {
         if given {
             return Err(BadInput(format!(
@@ -116,6 +115,7 @@ fn run_streamed(args: &ReconArgs, params: &ReconParams, reporter: &Reporter) -> 
     let scratch = scratch_directory(args);
     let source = ScanFile {
         options: args.read.read_options(&MemoryLimit::from_flag(None)),
+        ignore_normals: args.estimate_normals,
         ..ScanFile::new(&args.input)
     };
     let bar = reporter.stage_bar("reconstructing");

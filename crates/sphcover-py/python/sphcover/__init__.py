@@ -366,7 +366,7 @@ def reconstruct_file(
     map_tiles: Optional[Callable[[list, dict], list]] = None,
 ) -> Mesh:
     """Reconstructs the surface of a scan file larger than memory, as ``sphcover recon
-    --tiles N --stream`` does: the file (binary PLY with normals) is read a block
+    --tiles N --stream`` does: the file (binary PLY, LAS or LAZ) is read a block
     at a time into tile files in ``scratch`` (default: the system's temporary directory;
     about 48 bytes per sample and tile that reads it), and every pass over the samples reads
     one tile file, so this process holds one tile's samples, the tiles' functions and the
@@ -380,7 +380,7 @@ def reconstruct_file(
 
     Returns a :class:`Mesh` with per-vertex normals, the confidence of the surface as
     ``values`` and the statistics (no per-point labels or cover: those would take memory in
-    proportion to the scan). Raises :class:`BadInputError` for a scan without normals.
+    proportion to the scan). Normals the file lacks are estimated tile by tile.
     """
     if isinstance(tiles, int):
         tiles = (tiles, tiles, tiles)

@@ -282,12 +282,6 @@ pub enum ReconError {
     /// A [`TileRunner`] failed or returned something other than the tiles' functions.
     #[error("tiles: {0}")]
     TileRunner(String),
-    /// A streamed reconstruction was given a scan without normals
-    /// ([`reconstruct_streamed`]).
-    #[error(
-        "the scan has no normals: a streamed reconstruction orients each tile's samples by the normals the scan gives (estimate them with a tool that orients them over the whole scan, or reconstruct without streaming)"
-    )]
-    NeedsNormals,
     /// The scan could not be read ([`reconstruct_streamed`]).
     #[error(transparent)]
     Read(#[from] sphcover_core::io::IoError),
@@ -312,7 +306,6 @@ impl ReconError {
                 | ReconError::Flat
                 | ReconError::FarPoint { .. }
                 | ReconError::Empty(_)
-                | ReconError::NeedsNormals
                 | ReconError::Read(_)
                 | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. })
         )
@@ -612,6 +605,11 @@ pub fn reconstruct_tiled_with(
 /// file of every tile whose box, grown by the halo, holds it, in a directory made inside
 /// `scratch` and removed afterwards. Every later pass reads one tile file at a time:
 ///
+/// 0. **Normals**, for a scan without them: PCA normals of each tile's samples (the halo
+///    gives every sample its neighbours), each given the sign of the nearest normals of a
+///    subsample of the whole scan (at most 2^20 points, kept from the first pass), which
+///    are estimated and oriented as [`reconstruct`] orients a scan's
+///    ([`estimate_normals`](crate::estimate_normals)); written into the tile files.
 /// 1. **Scan statistics.** Each tile measures the mean neighbour distances and the noise
 ///    residuals of its share of the subsamples a single run takes (from the samples of its
 ///    own box, with the halo's as neighbours); the spacing and the noise are the medians
@@ -630,10 +628,8 @@ pub fn reconstruct_tiled_with(
 ///    whose box holds it.
 ///
 /// The process holds one tile's samples, the tiles' functions (their supports) and the
-/// surface. The scan must carry normals ([`ReconError::NeedsNormals`]): orienting estimated
-/// normals consistently takes the whole scan. The spread checks of [`reconstruct`] (points
-/// on a plane or a line, a far point) are not made, and colours are not carried to the
-/// surface.
+/// surface. The spread checks of [`reconstruct`] (points on a plane or a line, a far point)
+/// are not made, and colours are not carried to the surface.
 ///
 /// ```
 /// use sphcover_core::{MeshTopology, PointCloud, StopRequest};
@@ -674,9 +670,10 @@ pub fn reconstruct_streamed(
     streamed::run_streamed(source, runner, params, tiling, scratch, progress, stop)
 }
 
-/// The stages of [`reconstruct_streamed`] for `params`, in order.
-pub fn streamed_stage_names(params: &ReconParams) -> Vec<&'static str> {
-    streamed::streamed_stage_names(params)
+/// The stages of [`reconstruct_streamed`] for `params`, in order, for a scan with normals
+/// or without (`normals_given`).
+pub fn streamed_stage_names(params: &ReconParams, normals_given: bool) -> Vec<&'static str> {
+    streamed::streamed_stage_names(params, normals_given)
 }
 
 /// The stages of [`reconstruct_tiled`] for `params` on `cloud`, in order.

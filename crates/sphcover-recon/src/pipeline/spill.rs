@@ -138,6 +138,31 @@ impl TileDirectory {
         }
     }
 
+    /// Writes `normals` over the normals of tile `tile`'s samples, in order.
+    pub fn replace_normals(&self, tile: usize, normals: &[DVec3]) -> Result<(), ReconError> {
+        let path = self.path(tile);
+        let replaced = path.with_extension("bin.new");
+        let file = File::open(&path).map_err(|e| scratch_error(&path, &e))?;
+        let mut reader = BufReader::with_capacity(1 << 20, file);
+        let out = File::create(&replaced).map_err(|e| scratch_error(&replaced, &e))?;
+        let mut writer = std::io::BufWriter::with_capacity(1 << 20, out);
+        let mut record = vec![0u8; self.record_bytes()];
+        for n in normals {
+            reader
+                .read_exact(&mut record)
+                .map_err(|e| scratch_error(&path, &e))?;
+            for (k, v) in n.to_array().into_iter().enumerate() {
+                record[24 + 8 * k..32 + 8 * k].copy_from_slice(&v.to_le_bytes());
+            }
+            writer
+                .write_all(&record)
+                .map_err(|e| scratch_error(&replaced, &e))?;
+        }
+        writer.flush().map_err(|e| scratch_error(&replaced, &e))?;
+        drop(writer);
+        std::fs::rename(&replaced, &path).map_err(|e| scratch_error(&path, &e))
+    }
+
     /// Reads tile `tile`'s samples back.
     pub fn read(&self, tile: usize) -> Result<TileSamples, ReconError> {
         let n = self.samples(tile)?;

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use sphcover_core::io::{self, ReadOptions};
 use sphcover_core::{
     Aabb, Cover, DVec3, MeshTopology, Normalisation, PointCloud, PointIndex, Stage, StageProgress,
-    StopRequest, TriMesh, run_stages_until, vertex_normals,
+    StopRequest, Stopped, TriMesh, run_stages_until, vertex_normals,
 };
 
 use super::spill::{TileDirectory, TileFiles, TileLabels, TileSamples};
@@ -28,6 +28,7 @@ use super::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, default_depth,
 };
 use crate::confidence::ConfidenceStats;
+use crate::normals::{NormalParams, estimate_normals};
 use crate::polygonise::{PolygoniseParams, PolygoniseStats, trim_and_resolve};
 use crate::scan_statistics::{
     ScanStatistics, isolated_samples, median, noise_residuals, spacing_values,
@@ -45,6 +46,26 @@ pub trait PointBlocks: Sync {
         &self,
         visit: &mut dyn FnMut(PointCloud) -> Result<(), ReconError>,
     ) -> Result<(), ReconError>;
+
+    /// Whether the points carry normals, as the first block says (`true` without points).
+    fn has_normals(&self) -> Result<bool, ReconError> {
+        const FIRST_BLOCK: &str = "the second block";
+        let mut given = true;
+        let read = self.blocks(&mut |block| {
+            given = block.normals.is_some();
+            Err(Stopped {
+                before: FIRST_BLOCK,
+            }
+            .into())
+        });
+        match read {
+            Ok(())
+            | Err(ReconError::Stopped(Stopped {
+                before: FIRST_BLOCK,
+            })) => Ok(given),
+            Err(e) => Err(e),
+        }
+    }
 }
 
 /// A scan file read a block at a time ([`io::stream_points`]).
@@ -56,6 +77,8 @@ pub struct ScanFile {
     pub options: ReadOptions,
     /// Points per block.
     pub block: usize,
+    /// Leave the file's normals out (they are estimated instead).
+    pub ignore_normals: bool,
 }
 
 impl ScanFile {
@@ -65,6 +88,7 @@ impl ScanFile {
             path: path.into(),
             options: ReadOptions::default(),
             block: 1 << 18,
+            ignore_normals: false,
         }
     }
 }
@@ -74,7 +98,12 @@ impl PointBlocks for ScanFile {
         &self,
         visit: &mut dyn FnMut(PointCloud) -> Result<(), ReconError>,
     ) -> Result<(), ReconError> {
-        io::stream_points(&self.path, &self.options, self.block, visit)?;
+        io::stream_points(&self.path, &self.options, self.block, |mut block| {
+            if self.ignore_normals {
+                block.normals = None;
+            }
+            visit(block)
+        })?;
         Ok(())
     }
 }
@@ -120,8 +149,13 @@ struct Streamed<'a> {
     params: &'a ReconParams,
     tiling: Tiling,
     scratch: &'a Path,
-    /// Whether the samples carry a scanner's confidence.
+    /// Whether the samples carry a scanner's confidence, and normals.
     scanner: bool,
+    normals_given: bool,
+    /// Without normals: a subsample of the scan (every k-th finite point, at most
+    /// [`COARSE_SAMPLES`]) whose normals, oriented over the whole subsample, orient the
+    /// tiles' own.
+    coarse: Vec<DVec3>,
     /// The split planes in input coordinates, and the halo in input units.
     input_splits: [Vec<f64>; 3],
     input_halo: f64,
@@ -225,14 +259,19 @@ fn read_tile(
 type StreamedStage<'a> = Stage<Streamed<'a>, ReconError>;
 
 /// The stages of a streamed reconstruction with `params`, in order.
-fn streamed_stages<'a>(params: &ReconParams) -> Vec<StreamedStage<'a>> {
+fn streamed_stages<'a>(params: &ReconParams, normals_given: bool) -> Vec<StreamedStage<'a>> {
     let mut stages = vec![
         Stage::new("bounds", bounds),
         Stage::new("tile files", write_tile_files),
+    ];
+    if !normals_given {
+        stages.push(Stage::new("normals", estimate_tile_normals));
+    }
+    stages.extend([
         Stage::new("scan statistics", measure_tiles),
         Stage::new("tiles", build_tile_functions),
         Stage::new("polygonise", polygonise),
-    ];
+    ]);
     if params.trim != Trim::Off {
         stages.push(Stage::new("trim", trim));
     }
@@ -242,8 +281,11 @@ fn streamed_stages<'a>(params: &ReconParams) -> Vec<StreamedStage<'a>> {
 }
 
 /// The names of [`streamed_stages`].
-pub(super) fn streamed_stage_names(params: &ReconParams) -> Vec<&'static str> {
-    streamed_stages(params).iter().map(|s| s.name).collect()
+pub(super) fn streamed_stage_names(params: &ReconParams, normals_given: bool) -> Vec<&'static str> {
+    streamed_stages(params, normals_given)
+        .iter()
+        .map(|s| s.name)
+        .collect()
 }
 
 /// Runs a streamed reconstruction (see [`reconstruct_streamed`](super::reconstruct_streamed)).
@@ -266,6 +308,8 @@ pub(super) fn run_streamed(
         tiling: *tiling,
         scratch,
         scanner: false,
+        normals_given: true,
+        coarse: Vec::new(),
         input_splits: Default::default(),
         input_halo: 0.0,
         files: None,
@@ -285,7 +329,8 @@ pub(super) fn run_streamed(
             ..ReconStats::default()
         },
     };
-    let stages = streamed_stages(params);
+    ctx.normals_given = source.has_normals()?;
+    let stages = streamed_stages(params, ctx.normals_given);
     let times = run_stages_until(&mut ctx, &stages, progress, stop)?;
     ctx.stats.stages = times;
     Ok(StreamedReconstruction {
@@ -300,18 +345,26 @@ pub(super) fn run_streamed(
 fn bounds(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     let (mut bbox, mut total, mut finite) = (Aabb::EMPTY, 0usize, 0usize);
     let mut scanner = None;
+    let (mut coarse, mut stride) = (Vec::new(), 1usize);
+    let subsample = !ctx.normals_given;
     ctx.source.blocks(&mut |block| {
-        if block.normals.is_none() {
-            return Err(ReconError::NeedsNormals);
-        }
         scanner.get_or_insert(block.confidence.is_some());
         total += block.len();
         for &p in block.positions.iter().filter(|p| p.is_finite()) {
             bbox.add(p);
+            if subsample && finite.is_multiple_of(stride) {
+                coarse.push(p);
+                // Twice the limit: keep every other one, and take every other from now on.
+                if coarse.len() == 2 * COARSE_SAMPLES {
+                    coarse = coarse.iter().copied().step_by(2).collect();
+                    stride *= 2;
+                }
+            }
             finite += 1;
         }
         Ok(())
     })?;
+    ctx.coarse = coarse;
     ctx.stats.points = total;
     ctx.stats.non_finite_points = total - finite;
     let needed = MIN_POINTS.max(ctx.params.scan.k + 1);
@@ -338,16 +391,17 @@ fn write_tile_files(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     let mut files = TileFiles::create(ctx.scratch, ctx.tiling.count(), ctx.scanner)?;
     let (splits, halo) = (&ctx.input_splits, ctx.input_halo);
     ctx.source.blocks(&mut |block| {
-        let normals = block.normals.as_ref().ok_or(ReconError::NeedsNormals)?;
         for (i, &p) in block.positions.iter().enumerate() {
             if !p.is_finite() {
                 continue;
             }
+            // Without normals, the next stage writes them.
+            let normal = block.normals.as_ref().map_or(DVec3::ZERO, |n| n[i]);
             let scanner = block.confidence.as_ref().map(|c| c[i].clamp(0.0, 1.0));
             let mut result = Ok(());
             tiles_holding(splits, halo, p, |t| {
                 if result.is_ok() {
-                    result = files.push(t, p, normals[i], scanner);
+                    result = files.push(t, p, normal, scanner);
                 }
             });
             result?;
@@ -356,6 +410,51 @@ fn write_tile_files(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     })?;
     files.finish()?;
     ctx.files = Some(files);
+    Ok(())
+}
+
+/// Most points of the subsample whose oriented normals orient the tiles' (it holds between
+/// this and twice this many): it is oriented in one process, so its size is bounded, not
+/// the scan's.
+const COARSE_SAMPLES: usize = 1 << 19;
+
+/// Nearest subsample normals that vote on the sign of a tile's normal.
+const ORIENTING_NEIGHBOURS: usize = 4;
+
+/// Normals for a scan without them: PCA normals of each tile's samples (the halo gives every
+/// sample its neighbours), each given the sign that agrees with the nearest normals of a
+/// subsample of the whole scan, estimated and oriented consistently as a single run orients
+/// them (`estimate_normals`); written into the tile files.
+fn estimate_tile_normals(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
+    let coarse: Vec<DVec3> = std::mem::take(&mut ctx.coarse)
+        .into_iter()
+        .map(|p| ctx.frame.to_unit(p))
+        .collect();
+    let reference = estimate_normals(&coarse, &ctx.params.normals)?.normals;
+    let index = PointIndex::new(&coarse)?;
+    let unoriented = NormalParams {
+        orient: false,
+        ..ctx.params.normals
+    };
+    for t in 0..ctx.tiling.count() {
+        let (samples, _) = ctx.tile_samples(t)?;
+        if samples.points.is_empty() {
+            continue;
+        }
+        let mut normals = estimate_normals(&samples.points, &unoriented)?.normals;
+        normals
+            .par_iter_mut()
+            .zip(&samples.points)
+            .for_each_init(Vec::new, |near, (n, &p)| {
+                index.nearest_k(p, ORIENTING_NEIGHBOURS, near);
+                let agreement: f64 = near.iter().map(|&c| n.dot(reference[c as usize])).sum();
+                if agreement < 0.0 {
+                    *n = -*n;
+                }
+            });
+        ctx.files().directory().replace_normals(t, &normals)?;
+    }
+    ctx.stats.normals_estimated = true;
     Ok(())
 }
 

@@ -152,23 +152,38 @@ fn outliers_far_and_near_are_left_out() {
 }
 
 #[test]
-fn scans_without_normals_are_refused_and_nothing_is_left_behind() {
-    let (mut cloud, _) = tilted_torus(2000);
+fn scans_without_normals_get_them_oriented_across_tiles() {
+    let (mut cloud, truth) = tilted_torus(12_000);
     cloud.normals = None;
+    let worst = |m: &TriMesh| {
+        m.vertices
+            .iter()
+            .map(|&v| truth(v).abs())
+            .fold(0.0, f64::max)
+    };
+    let single = reconstruct(&cloud, &ReconParams::default(), &|_| {}).unwrap();
     let dir = scratch("no-normals");
-    let error = reconstruct_streamed(
-        &cloud,
-        &SequentialStreamedTiles,
-        &ReconParams::default(),
-        &Tiling::cubes(2),
-        &dir,
-        &|_| {},
-        &StopRequest::new(),
-    )
-    .unwrap_err();
-    assert!(matches!(error, ReconError::NeedsNormals), "{error}");
-    assert!(error.is_bad_input());
-    assert!(!dir.exists());
+    for tiles in [[2, 2, 2], [1, 4, 1]] {
+        let result = streamed(&cloud, &Tiling { tiles, halo: 0.1 }, &dir);
+        assert!(result.stats.normals_estimated);
+        let topology = MeshTopology::of(&result.mesh);
+        assert!(
+            topology.is_closed_oriented_manifold(),
+            "{tiles:?}: {topology:?}"
+        );
+        assert_eq!(
+            (topology.components, topology.euler_characteristic()),
+            (1, 0),
+            "{tiles:?}"
+        );
+        let (error, single_error) = (worst(&result.mesh), worst(&single.mesh));
+        assert!(
+            error < 1.5 * single_error + 1e-3,
+            "{tiles:?}: worst vertex {error:.2e} against the single run's {single_error:.2e}"
+        );
+    }
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Tasks run in reverse order, each through bytes as another process would get and return
