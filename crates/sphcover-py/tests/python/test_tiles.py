@@ -36,6 +36,16 @@ def test_a_streamed_file_matches_the_command_line(fixtures, run_cli, tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".sphcover-tiles")]
 
 
+def test_a_streamed_lidar_file_without_normals_matches_the_command_line(
+    fixtures, run_cli, tmp_path
+):
+    scan = fixtures / "real" / "urban.laz"
+    run_cli("recon", scan, "--tiles", "2", "--stream", "-o", tmp_path / "cli.ply")
+    mesh = sphcover.reconstruct_file(scan, tiles=2, scratch=tmp_path)
+    assert written(tmp_path, mesh, "python.ply") == (tmp_path / "cli.ply").read_bytes()
+    assert mesh.stats["normals_estimated"]
+
+
 def killing_first_attempt(tile, options, marker):
     """The tile's function, except that the first attempt at the first tile ends its worker
     process at once, as a machine that goes down would."""
