@@ -34,6 +34,37 @@ fn streamed(cloud: &dyn PointBlocks, tiling: &Tiling, dir: &Path) -> StreamedRec
     .unwrap()
 }
 
+/// Asserts that `mesh` is one closed torus whose worst vertex (by `truth`) is within 1.5
+/// times the single run's.
+fn assert_a_torus_like(
+    mesh: &TriMesh,
+    single: &TriMesh,
+    truth: &impl Fn(DVec3) -> f64,
+    tiles: [usize; 3],
+) {
+    let topology = MeshTopology::of(mesh);
+    assert!(
+        topology.is_closed_oriented_manifold(),
+        "{tiles:?}: {topology:?}"
+    );
+    assert_eq!(
+        (topology.components, topology.euler_characteristic()),
+        (1, 0),
+        "{tiles:?}"
+    );
+    let worst = |m: &TriMesh| {
+        m.vertices
+            .iter()
+            .map(|&v| truth(v).abs())
+            .fold(0.0, f64::max)
+    };
+    let (error, single_error) = (worst(mesh), worst(single));
+    assert!(
+        error < 1.5 * single_error + 1e-3,
+        "{tiles:?}: worst vertex {error:.2e} against the single run's {single_error:.2e}"
+    );
+}
+
 fn area(m: &TriMesh) -> f64 {
     m.triangles
         .iter()
@@ -44,34 +75,14 @@ fn area(m: &TriMesh) -> f64 {
 #[test]
 fn streamed_tiles_join_into_one_closed_surface_as_accurate_as_the_single_run() {
     let (cloud, truth) = tilted_torus(12_000);
-    let worst = |m: &TriMesh| {
-        m.vertices
-            .iter()
-            .map(|&v| truth(v).abs())
-            .fold(0.0, f64::max)
-    };
     let single = reconstruct(&cloud, &ReconParams::default(), &|_| {}).unwrap();
     let dir = scratch("torus");
     for tiles in [[2, 2, 2], [3, 1, 2], [1, 4, 1]] {
         let tiling = Tiling { tiles, halo: 0.1 };
         let result = streamed(&cloud, &tiling, &dir);
-        let topology = MeshTopology::of(&result.mesh);
-        assert!(
-            topology.is_closed_oriented_manifold(),
-            "{tiles:?}: {topology:?}"
-        );
-        assert_eq!(
-            (topology.components, topology.euler_characteristic()),
-            (1, 0),
-            "{tiles:?}"
-        );
+        assert_a_torus_like(&result.mesh, &single.mesh, &truth, tiles);
         let own: usize = result.stats.tiles.iter().map(|t| t.own_samples).sum();
         assert_eq!(own, cloud.len(), "{tiles:?}");
-        let (error, single_error) = (worst(&result.mesh), worst(&single.mesh));
-        assert!(
-            error < 1.5 * single_error + 1e-3,
-            "{tiles:?}: worst vertex {error:.2e} against the single run's {single_error:.2e}"
-        );
         let ratio = area(&result.mesh) / area(&single.mesh);
         assert!((ratio - 1.0).abs() < 0.01, "{tiles:?}: area ratio {ratio}");
         let spacing = result.stats.scan.spacing / single.stats.scan.spacing;
@@ -155,32 +166,12 @@ fn outliers_far_and_near_are_left_out() {
 fn scans_without_normals_get_them_oriented_across_tiles() {
     let (mut cloud, truth) = tilted_torus(12_000);
     cloud.normals = None;
-    let worst = |m: &TriMesh| {
-        m.vertices
-            .iter()
-            .map(|&v| truth(v).abs())
-            .fold(0.0, f64::max)
-    };
     let single = reconstruct(&cloud, &ReconParams::default(), &|_| {}).unwrap();
     let dir = scratch("no-normals");
     for tiles in [[2, 2, 2], [1, 4, 1]] {
         let result = streamed(&cloud, &Tiling { tiles, halo: 0.1 }, &dir);
         assert!(result.stats.normals_estimated);
-        let topology = MeshTopology::of(&result.mesh);
-        assert!(
-            topology.is_closed_oriented_manifold(),
-            "{tiles:?}: {topology:?}"
-        );
-        assert_eq!(
-            (topology.components, topology.euler_characteristic()),
-            (1, 0),
-            "{tiles:?}"
-        );
-        let (error, single_error) = (worst(&result.mesh), worst(&single.mesh));
-        assert!(
-            error < 1.5 * single_error + 1e-3,
-            "{tiles:?}: worst vertex {error:.2e} against the single run's {single_error:.2e}"
-        );
+        assert_a_torus_like(&result.mesh, &single.mesh, &truth, tiles);
     }
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
     std::fs::remove_dir_all(&dir).unwrap();
