@@ -454,15 +454,17 @@ pub fn tile_function(
     input: &TileInput,
     params: &ReconParams,
 ) -> Result<Option<TileFunction>, ReconError> {
-    let (product, _) = tile_function_and_samples(input.clone(), params)?;
+    let (product, _) = tile_function_and_samples(input.clone(), None, params)?;
     Ok(product.map(|(function, _)| function))
 }
 
 /// [`tile_function`] of an input it may take apart (its samples are the tile's context's
 /// while the stages run, not a copy of them) and gives back, and the confidence and outlier
-/// label the tile gave every one of its samples, the halo's included.
+/// label the tile gave every one of its samples, the halo's included. `index`, when given,
+/// indexes `input.points` already.
 pub(super) fn tile_function_and_samples(
     mut input: TileInput,
+    index: Option<PointIndex>,
     params: &ReconParams,
 ) -> Result<(Option<(TileFunction, SampleLabels)>, TileInput), ReconError> {
     let n = input.points.len();
@@ -493,7 +495,10 @@ pub(super) fn tile_function_and_samples(
     tile.points = std::mem::take(&mut input.points);
     tile.normals = std::mem::take(&mut input.normals);
     tile.scanner = input.scanner.take();
-    tile.index = Some(PointIndex::new(&tile.points)?);
+    tile.index = Some(match index {
+        Some(index) => index,
+        None => PointIndex::new(&tile.points)?,
+    });
     let isolated_count = input.isolated.iter().filter(|&&i| i).count();
     tile.scan = ScanStatistics {
         spacing: input.spacing,
