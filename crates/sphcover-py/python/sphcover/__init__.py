@@ -294,15 +294,7 @@ def reconstruct(
         seed=seed,
         noise=noise,
     )
-    if client is not None and map_tiles is None:
-        map_tiles = dask_map_tiles(client)
-    run_tiles = None
-    if map_tiles is not None:
-        engine = map_tiles
-
-        def run_tiles(inputs):
-            return engine(inputs, options)
-
+    run_tiles = _tile_runner(client, map_tiles, tile_function, options)
     d = _with_progress(
         progress,
         lambda callback: _sphcover.reconstruct(
@@ -384,24 +376,16 @@ def reconstruct_file(
     """
     if isinstance(tiles, int):
         tiles = (tiles, tiles, tiles)
-    if client is not None and map_tiles is None:
-        map_tiles = dask_map_tiles(client, function=streamed_tile_function)
-    run_tiles = None
-    if map_tiles is not None:
-        engine = map_tiles
-        options = dict(
-            method_name=method,
-            eps=eps,
-            k=k,
-            normal_fit=normal_fit,
-            position_fit=position_fit,
-            seed=seed,
-            noise=noise,
-        )
-
-        def run_tiles(tasks):
-            return engine(tasks, options)
-
+    options = dict(
+        method_name=method,
+        eps=eps,
+        k=k,
+        normal_fit=normal_fit,
+        position_fit=position_fit,
+        seed=seed,
+        noise=noise,
+    )
+    run_tiles = _tile_runner(client, map_tiles, streamed_tile_function, options)
     d = _with_progress(
         progress,
         lambda callback: _sphcover.reconstruct_file(
@@ -431,6 +415,16 @@ def reconstruct_file(
         values=d.get("confidence"),
         stats=d["stats"],
     )
+
+
+def _tile_runner(client, map_tiles, function, options: dict):
+    """What the native run hands its tiles to: ``map_tiles`` (or, with ``client``, a Dask map
+    of ``function``) with the tiles' ``options`` bound; None to run them in this process."""
+    if client is not None and map_tiles is None:
+        map_tiles = dask_map_tiles(client, function=function)
+    if map_tiles is None:
+        return None
+    return lambda tiles: map_tiles(tiles, options)
 
 
 def tile_function(tile, options: dict) -> Optional[bytes]:
