@@ -31,7 +31,7 @@ use super::{
     DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, default_depth,
 };
 use crate::normals::{NormalParams, estimate_normals};
-use crate::polygonise::{PolygoniseParams, PolygoniseStats};
+use crate::polygonise::PolygoniseParams;
 use crate::scan_statistics::{
     ScanStatistics, isolated_samples, median, noise_residuals, spacing_values,
 };
@@ -171,7 +171,6 @@ struct Streamed<'a> {
     /// polygonisation seeds; the same for the threshold 0.
     seeds: [SeedSet; 2],
     poly: PolygoniseParams,
-    poly_stats: PolygoniseStats,
     mesh: TriMesh,
     /// The first triangle of the component most samples lie nearest to, when they voted.
     object_triangle: Option<usize>,
@@ -273,7 +272,6 @@ pub(super) fn run_streamed(
         pieces: Vec::new(),
         seeds: Default::default(),
         poly: PolygoniseParams::default(),
-        poly_stats: PolygoniseStats::default(),
         mesh: TriMesh::default(),
         object_triangle: None,
         stats: ReconStats {

@@ -32,21 +32,16 @@ pub(super) fn polygonise(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
         ctx.spacing,
         Aabb::from_points(seeds).diagonal(),
     );
-    let (mesh, stats) = polygonise_pieces(&ctx.pieces, &ctx.splits, seeds, &ctx.poly, false)?;
-    ctx.mesh = mesh;
-    ctx.poly_stats = stats;
+    let (mut mesh, mut stats) =
+        polygonise_pieces(&ctx.pieces, &ctx.splits, seeds, &ctx.poly, false)?;
     if ctx.params.trim == Trim::Off {
-        trim_and_resolve(&mut ctx.mesh, None, &ctx.poly, &mut ctx.poly_stats);
-        finish_polygonisation(ctx);
+        trim_and_resolve(&mut mesh, None, &ctx.poly, &mut stats);
     }
+    ctx.mesh = mesh;
+    ctx.stats.polygonise = Some(stats);
     // The functions are not needed any more.
     ctx.pieces = Vec::new();
     Ok(())
-}
-
-fn finish_polygonisation(ctx: &mut Streamed<'_>) {
-    ctx.stats.unseen_area_fraction = ctx.poly_stats.unseen_area_fraction;
-    ctx.stats.polygonise = Some(ctx.poly_stats.clone());
 }
 
 /// The elements (`centroids` or vertices) each tile owns, by [`tile_of`] in the unit frame.
@@ -116,13 +111,10 @@ pub(super) fn trim(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
             }
         }
     }
-    trim_and_resolve(
-        &mut ctx.mesh,
-        Some(&distance2),
-        &ctx.poly,
-        &mut ctx.poly_stats,
-    );
-    finish_polygonisation(ctx);
+    let mut stats = ctx.stats.polygonise.take().unwrap_or_default();
+    trim_and_resolve(&mut ctx.mesh, Some(&distance2), &ctx.poly, &mut stats);
+    ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
+    ctx.stats.polygonise = Some(stats);
     Ok(())
 }
 
