@@ -150,7 +150,7 @@ impl StreamedTileRunner for SequentialStreamedTiles {
 }
 
 /// One tile of a streamed run: its samples read from its file, those isolated at the scan's
-/// spacing found, its function built ([`tile_function`](super::tile_function)), the labels
+/// spacing found, its function built ([`tile_function`](crate::tile_function)), the labels
 /// of all its samples stored beside its file, and the seeds among its own samples. Depends
 /// on nothing but its arguments and the tile's file, so any worker gives the same product.
 pub fn streamed_tile_function(
