@@ -24,6 +24,7 @@ use std::collections::HashSet;
 use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use signal_hook::consts::signal::{SIGHUP, SIGINT, SIGTERM};
 use signal_hook::iterator::Signals;
@@ -121,17 +122,20 @@ impl InProgressOutputs {
 /// Installs the handler of SIGINT, SIGTERM and SIGHUP (those not ignored when the run
 /// started) for a run writing `outputs`: on the first of them it removes the run's
 /// temporary files and exits with 128 + the signal.
-pub fn install(outputs: InProgressOutputs) -> std::io::Result<()> {
+pub fn install(outputs: InProgressOutputs) -> std::io::Result<Ending> {
     let ignored = ignored_signals();
     let handled: Vec<i32> = [SIGINT, SIGTERM, SIGHUP]
         .into_iter()
         .filter(|&signal| ignored & (1 << (signal - 1)) == 0)
         .collect();
     let mut signals = Signals::new(handled)?;
+    let ending = Ending::default();
+    let set = ending.clone();
     std::thread::Builder::new()
         .name("interrupt".to_owned())
         .spawn(move || {
             if let Some(signal) = signals.forever().next() {
+                set.0.store(true, Ordering::SeqCst);
                 let removed = outputs.remove_temporaries();
                 eprintln!(
                     "error: interrupted by {}{}",
@@ -145,7 +149,23 @@ pub fn install(outputs: InProgressOutputs) -> std::io::Result<()> {
                 std::process::exit(128 + signal);
             }
         })?;
-    Ok(())
+    Ok(ending)
+}
+
+/// Set once a signal is being handled: the handler is removing the run's files (tile files
+/// a stage may still be reading, among them) and then ends the process with the signal's
+/// status, which the run's own result must not pre-empt ([`Ending::wait_if_set`]).
+#[derive(Clone, Debug, Default)]
+pub struct Ending(Arc<AtomicBool>);
+
+impl Ending {
+    /// Blocks for good when a signal is being handled (the handler exits the process);
+    /// returns at once otherwise.
+    pub fn wait_if_set(&self) {
+        while self.0.load(Ordering::SeqCst) {
+            std::thread::park();
+        }
+    }
 }
 
 /// The mask of signals this process ignores (bit `n - 1` for signal `n`), from

@@ -58,12 +58,15 @@ fn main() -> ExitCode {
         ));
     }
     // Before any work: from here on an interrupt removes the run's partial outputs.
-    if let Err(e) = interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
-        reporter.error(&anyhow::anyhow!(
-            "cannot install the interrupt handler: {e}"
-        ));
-        return ExitCode::from(exit::FAILURE);
-    }
+    let ending = match interrupt::install(interrupt::InProgressOutputs::of(&cli.command)) {
+        Ok(ending) => ending,
+        Err(e) => {
+            reporter.error(&anyhow::anyhow!(
+                "cannot install the interrupt handler: {e}"
+            ));
+            return ExitCode::from(exit::FAILURE);
+        }
+    };
     let result = match &cli.command {
         Command::Info(a) => commands::info::run(a, &reporter),
         Command::Recon(a) => commands::recon::run(a, &reporter),
@@ -72,6 +75,8 @@ fn main() -> ExitCode {
         Command::Tetra(a) => commands::tetra::run(a, &reporter),
         Command::Render(a) => commands::render::run(a, &reporter),
     };
+    // A run that failed because the handler removed its files mid-stage ends as interrupted.
+    ending.wait_if_set();
     match result {
         Ok(()) => ExitCode::from(exit::SUCCESS),
         Err(e) => {
