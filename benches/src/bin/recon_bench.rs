@@ -22,6 +22,7 @@ use sphcover_benches::{command_line, release_dir, short_message, workspace_root}
 use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptions, WriteOptions};
 use sphcover_core::{DVec3, TriMesh};
 use sphcover_evaluation::ground_truth_meshes::{icosphere, torus_mesh};
+use sphcover_evaluation::invented_surface::{InputPoints, InventedSurface, InventedSurfaceParams};
 use sphcover_evaluation::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
 use sphcover_evaluation::scan_blocks::generate_scan_in_blocks;
 use sphcover_evaluation::scan_simulation::{ScanCase, ScanParams, generate_scan};
@@ -38,9 +39,10 @@ struct Args {
     /// Point counts of the scans (k and M suffixes allowed).
     #[arg(long, value_delimiter = ',', default_value = "100k")]
     sizes: Vec<String>,
-    /// Scan cases (default: all): clean, noise025, noise050, outliers1, outliers5, holes,
-    /// gradient, normals30, normals60, scanner, combined, combined-no-outliers, combined030,
-    /// all.
+    /// Scan cases (default: the standard ones): clean, noise025, noise050, outliers1,
+    /// outliers5, holes, gradient, normals30, normals60, scanner, combined,
+    /// combined-no-outliers, combined030, all; and, only when named, single-view (one camera
+    /// with a projector: the shadows of a raw range scan).
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
     /// Ground-truth mesh as NAME=PATH, or `sphere` or `torus` for an analytic shape
@@ -81,9 +83,14 @@ struct Args {
     /// Camera positions of the virtual scanner, in the cases that use it (default 6).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     views: Option<u32>,
-    /// Range noise of the virtual scanner, as a fraction of the diagonal (default 0.001).
+    /// Range noise of the virtual scanner, as a fraction of the diagonal (default 0.001;
+    /// 0.0005 in single-view).
     #[arg(long)]
     range_noise: Option<f64>,
+    /// Distance from each camera of the virtual scanner to its projector, in diagonals
+    /// (default 0: no projector, no shadows; 0.15 in single-view).
+    #[arg(long)]
+    baseline: Option<f64>,
     /// Uniform outliers as a fraction of the surface points, in place of each case's own.
     #[arg(long)]
     outliers: Option<f64>,
@@ -108,6 +115,10 @@ fn scan_params(case: ScanCase, size: usize, args: &Args) -> (ScanParams, String)
         if let Some(noise) = args.range_noise {
             scanner.range_noise = noise;
             suffix += &format!("-range{noise}");
+        }
+        if let Some(baseline) = args.baseline {
+            scanner.projector_baseline = baseline;
+            suffix += &format!("-baseline{baseline}");
         }
     }
     if let Some(outliers) = args.outliers {
@@ -152,7 +163,11 @@ fn run(args: Args) -> anyhow::Result<()> {
             .iter()
             .map(|c| {
                 ScanCase::from_name(c).with_context(|| {
-                    let names: Vec<_> = ScanCase::ALL.iter().map(|c| c.name()).collect();
+                    let names: Vec<_> = ScanCase::ALL
+                        .iter()
+                        .chain(&ScanCase::EXTRA)
+                        .map(|c| c.name())
+                        .collect();
                     format!("unknown case `{c}`; known: {}", names.join(", "))
                 })
             })
@@ -237,6 +252,11 @@ fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         ..ReconMetricsParams::default()
     };
+    let invented_params = InventedSurfaceParams {
+        samples: args.samples,
+        seed: args.seed,
+        ..InventedSurfaceParams::default()
+    };
 
     let mut table = MarkdownTable::new([
         "mesh",
@@ -255,6 +275,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "F@1%",
         "comp.",
         "watertight",
+        "invented %",
         "status",
     ]);
     for (mesh_name, _, gt) in &meshes {
@@ -267,6 +288,9 @@ fn run(args: Args) -> anyhow::Result<()> {
                 }
                 let stem = format!("{mesh_name}-{}{suffix}-{}", case.name(), format_count(size));
                 let input = work.join(format!("{stem}.ply"));
+                // The scan's points, to measure invented surface against (not kept for a scan
+                // generated a block at a time, which may not fit in memory).
+                let mut input_points = None;
                 let points = if args.stream_scans {
                     write_scan_in_blocks(gt, &params, &input)?
                 } else {
@@ -279,6 +303,15 @@ fn run(args: Args) -> anyhow::Result<()> {
                     };
                     io::write_point_cloud(&input, &scan.cloud, &wopts)
                         .with_context(|| format!("writing {}", input.display()))?;
+                    // As written: the file holds `f32` coordinates.
+                    let written: Vec<DVec3> = scan
+                        .cloud
+                        .positions
+                        .iter()
+                        .map(|p| p.as_vec3().as_dvec3())
+                        .collect();
+                    input_points =
+                        Some(InputPoints::new(&written).map_err(|e| format!("scan points: {e}")));
                     scan.cloud.len()
                 };
                 eprintln!(
@@ -293,6 +326,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                         &output,
                         gt,
                         &score_params,
+                        input_points.as_ref().map(|p| (p, &invented_params)),
                         &root,
                         timeout,
                         args.repeat,
@@ -323,7 +357,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         let text = format!(
             "Command: `{}`\n\nGround truth: {}. Scores on {} area-uniform samples per mesh; \
              lengths in % of the ground truth's bounding-box diagonal; NC = normal \
-             consistency; comp. = connected components.\n\n{rendered}",
+             consistency; comp. = connected components; invented = % of the output's area \
+             farther than 3 median sample spacings of the scan from every scan point.\n\n{rendered}",
             command_line(),
             gt_list.join("; "),
             args.samples
@@ -340,10 +375,10 @@ struct ToolResult {
     /// The shortest and longest wall time, when the tool ran more than once.
     wall_range: Option<(f64, f64)>,
     scores: Result<ReconMetrics, String>,
+    /// Invented surface against the scan's points, when they were at hand.
+    invented: Option<Result<InventedSurface, String>>,
 }
 
-/// Runs `tool` on `input` `repeat` times (stopping at a failure) and scores the output.
-#[allow(clippy::too_many_arguments)]
 /// Generates the scan `params` describe a block at a time ([`generate_scan_in_blocks`]) into
 /// a binary PLY of `float` positions and normals at `path`, as `write_point_cloud` writes
 /// whole scans; returns the number of points.
@@ -382,12 +417,15 @@ fn write_scan_in_blocks(gt: &TriMesh, params: &ScanParams, path: &Path) -> anyho
     Ok(total)
 }
 
+/// Runs `tool` on `input` `repeat` times (stopping at a failure) and scores the output,
+/// against the ground truth and, given the scan's points, for invented surface.
 fn run_tool(
     tool: &Tool,
     input: &Path,
     output: &Path,
     gt: &TriMesh,
     params: &ReconMetricsParams,
+    invented: Option<(&Result<InputPoints, String>, &InventedSurfaceParams)>,
     cwd: &Path,
     timeout: Duration,
     repeat: u32,
@@ -397,6 +435,7 @@ fn run_tool(
             run: None,
             wall_range: None,
             scores: Err(why.clone()),
+            invented: None,
         };
     }
     let mut runs = Vec::new();
@@ -416,23 +455,31 @@ fn run_tool(
         })
     });
     let run = median_or_failed(runs);
-    let scores = match run.outcome.failure(timeout) {
-        Some(why) => Err(why),
-        None if !output.is_file() => Err("exited 0 but wrote no output".into()),
+    let (scores, invented) = match run.outcome.failure(timeout) {
+        Some(why) => (Err(why), None),
+        None if !output.is_file() => (Err("exited 0 but wrote no output".into()), None),
         None => {
             let opts = ReadOptions {
                 non_finite: NonFinitePolicy::Drop,
                 ..ReadOptions::default()
             };
-            io::read_mesh(output, &opts)
-                .map_err(|e| format!("unreadable output: {e}"))
-                .and_then(|rec| score_reconstruction(&rec, gt, params).map_err(|e| e.to_string()))
+            match io::read_mesh(output, &opts) {
+                Err(e) => (Err(format!("unreadable output: {e}")), None),
+                Ok(rec) => (
+                    score_reconstruction(&rec, gt, params).map_err(|e| e.to_string()),
+                    invented.map(|(points, p)| {
+                        let points = points.as_ref().map_err(Clone::clone)?;
+                        points.score(&rec, p).map_err(|e| e.to_string())
+                    }),
+                ),
+            }
         }
     };
     ToolResult {
         run: Some(run),
         wall_range,
         scores,
+        invented,
     }
 }
 
@@ -468,14 +515,26 @@ fn row_cells(mesh: &str, case: &str, points: usize, tool: &str, r: &ToolResult) 
             fixed(s.fscore_at(0.01), 4),
             s.topology.components.to_string(),
             if s.topology.watertight { "yes" } else { "no" }.to_string(),
+            invented_cell(r),
             "ok".to_string(),
         ]),
         Err(e) => {
-            cells.extend(std::iter::repeat_n("–".to_string(), 8));
+            cells.extend(std::iter::repeat_n("–".to_string(), 9));
             cells.push(short_message(e, 120));
         }
     }
     cells
+}
+
+/// The invented share of the output's area in %, when it was measured.
+fn invented_cell(r: &ToolResult) -> String {
+    fixed(
+        r.invented
+            .as_ref()
+            .and_then(|s| s.as_ref().ok())
+            .map(|s| 100.0 * s.invented_fraction),
+        2,
+    )
 }
 
 /// The wall time of the reported run, with the range over all runs when there were several.
@@ -520,14 +579,17 @@ mod tests {
             "12",
             "--range-noise",
             "0.0001",
+            "--baseline",
+            "0.1",
             "--outliers",
             "0.05",
         ]);
         let (scanner, suffix) = scan_params(ScanCase::Scanner, 1000, &args);
         let camera = scanner.scanner.expect("the scanner case scans");
         assert_eq!((camera.views, camera.range_noise), (12, 0.0001));
+        assert_eq!(camera.projector_baseline, 0.1);
         assert_eq!(scanner.outliers, 0.05);
-        assert_eq!(suffix, "-views12-range0.0001-outliers0.05");
+        assert_eq!(suffix, "-views12-range0.0001-baseline0.1-outliers0.05");
         // Without a scanner, only the outliers change.
         let (clean, suffix) = scan_params(ScanCase::Clean, 1000, &args);
         assert!(clean.scanner.is_none());
@@ -537,5 +599,7 @@ mod tests {
             scan_params(ScanCase::Scanner, 1000, &defaults),
             (ScanCase::Scanner.params(1000, 0), String::new())
         );
+        let (single, _) = scan_params(ScanCase::SingleView, 1000, &defaults);
+        assert_eq!(single.scanner.expect("a scan").projector_baseline, 0.15);
     }
 }
