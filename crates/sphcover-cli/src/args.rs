@@ -123,9 +123,11 @@ pub struct ReconArgs {
     pub k: Option<f64>,
     /// Remove surface far from every sample: farther than 3 sample spacings, or than D
     /// (relative to the longest bounding-box edge) when given. `--trim off` keeps everything:
-    /// a closed surface, extrapolated where the scan is open. Default: leave out the regions
-    /// the scanner never saw (surface farther than 3 spacings from every sample that reaches
-    /// farther than 6% of the diagonal) and close smaller holes.
+    /// a closed surface, extrapolated where the scan is open. Default: cut away the regions
+    /// the scanner never saw (surface farther than 3 spacings from every sample, in regions
+    /// that reach farther than 6% of the diagonal) along the line 3 spacings from the
+    /// samples, and close smaller holes; a scan of one view (normals facing one side) is cut
+    /// at one spacing and keeps only pinholes.
     #[arg(long, value_name = "D", num_args = 0..=1, default_missing_value = "auto")]
     pub trim: Option<String>,
     /// Polygonisation grid: step = longest edge / 2^DEPTH (default from the point count,

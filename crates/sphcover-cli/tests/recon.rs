@@ -562,6 +562,9 @@ fn streamed_hippo_is_the_tiled_surface_and_leaves_no_tile_files() {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(report["tiles"].as_array().map(Vec::len), Some(8));
+    // A single range scan: its normals face one side, measured tile by tile as well.
+    assert_eq!(report["one_view"], serde_json::Value::Bool(true));
+    assert!(stderr.contains("the scan is one view"), "{stderr}");
     // The scratch directory is left as it was found: empty.
     assert_eq!(std::fs::read_dir(&scratch).unwrap().count(), 0);
 }

@@ -560,6 +560,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReconStats) -> PyResult<Bound<'py, PyDic
     d.set_item("inconsistent_supports", s.inconsistent_supports)?;
     d.set_item("confirmed_supports", s.confirmed_supports)?;
     d.set_item("unseen_area_fraction", s.unseen_area_fraction)?;
+    d.set_item("one_view", s.scan.one_view)?;
     d.set_item("eps", s.eps)?;
     d.set_item("noise_floor", s.noise_floor)?;
     d.set_item("spacing", s.scan.spacing)?;

@@ -78,6 +78,8 @@ pub struct ScanStatistics {
     pub isolated: Vec<bool>,
     /// Number of isolated samples.
     pub isolated_count: usize,
+    /// The normals face one side: the scan is one view (see [`one_view`]).
+    pub one_view: bool,
 }
 
 /// Measures `points` (indexed by `index`; method below). Fewer than `k + 1` points give
@@ -129,12 +131,53 @@ pub fn scan_statistics(
     let spacing = median(spacing_values(index, params, n, None));
     let (isolated, isolated_count) = isolated_samples(index, params, spacing);
     let residuals = noise_residuals(points, normals, index, params, n, &isolated, None);
+    let one_view =
+        normals.is_some_and(|normals| one_view(&view_normals(normals, params, n, &isolated, None)));
     ScanStatistics {
         spacing,
         noise: median(residuals),
         isolated,
         isolated_count,
+        one_view,
     }
+}
+
+/// Share of the normals that must lie within 90° of their mean direction for a scan to be
+/// taken for one view. Every normal of a single range scan faces its scanner; the normals of
+/// the generated single views (bunny, housing, fandisk, femur) and of CGAL's two hippo scans
+/// all lie within 90° of their mean, while a closed object has about half of them there and
+/// a turntable scan with its base unseen (six views) 75–78%.
+pub const ONE_VIEW_SHARE: f64 = 0.99;
+
+/// Whether `normals` (unit or zero) face one side: at least [`ONE_VIEW_SHARE`] of them
+/// within 90° of their mean direction. A single view never sees a closed object, so surface
+/// far from its samples is never a hole to close (see `Trim::Unseen`). Sign-agnostic
+/// normals estimated without orientation face one side only by chance; estimated normals
+/// are oriented before they get here.
+pub fn one_view(normals: &[DVec3]) -> bool {
+    let Some(mean) = normals.iter().sum::<DVec3>().try_normalize() else {
+        return false;
+    };
+    let facing = normals.iter().filter(|n| n.dot(mean) > 0.0).count();
+    normals.len() >= 16 && facing as f64 >= ONE_VIEW_SHARE * normals.len() as f64
+}
+
+/// The normals [`one_view`] reads: those of every `noise_stride`-th sample (by index, the
+/// stride set by the `population` of the whole scan, as for the noise) that is not isolated
+/// and is marked in `own` (all without).
+pub(crate) fn view_normals(
+    normals: &[DVec3],
+    params: &ScanStatisticsParams,
+    population: usize,
+    isolated: &[bool],
+    own: Option<&[bool]>,
+) -> Vec<DVec3> {
+    let stride = params.noise_stride.max(population / NOISE_SAMPLES).max(1);
+    (0..normals.len())
+        .step_by(stride)
+        .filter(|&i| !isolated[i] && own.is_none_or(|own| own[i]) && normals[i].is_finite())
+        .map(|i| normals[i])
+        .collect()
 }
 
 /// The mean neighbour distances whose median is the spacing: every `stride`-th slot of
@@ -627,5 +670,57 @@ mod tests {
             (stats.spacing, stats.noise, stats.isolated.len()),
             (0.0, 0.0, 3)
         );
+    }
+
+    #[test]
+    fn one_view_is_told_by_the_normals_facing_one_side() {
+        let cloud = sphere(DVec3::ZERO, 0.4, 4000);
+        let normals = cloud.normals.clone().unwrap();
+        let index = PointIndex::new(&cloud.positions).unwrap();
+        let params = ScanStatisticsParams::default();
+        // A closed sphere: half of its normals face any side.
+        assert!(!scan_statistics(&cloud.positions, Some(&normals), &index, &params).one_view);
+        // What one camera on +z sees of it.
+        let seen: Vec<usize> = (0..cloud.len()).filter(|&i| normals[i].z > 0.1).collect();
+        let points: Vec<DVec3> = seen.iter().map(|&i| cloud.positions[i]).collect();
+        let facing: Vec<DVec3> = seen.iter().map(|&i| normals[i]).collect();
+        let index = PointIndex::new(&points).unwrap();
+        assert!(scan_statistics(&points, Some(&facing), &index, &params).one_view);
+        // Without normals nothing is known; neither from a handful.
+        assert!(!scan_statistics(&points, None, &index, &params).one_view);
+        assert!(!one_view(&facing[..10]));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn one_view_does_not_depend_on_the_frame_or_the_sign_of_the_normals(
+            axis in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            angle in 0.0f64..std::f64::consts::TAU,
+            spread in 0.2f64..2.5,
+            seed in 0u64..1000,
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+            // Normals within `spread` radians of +z: one side up to π/2.
+            let normals: Vec<DVec3> = (0..500)
+                .map(|_| {
+                    let (polar, azimuth) =
+                        (rng.random::<f64>() * spread, rng.random::<f64>() * std::f64::consts::TAU);
+                    DVec3::new(polar.sin() * azimuth.cos(), polar.sin() * azimuth.sin(), polar.cos())
+                })
+                .collect();
+            let expected = one_view(&normals);
+            if spread < 1.5 {
+                proptest::prop_assert!(expected);
+            }
+            let rotation = glam::DQuat::from_axis_angle(
+                DVec3::new(axis.0, axis.1, axis.2).try_normalize().unwrap_or(DVec3::X),
+                angle,
+            );
+            let turned: Vec<DVec3> = normals.iter().map(|&n| rotation * n).collect();
+            proptest::prop_assert_eq!(one_view(&turned), expected);
+            let flipped: Vec<DVec3> = normals.iter().map(|&n| -n).collect();
+            proptest::prop_assert_eq!(one_view(&flipped), expected);
+        }
     }
 }

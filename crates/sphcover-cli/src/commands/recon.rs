@@ -8,9 +8,9 @@ use sphcover_core::PointCloud;
 use sphcover_core::StopRequest;
 use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
-    BudgetFit, Method, NoiseOption, ReconError, ReconOptions, ReconParams, ReconStats, ScanFile,
-    SequentialStreamedTiles, Tiling, ToleranceNote, TrimOption, UNSEEN_REACH, fit_memory_budget,
-    reconstruct, reconstruct_streamed, reconstruct_tiled,
+    BudgetFit, Method, NoiseOption, ONE_VIEW_NEAR, ReconError, ReconOptions, ReconParams,
+    ReconStats, ScanFile, SequentialStreamedTiles, Tiling, ToleranceNote, TrimOption, UNSEEN_NEAR,
+    UNSEEN_REACH, fit_memory_budget, reconstruct, reconstruct_streamed, reconstruct_tiled,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -204,11 +204,19 @@ fn write_report(
 
 /// Notes and warnings on the surface, and the summary line.
 fn conclude(args: &ReconArgs, s: &ReconStats, reporter: &Reporter) {
-    if s.unseen_area_fraction > 0.0 {
+    if s.unseen_area_fraction > 0.0 && s.scan.one_view {
         reporter.note(&format!(
-            "left out {:.1}% of the surface, where the scanner did not see the object (farther than 3 sample spacings from every sample, over more than {:.0}% of the diagonal); \
+            "left out {:.1}% of the surface, where the scanner did not see the object (farther than {} sample spacing from every sample); \
+             the scan is one view (its normals face one side), so gaps in it are not closed either; --trim off keeps a closed surface",
+            100.0 * s.unseen_area_fraction,
+            ONE_VIEW_NEAR,
+        ));
+    } else if s.unseen_area_fraction > 0.0 {
+        reporter.note(&format!(
+            "left out {:.1}% of the surface, where the scanner did not see the object (farther than {} sample spacings from every sample, over more than {:.0}% of the diagonal); \
              smaller holes are closed; --trim off keeps a closed surface",
             100.0 * s.unseen_area_fraction,
+            UNSEEN_NEAR,
             100.0 * UNSEEN_REACH
         ));
     }
@@ -358,8 +366,16 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
 /// With `-v`: the stage counts.
 fn details(s: &ReconStats, reporter: &Reporter) {
     reporter.detail(&format!(
-        "  scan: spacing {:.2e}, noise {:.2e}, {} isolated samples; cover tolerance ε = {:.2e}",
-        s.scan.spacing, s.scan.noise, s.scan.isolated_count, s.eps
+        "  scan: spacing {:.2e}, noise {:.2e}, {} isolated samples{}; cover tolerance ε = {:.2e}",
+        s.scan.spacing,
+        s.scan.noise,
+        s.scan.isolated_count,
+        if s.scan.one_view {
+            ", one view (normals face one side)"
+        } else {
+            ""
+        },
+        s.eps
     ));
     reporter.detail(&format!(
         "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}",
@@ -440,6 +456,7 @@ fn report_json(
         "inconsistent_supports": s.inconsistent_supports,
         "confirmed_supports": s.confirmed_supports,
         "unseen_area_fraction": s.unseen_area_fraction,
+        "one_view": s.scan.one_view,
         "tiles": s.tiles.iter().map(|t| json!({
             "position": t.position,
             "own_samples": t.own_samples,

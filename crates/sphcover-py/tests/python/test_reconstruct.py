@@ -174,6 +174,8 @@ def test_an_open_scan_leaves_out_what_was_never_seen_as_the_command_line_does(
     mesh, written = python_recon_bytes(tmp_path, scan)
     assert written == (tmp_path / "cli.ply").read_bytes()
     assert mesh.stats["unseen_area_fraction"] > 0.5 and not mesh.stats["watertight"]
+    assert mesh.stats["one_view"]
     closed, written = python_recon_bytes(tmp_path, scan, trim=False)
     assert written == (tmp_path / "cli_closed.ply").read_bytes()
     assert closed.stats["unseen_area_fraction"] == 0.0
+    assert closed.stats["one_view"]

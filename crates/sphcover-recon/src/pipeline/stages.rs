@@ -17,8 +17,8 @@ use std::borrow::Cow;
 
 use super::tiled::{TileRunner, TiledFunctions, Tiling};
 use super::{
-    DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, UNSEEN_REACH,
-    default_depth,
+    DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_NEAR, ONE_VIEW_REACH, ReconError, ReconParams,
+    ReconStats, Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
 };
 use crate::confidence::{
     SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
@@ -593,19 +593,28 @@ pub(super) fn polygonisation_params(ctx: &ReconContext<'_>, seeds: &[DVec3]) -> 
     polygonisation_params_at(
         ctx.params,
         ctx.stats.depth,
-        ctx.scan.spacing,
+        &ctx.scan,
         Aabb::from_points(seeds).diagonal(),
     )
 }
 
-/// [`polygonisation_params`] at `depth` and `spacing`, with seeds whose bounding box has
-/// the diagonal `seeds_diagonal`.
+/// [`polygonisation_params`] at `depth` for a scan measured as `scan`, with seeds whose
+/// bounding box has the diagonal `seeds_diagonal`. A scan of one view is cut nearer its
+/// samples ([`ONE_VIEW_NEAR`]) and keeps only pinholes ([`ONE_VIEW_REACH`]): it never saw a
+/// closed object, so surface far from its samples is a shadow or what lies out of its
+/// sight, not a hole.
 pub(super) fn polygonisation_params_at(
     params: &ReconParams,
     depth: u32,
-    spacing: f64,
+    scan: &ScanStatistics,
     seeds_diagonal: f64,
 ) -> PolygoniseParams {
+    let spacing = scan.spacing;
+    let near = if scan.one_view {
+        ONE_VIEW_NEAR
+    } else {
+        UNSEEN_NEAR
+    } * spacing;
     PolygoniseParams {
         step: GridStep::Absolute(1.0 / f64::from(1u32 << depth)),
         trim: match params.trim {
@@ -614,8 +623,12 @@ pub(super) fn polygonisation_params_at(
             Trim::Distance(d) => Some(d),
         },
         unseen: (params.trim == Trim::Unseen).then(|| UnseenTrim {
-            near: 3.0 * spacing,
-            reach: (UNSEEN_REACH * seeds_diagonal).max(3.0 * spacing),
+            near,
+            reach: if scan.one_view {
+                ONE_VIEW_REACH * spacing
+            } else {
+                (UNSEEN_REACH * seeds_diagonal).max(3.0 * spacing)
+            },
         }),
         ..PolygoniseParams::default()
     }

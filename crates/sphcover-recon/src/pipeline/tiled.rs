@@ -505,6 +505,7 @@ pub(super) fn tile_function_and_samples(
         noise: input.noise,
         isolated: std::mem::take(&mut input.isolated),
         isolated_count,
+        one_view: false,
     };
     tile.drop_isolated = input.drop_isolated && tile.scan.isolated_count > 0;
     tile.stats.eps = input.eps;

@@ -26,6 +26,7 @@ pub use field::{FieldPiece, PiecewiseFunction};
 use grid::{Grid, KeyMap, grid_step, pack_clamped, unpack_clamped};
 use search::{Search, project_seeds};
 pub use trim::UnseenTrim;
+pub(crate) use trim::trimming_points;
 use trim::{trim, trim_unseen};
 
 /// How the grid step is chosen.
@@ -289,10 +290,9 @@ pub fn polygonise_piecewise(
 ) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
     let start = Instant::now();
     let (mut mesh, mut stats) = polygonise_untrimmed(field, seeds, params)?;
-    let distance2 = if params.trim.is_some() || params.unseen.is_some() {
-        Some(trim::centroid_distances_squared(&mesh, &finite(seeds))?)
-    } else {
-        None
+    let distance2 = match trimming_points(&mesh, params) {
+        Some(points) => Some(trim::distances_squared(&points, &finite(seeds))?),
+        None => None,
     };
     trim_and_resolve(&mut mesh, distance2.as_deref(), params, &mut stats);
     stats.total_time = start.elapsed();
@@ -385,8 +385,8 @@ pub(crate) fn polygonise_untrimmed(
     Ok((mesh, stats))
 }
 
-/// The trimming `params` ask for, given each triangle's squared centroid distance to the
-/// nearest seed (`None` when they ask for none), then the fans the extraction or the
+/// The trimming `params` ask for, given the squared distance to the nearest seed of each of
+/// [`trimming_points`] (`None` when they ask for none), then the fans the extraction or the
 /// trimming left resolved.
 pub(crate) fn trim_and_resolve(
     mesh: &mut TriMesh,

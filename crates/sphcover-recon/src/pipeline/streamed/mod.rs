@@ -33,7 +33,8 @@ use super::{
 use crate::normals::{NormalParams, estimate_normals};
 use crate::polygonise::PolygoniseParams;
 use crate::scan_statistics::{
-    ScanStatistics, isolated_samples, median, noise_residuals, spacing_values,
+    ScanStatistics, isolated_samples, median, noise_residuals, one_view, spacing_values,
+    view_normals,
 };
 
 /// A scan that can be read more than once, a block of points at a time, in the same order
@@ -413,7 +414,7 @@ fn estimate_tile_normals(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
 fn measure_tiles(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     let population = ctx.stats.points - ctx.stats.non_finite_points;
     let scan = &ctx.params.scan;
-    let (mut spacings, mut residuals) = (Vec::new(), Vec::new());
+    let (mut spacings, mut residuals, mut normals) = (Vec::new(), Vec::new(), Vec::new());
     let mut inliers = Aabb::EMPTY;
     let mut isolated_count = 0;
     for t in 0..ctx.tiling.count() {
@@ -432,6 +433,13 @@ fn measure_tiles(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
             &samples.points,
             Some(&samples.normals),
             &index,
+            scan,
+            population,
+            &isolated,
+            Some(&own),
+        ));
+        normals.extend(view_normals(
+            &samples.normals,
             scan,
             population,
             &isolated,
@@ -464,6 +472,7 @@ fn measure_tiles(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
         noise,
         isolated: Vec::new(),
         isolated_count,
+        one_view: one_view(&normals),
     };
     let noise = ctx.params.noise.unwrap_or(noise);
     let factor = ctx

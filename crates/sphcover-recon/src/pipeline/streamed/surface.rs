@@ -12,7 +12,7 @@ use crate::pipeline::stages::{
 };
 use crate::pipeline::tiled::{polygonise_pieces, tile_of, tiles_holding};
 use crate::pipeline::{ReconError, Trim};
-use crate::polygonise::trim_and_resolve;
+use crate::polygonise::{trim_and_resolve, trimming_points};
 use crate::vertex_refinement::{
     Outcome, RefinementSamples, RefinementScale, apply_moves, check, refinement_moves,
 };
@@ -29,7 +29,7 @@ pub(super) fn polygonise(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
     ctx.poly = polygonisation_params_at(
         ctx.params,
         ctx.stats.depth,
-        ctx.spacing,
+        &ctx.stats.scan,
         Aabb::from_points(seeds).diagonal(),
     );
     let (mut mesh, mut stats) =
@@ -53,28 +53,21 @@ fn owned_by_tile(splits: &[Vec<f64>; 3], tiles: usize, points: &[DVec3]) -> Vec<
     owned
 }
 
-/// The trimming `params` ask for: each triangle's distance to the nearest qualifying sample,
-/// measured by the tile whose box holds its centroid from the samples of its box and halo.
-/// Where that is farther than the halo (a sample outside the halo could be nearer), the
-/// nearest seed of the whole scan is taken when nearer: the distance is then right to
-/// within the seeds' lattice, which only the reach of far regions reads.
+/// The trimming `params` ask for: the distance of each of [`trimming_points`] (centroids or
+/// vertices) to the nearest qualifying sample, measured by the tile whose box holds the
+/// point from the samples of its box and halo. Where that is farther than the halo (a
+/// sample outside the halo could be nearer), the nearest seed of the whole scan is taken
+/// when nearer: the distance is then right to within the seeds' lattice, which only the
+/// reach of far regions reads.
 pub(super) fn trim(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
-    let centroids: Vec<DVec3> = ctx
-        .mesh
-        .triangles
-        .par_iter()
-        .map(|t| {
-            t.iter()
-                .map(|&v| ctx.mesh.vertices[v as usize])
-                .sum::<DVec3>()
-                / 3.0
-        })
-        .collect();
-    let owned = owned_by_tile(&ctx.splits, ctx.tiling.count(), &centroids);
+    let Some(points) = trimming_points(&ctx.mesh, &ctx.poly) else {
+        return Ok(());
+    };
+    let owned = owned_by_tile(&ctx.splits, ctx.tiling.count(), &points);
     let (which, threshold) = ctx.threshold();
-    let mut distance2 = vec![f64::INFINITY; centroids.len()];
-    for (t, triangles) in owned.iter().enumerate() {
-        if triangles.is_empty() {
+    let mut distance2 = vec![f64::INFINITY; points.len()];
+    for (t, owned) in owned.iter().enumerate() {
+        if owned.is_empty() {
             continue;
         }
         let (samples, _) = ctx.tile_samples(t)?;
@@ -86,26 +79,26 @@ pub(super) fn trim(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
             continue;
         }
         let index = PointIndex::new(&seeds)?;
-        let found: Vec<f64> = triangles
+        let found: Vec<f64> = owned
             .par_iter()
-            .map_init(Vec::new, |near, &tri| {
-                index.nearest_k_with_distances(centroids[tri as usize], 1, near);
+            .map_init(Vec::new, |near, &i| {
+                index.nearest_k_with_distances(points[i as usize], 1, near);
                 near.first().map_or(f64::INFINITY, |&(d2, _)| d2)
             })
             .collect();
-        for (&tri, d2) in triangles.iter().zip(found) {
-            distance2[tri as usize] = d2;
+        for (&i, d2) in owned.iter().zip(found) {
+            distance2[i as usize] = d2;
         }
     }
     let halo2 = ctx.halo() * ctx.halo();
-    let far: Vec<usize> = (0..centroids.len())
+    let far: Vec<usize> = (0..points.len())
         .filter(|&i| distance2[i] > halo2)
         .collect();
     if !far.is_empty() {
         let index = PointIndex::new(&ctx.seeds[which].points)?;
         let mut near = Vec::new();
         for i in far {
-            index.nearest_k_with_distances(centroids[i], 1, &mut near);
+            index.nearest_k_with_distances(points[i], 1, &mut near);
             if let Some(&(d2, _)) = near.first() {
                 distance2[i] = distance2[i].min(d2);
             }
