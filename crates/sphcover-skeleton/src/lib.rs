@@ -113,6 +113,7 @@ pub use repair::medial_correction::{
     CentringParams, JunctionFoldParams, centre_between_faces, fold_junction_vertices,
 };
 pub use repair::part_surface::PartSurface;
+pub use repair::perforations::{PerforationParams, VoxelPart, cut_perforations};
 pub use repair::rim_trimming::{RimTrimParams, trim_rims};
 pub use repair::sheet_smoothing::{SmoothingParams, smooth_across};
 pub use repair::tunnels::{TunnelParams, close_material_tunnels};

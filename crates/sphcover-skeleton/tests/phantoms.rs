@@ -110,3 +110,44 @@ fn output_does_not_depend_on_the_thread_count() {
     let (a, b) = (run(1), run(2));
     assert_eq!(a, b);
 }
+
+#[test]
+fn small_perforations_stay_open() {
+    // Holes of radius 1.0–1.7 voxels through a plate 3 voxels thick, 10% noise: the cover's
+    // function passes over the smaller ones, and the sheet spanned 3–5 of the 8 (isotropic)
+    // and 1–3 (every second slice) before the perforation repair read the voxels.
+    use sphcover_evaluation::sheet_metrics::line_meets_mesh;
+    use sphcover_evaluation::thin_phantoms::{every_slice, perforations};
+    for seed in 1..=3 {
+        let params = PhantomParams {
+            noise: 0.1,
+            seed,
+            ..PhantomParams::default()
+        };
+        let phantom = thin_phantom(ThinShape::SmallPerforations, &params);
+        let holes = perforations(ThinShape::SmallPerforations, &params);
+        assert_eq!(holes.len(), 8);
+        for (grid, volume) in [
+            ("isotropic", phantom.volume.clone()),
+            ("2× slices", every_slice(&phantom.volume, 2)),
+        ] {
+            let (mesh, _) =
+                extract_skeleton(&volume, &SkeletonParams::default(), &|_| {}).expect("a sheet");
+            let open = holes
+                .iter()
+                .filter(|h| !line_meets_mesh(&mesh, h.centre, h.axis, 3.0 * params.voxel))
+                .count();
+            let m = score_mesh(&mesh, &phantom.truth, 1.0);
+            // Measured: all 8 open but for seed 2 on 2× slices (6); spurious 0.004–0.005
+            // isotropic (0.04–0.07 before), 0.020–0.050 on 2× slices (0.09–0.10 before).
+            let (least, spurious) = if grid == "isotropic" {
+                (8, 0.01)
+            } else {
+                (6, 0.05)
+            };
+            assert!(open >= least, "seed {seed}, {grid}: {open} of 8 open");
+            assert!(m.spurious <= spurious, "seed {seed}, {grid}: {m:?}");
+            assert!(m.coverage >= 0.97, "seed {seed}, {grid}: {m:?}");
+        }
+    }
+}

@@ -313,6 +313,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "components": s.components,
         "euler_characteristic": s.euler_characteristic,
         "tunnels_closed": s.tunnels,
+        "perforations_cut": s.perforations,
         "material_holes_filled": s.material_holes,
         "flap_triangles_collapsed": s.flap_triangles,
         "resampled": s.resampled.map(|r| serde_json::json!({

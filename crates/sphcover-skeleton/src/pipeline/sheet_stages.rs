@@ -16,6 +16,7 @@ use crate::repair::junction_planes::snap_to_junction_planes;
 use crate::repair::material_holes::fill_material_holes;
 use crate::repair::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::repair::part_surface::PartSurface;
+use crate::repair::perforations::{VoxelPart, cut_perforations};
 use crate::repair::rim_trimming::trim_rims;
 use crate::repair::sheet_smoothing::smooth_across;
 use crate::repair::tunnels::close_material_tunnels;
@@ -34,6 +35,7 @@ pub(crate) struct RepairCounts {
     pub material_holes: usize,
     pub junction_holes: usize,
     pub tunnels: usize,
+    pub perforations: usize,
     pub flap_triangles: usize,
     pub centred_vertices: usize,
     pub junction_folded_vertices: usize,
@@ -50,6 +52,8 @@ pub(crate) struct SheetContext<'c> {
     pub r_max: f64,
     /// The length unit of the voxel-based parameters (world units).
     pub voxel: f64,
+    /// The voxels of the part, for a volume.
+    pub voxels: Option<VoxelPart<'c>>,
     pub mesh: Option<TetMesh>,
     pub derivatives: Vec<Option<VertexDerivatives>>,
     pub ridge: Vec<Option<RidgePoint>>,
@@ -72,6 +76,7 @@ impl<'c> SheetContext<'c> {
         level: f64,
         r_max: f64,
         voxel: f64,
+        voxels: Option<VoxelPart<'c>>,
     ) -> SheetContext<'c> {
         SheetContext {
             params,
@@ -79,6 +84,7 @@ impl<'c> SheetContext<'c> {
             level,
             r_max,
             voxel,
+            voxels,
             mesh: None,
             derivatives: Vec::new(),
             ridge: Vec::new(),
@@ -123,7 +129,7 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
         Stage::new("patches", patches),
         Stage::new("cleaning", cleaning),
     ];
-    let optional: [(bool, SheetStage<'c>); 10] = [
+    let optional: [(bool, SheetStage<'c>); 11] = [
         (
             repairs.rim_trimming.is_some(),
             Stage::new("rim trimming", rim_trimming),
@@ -141,6 +147,10 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
             Stage::new("junction holes", junction_holes),
         ),
         (repairs.tunnels.is_some(), Stage::new("tunnels", tunnels)),
+        (
+            repairs.perforations.is_some(),
+            Stage::new("perforations", perforations),
+        ),
         (repairs.flaps.is_some(), Stage::new("flaps", flaps)),
         (repairs.centring.is_some(), Stage::new("centring", centring)),
         (
@@ -300,6 +310,23 @@ fn tunnels(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     let part = part(&ctx.function, ctx.level, ctx.r_max);
     ctx.repairs.tunnels =
         close_material_tunnels(&mut ctx.sheet, params, ctx.voxel, |x| part.is_material(x));
+    Ok(())
+}
+
+/// The sheet cut open over holes through the part, then cleaned without filling holes.
+fn perforations(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    let (Some(params), Some(voxels)) = (&ctx.params.repairs.perforations, &ctx.voxels) else {
+        return Ok(());
+    };
+    ctx.repairs.perforations = cut_perforations(&mut ctx.sheet, voxels, params, ctx.voxel);
+    if ctx.repairs.perforations > 0 {
+        let (sheet, stats) =
+            clean_sheet(&ctx.sheet, &ctx.params.repairs.cleaning, ctx.voxel, |_| {
+                false
+            });
+        ctx.repairs.cleaning.add_later_pass(&stats);
+        ctx.sheet = sheet;
+    }
     Ok(())
 }
 

@@ -10,6 +10,7 @@ pub(crate) mod junction_planes;
 pub(crate) mod material_holes;
 pub(crate) mod medial_correction;
 pub(crate) mod part_surface;
+pub(crate) mod perforations;
 pub(crate) mod rim_trimming;
 pub(crate) mod sheet_smoothing;
 pub(crate) mod tunnels;
@@ -20,6 +21,7 @@ use junction_holes::SheetHoleParams;
 use junction_planes::JunctionPlaneParams;
 use material_holes::MaterialHoleParams;
 use medial_correction::{CentringParams, JunctionFoldParams};
+use perforations::PerforationParams;
 use rim_trimming::RimTrimParams;
 use sheet_smoothing::SmoothingParams;
 use tunnels::TunnelParams;
@@ -39,6 +41,7 @@ use tunnels::TunnelParams;
 /// | material holes | [`fill_material_holes`](crate::fill_material_holes) | fill large holes where the material is continuous, on the part's mid-surface |
 /// | junction holes | [`fill_holes_within_sheets`](crate::fill_holes_within_sheets) | fill holes of the sheets meeting at a junction |
 /// | tunnels | [`close_material_tunnels`](crate::close_material_tunnels) | open closed pockets, close loops that go around material only |
+/// | perforations | [`cut_perforations`](crate::cut_perforations) | cut the sheet open where its voxels show a hole through the part (volumes only), then clean again without filling holes |
 /// | flaps | [`collapse_misaligned_flaps`](crate::collapse_misaligned_flaps) | collapse fins standing across the sheet |
 /// | centring | [`centre_between_faces`](crate::centre_between_faces) | re-centre vertices between the part's two faces |
 /// | junction fold | [`fold_junction_vertices`](crate::fold_junction_vertices) | fold junction fillets onto the plates (needs centring) |
@@ -58,6 +61,8 @@ pub struct SheetRepairs {
     pub junction_holes: Option<SheetHoleParams>,
     /// Closed pockets and tunnels through material.
     pub tunnels: Option<TunnelParams>,
+    /// Holes through the part that the sheet spans (volumes only).
+    pub perforations: Option<PerforationParams>,
     /// Flaps standing across the sheet.
     pub flaps: Option<FlapParams>,
     /// Re-centring between the part's faces.
@@ -82,6 +87,7 @@ impl Default for SheetRepairs {
             material_holes: Some(MaterialHoleParams::default()),
             junction_holes: Some(SheetHoleParams::default()),
             tunnels: Some(TunnelParams::default()),
+            perforations: Some(PerforationParams::default()),
             flaps: Some(FlapParams::default()),
             centring: Some(CentringParams::default()),
             junction_fold: Some(JunctionFoldParams::default()),
@@ -100,6 +106,7 @@ impl SheetRepairs {
             material_holes: None,
             junction_holes: None,
             tunnels: None,
+            perforations: None,
             flaps: None,
             centring: None,
             junction_fold: None,
