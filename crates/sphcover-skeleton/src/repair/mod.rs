@@ -115,3 +115,15 @@ impl SheetRepairs {
         }
     }
 }
+
+/// Every triangle's edges as (lower, higher) vertex pairs, sorted: an edge appears once per
+/// triangle it bounds, so runs of one are boundary edges and runs of three or more junctions.
+pub(crate) fn sorted_edges(mesh: &sphcover_core::TriMesh) -> Vec<(u32, u32)> {
+    let mut edges: Vec<(u32, u32)> = mesh
+        .triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    edges
+}

@@ -7,6 +7,8 @@ use glam::{DAffine3, DVec3};
 use rayon::prelude::*;
 use sphcover_core::{DisjointSets, TriMesh, Volume, remove_unused_vertices};
 
+use super::sorted_edges;
+
 /// Boundary loops of at most this many edges are holes (the cleaning fills holes of up to 200
 /// edges), longer ones the sheet's rims.
 const SMALL_HOLE_EDGES: usize = 200;
@@ -140,12 +142,7 @@ pub fn cut_perforations(
             Some(sum / samples.len() as f64)
         })
         .collect();
-    let mut edges: Vec<(u32, u32)> = mesh
-        .triangles
-        .iter()
-        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
-        .collect();
-    edges.sort_unstable();
+    let mut edges = sorted_edges(mesh);
     // Vertices on the sheet's long boundaries (its rims: boundary edges joined into runs of
     // more than `SMALL_HOLE_EDGES`; shorter runs are holes the ridge test already opened,
     // partly, over a perforation) and on junctions (edges of three or more triangles, where

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 use sphcover_core::{TriMesh, triangle_area};
 
 use super::part_surface::PartSurface;
+use super::sorted_edges;
 
 /// Parameters of [`trim_rims`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -272,12 +273,7 @@ pub(crate) fn is_rim(
 /// vertices of edges used by one triangle), `+∞` beyond `limit` or without a boundary.
 pub(crate) fn distance_to_boundary(mesh: &TriMesh, limit: f64) -> Vec<f64> {
     let n = mesh.vertices.len();
-    let mut edges: Vec<(u32, u32)> = mesh
-        .triangles
-        .iter()
-        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
-        .collect();
-    edges.sort_unstable();
+    let edges = sorted_edges(mesh);
     let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); n];
     let mut dist = vec![f64::INFINITY; n];
     let mut heap = BinaryHeap::new();
