@@ -39,8 +39,8 @@ impl Default for PerforationParams {
     /// grown to half of it. On the small perforations (radius 1.0–1.7 voxels through a
     /// 3-voxel plate, `small_perforations` example), 10% noise: with the threshold itself
     /// for air, the holes of radius 1.0–1.2 stay spanned (their vertices lie at their rims,
-    /// never over the middle); with a quarter, all eight open on isotropic voxels and on
-    /// every second slice.
+    /// never over the middle); with a quarter, all eight open on isotropic voxels, and 6–8
+    /// on every second slice.
     fn default() -> PerforationParams {
         PerforationParams {
             column_half_length_voxels: 1.0,
@@ -50,12 +50,12 @@ impl Default for PerforationParams {
     }
 }
 
-/// The voxels a sheet is checked against: the volume its cover was fitted to, and the
-/// threshold of the part.
+/// The voxels a sheet is checked against: the volume its cover was fitted to, as measured,
+/// and the part's threshold and noise.
 #[derive(Clone, Copy, Debug)]
 pub struct VoxelPart<'a> {
-    /// The volume (after resampling, before any windowing: windowing keeps the order of
-    /// values about the threshold).
+    /// The volume as read, not resampled (interpolated voxels are not measurements) nor
+    /// windowed (windowing keeps the order of values about the threshold).
     pub volume: &'a Volume,
     /// The part is where the values exceed this.
     pub threshold: f64,
