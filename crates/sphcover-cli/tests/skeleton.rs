@@ -373,6 +373,7 @@ fn the_report_file_holds_the_stage_counts() {
     let default = sphcover_skeleton::SkeletonParams::default();
     assert_eq!(stages, sphcover_skeleton::stage_names(&default));
     assert!(json["tunnels_closed"].is_u64());
+    assert!(json["perforations_cut"].is_u64());
     assert!(json["flap_triangles_collapsed"].is_u64());
     assert!(json["resampled"].is_null());
 }

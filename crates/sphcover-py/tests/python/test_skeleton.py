@@ -24,6 +24,8 @@ def test_the_sheet_of_a_plate_is_its_mid_plane():
     affine[:3, 3] = [1.0, 2.0, 3.0]
     sheet = sphcover.skeleton(values, affine)
     assert sheet.stats["components"] == 1 and len(sheet.faces) > 500
+    # A solid plate has no perforation to cut open.
+    assert sheet.stats["perforations_cut"] == 0
     # World z of the mid-plane: 3 + 0.5·centre, within a tenth of a voxel on average.
     assert np.mean(np.abs(sheet.vertices[:, 2] - (3.0 + 0.5 * centre))) < 0.05
     # The sheet spans the plate: x from about 1 + 0.5·6 to 1 + 0.5·26.
