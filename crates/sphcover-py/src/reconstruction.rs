@@ -297,27 +297,40 @@ impl StreamedTileRunner for PythonStreamedTiles {
         _params: &ReconParams,
     ) -> Result<Vec<StreamedTileProduct>, ReconError> {
         let blobs: Vec<Vec<u8>> = tasks.iter().map(StreamedTile::to_bytes).collect();
-        let returned: Vec<Vec<u8>> = Python::attach(|py| {
-            let list = PyList::new(py, blobs.iter().map(|b| PyBytes::new(py, b)))?;
-            let results = self.map_tiles.bind(py).call1((list,))?;
-            results
-                .try_iter()?
-                .map(|item| item?.extract::<Vec<u8>>())
-                .collect::<PyResult<Vec<_>>>()
+        map_through(&self.map_tiles, tasks.len(), |py| {
+            PyList::new(py, blobs.iter().map(|b| PyBytes::new(py, b)))
+        })?
+        .into_iter()
+        .map(|b| {
+            let b = b.ok_or_else(|| ReconError::TileRunner("map_tiles returned None".into()))?;
+            StreamedTileProduct::from_bytes(&b)
         })
-        .map_err(|e| ReconError::TileRunner(format!("map_tiles raised {e}")))?;
-        if returned.len() != tasks.len() {
-            return Err(ReconError::TileRunner(format!(
-                "map_tiles returned {} results for {} tiles",
-                returned.len(),
-                tasks.len()
-            )));
-        }
-        returned
-            .iter()
-            .map(|b| StreamedTileProduct::from_bytes(b))
-            .collect()
+        .collect()
     }
+}
+
+/// Calls `map_tiles` on the list `items` builds and checks that it returns `count` results,
+/// each bytes or None.
+fn map_through(
+    map_tiles: &Py<PyAny>,
+    count: usize,
+    items: impl for<'py> FnOnce(Python<'py>) -> PyResult<Bound<'py, PyList>>,
+) -> Result<Vec<Option<Vec<u8>>>, ReconError> {
+    let returned = Python::attach(|py| {
+        let results = map_tiles.bind(py).call1((items(py)?,))?;
+        results
+            .try_iter()?
+            .map(|item| item?.extract::<Option<Vec<u8>>>())
+            .collect::<PyResult<Vec<_>>>()
+    })
+    .map_err(|e| ReconError::TileRunner(format!("map_tiles raised {e}")))?;
+    if returned.len() != count {
+        return Err(ReconError::TileRunner(format!(
+            "map_tiles returned {} results for {count} tiles",
+            returned.len()
+        )));
+    }
+    Ok(returned)
 }
 
 /// One streamed tile's task ([`sphcover_recon::streamed_tile_function`]) from its bytes, with
@@ -433,30 +446,13 @@ impl TileRunner for PythonTiles {
     ) -> Result<Vec<Option<TileFunction>>, ReconError> {
         // Built without the interpreter: the calling thread keeps reporting progress.
         let inputs = self.inputs(count, input)?;
-        let returned: Vec<Option<Vec<u8>>> = Python::attach(|py| {
-            let list = match &inputs {
-                TileInputs::Bytes(blobs) => {
-                    PyList::new(py, blobs.iter().map(|b| PyBytes::new(py, b)))?
-                }
-                TileInputs::Files(files) => PyList::new(py, files.0.iter())?,
-            };
-            let results = self.map_tiles.bind(py).call1((list,))?;
-            results
-                .try_iter()?
-                .map(|item| item?.extract::<Option<Vec<u8>>>())
-                .collect::<PyResult<Vec<_>>>()
-        })
-        .map_err(|e| ReconError::TileRunner(format!("map_tiles raised {e}")))?;
-        if returned.len() != count {
-            return Err(ReconError::TileRunner(format!(
-                "map_tiles returned {} results for {count} tiles",
-                returned.len()
-            )));
-        }
-        returned
-            .into_iter()
-            .map(|r| r.map(|b| TileFunction::from_bytes(&b)).transpose())
-            .collect()
+        map_through(&self.map_tiles, count, |py| match &inputs {
+            TileInputs::Bytes(blobs) => PyList::new(py, blobs.iter().map(|b| PyBytes::new(py, b))),
+            TileInputs::Files(files) => PyList::new(py, files.0.iter()),
+        })?
+        .into_iter()
+        .map(|r| r.map(|b| TileFunction::from_bytes(&b)).transpose())
+        .collect()
     }
 }
 

@@ -634,6 +634,24 @@ pub(super) fn polygonisation_params_at(
     }
 }
 
+/// Drops the components far smaller than the largest (`params.min_component_fraction`);
+/// returns how many, and the topology of what is left.
+pub(super) fn drop_small_components(
+    mesh: &mut TriMesh,
+    params: &ReconParams,
+) -> Result<(usize, MeshTopology), ReconError> {
+    let topology = MeshTopology::of(mesh);
+    let removal =
+        sphcover_core::remove_small_components(mesh, &topology, params.min_component_fraction)?;
+    let changed = removal.triangles_removed > 0 || removal.vertices_removed > 0;
+    let topology = if changed {
+        MeshTopology::of(mesh)
+    } else {
+        topology
+    };
+    Ok((removal.components_removed, topology))
+}
+
 /// The surface confidence at the vertices, and components far smaller than the largest
 /// dropped.
 fn clean(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
@@ -651,21 +669,10 @@ fn clean(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
                 .collect(),
         );
     }
-    let topology = MeshTopology::of(&ctx.mesh);
-    let removal = sphcover_core::remove_small_components(
-        &mut ctx.mesh,
-        &topology,
-        ctx.params.min_component_fraction,
-    )?;
-    let changed = removal.triangles_removed > 0 || removal.vertices_removed > 0;
-    let topology = if changed {
-        MeshTopology::of(&ctx.mesh)
-    } else {
-        topology
-    };
+    let (small, topology) = drop_small_components(&mut ctx.mesh, ctx.params)?;
     let sheets =
         drop_unsupported_sheets(&mut ctx.mesh, &topology, &ctx.points, &ctx.scan.isolated)?;
-    ctx.stats.dropped_components = removal.components_removed + sheets;
+    ctx.stats.dropped_components = small + sheets;
     // Neither the refinement nor the change of frame touches the triangles, so the topology
     // stays valid.
     ctx.unchanged_topology = Some(if sheets > 0 {

@@ -4,6 +4,8 @@
 //! It works on the finished mesh rather than on the grid, and only when the caller asks for
 //! it, so it sits after the extraction and before the fan splitting it can make necessary.
 
+use std::borrow::Cow;
+
 use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::{DisjointSets, PointIndex, TriMesh, remove_unused_vertices, triangle_area};
@@ -21,16 +23,19 @@ pub(super) fn trim(mesh: &mut TriMesh, distance2: &[f64], limit: f64) -> usize {
 /// The points whose distance to the seeds the trimming `params` ask for reads: the
 /// triangles' centroids for a trim at a distance, the vertices for [`UnseenTrim`] (which
 /// cuts along the level of that distance), none without trimming.
-pub(crate) fn trimming_points(mesh: &TriMesh, params: &PolygoniseParams) -> Option<Vec<DVec3>> {
+pub(crate) fn trimming_points<'m>(
+    mesh: &'m TriMesh,
+    params: &PolygoniseParams,
+) -> Option<Cow<'m, [DVec3]>> {
     if params.trim.is_some() {
-        Some(
+        Some(Cow::Owned(
             mesh.triangles
                 .par_iter()
                 .map(|t| t.iter().map(|&v| mesh.vertices[v as usize]).sum::<DVec3>() / 3.0)
                 .collect(),
-        )
+        ))
     } else if params.unseen.is_some() {
-        Some(mesh.vertices.clone())
+        Some(Cow::Borrowed(&mesh.vertices))
     } else {
         None
     }

@@ -7,8 +7,8 @@ use sphcover_core::{Aabb, DVec3, MeshTopology, PointIndex, vertex_normals};
 use super::Streamed;
 use crate::pipeline::spill::TileLabels;
 use crate::pipeline::stages::{
-    component_votes, drop_sheets_by_votes, may_hold_sheets, most_voted, polygonisation_params_at,
-    record_topology, vertex_components,
+    component_votes, drop_sheets_by_votes, drop_small_components, may_hold_sheets, most_voted,
+    polygonisation_params_at, record_topology, vertex_components,
 };
 use crate::pipeline::tiled::{polygonise_pieces, tile_of, tiles_holding};
 use crate::pipeline::{ReconError, Trim};
@@ -133,17 +133,7 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
     if ctx.mesh.values.as_ref().map(Vec::len) != Some(ctx.mesh.vertices.len()) {
         ctx.mesh.values = None;
     }
-    let topology = MeshTopology::of(&ctx.mesh);
-    let removal = sphcover_core::remove_small_components(
-        &mut ctx.mesh,
-        &topology,
-        ctx.params.min_component_fraction,
-    )?;
-    let topology = if removal.triangles_removed > 0 || removal.vertices_removed > 0 {
-        MeshTopology::of(&ctx.mesh)
-    } else {
-        topology
-    };
+    let (small, topology) = drop_small_components(&mut ctx.mesh, ctx.params)?;
     let voting = may_hold_sheets(&topology);
     let (positions, components) = if voting {
         vertex_components(&ctx.mesh, &topology)
@@ -245,8 +235,7 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
             .filter(|&&c| !gone(c))
             .count()
     });
-    ctx.stats.dropped_components =
-        removal.components_removed + dropped.iter().filter(|&&d| d).count();
+    ctx.stats.dropped_components = small + dropped.iter().filter(|&&d| d).count();
     if ctx.mesh.triangles.is_empty() {
         return Err(ReconError::Empty(
             "no surface was found near the confident samples",
