@@ -103,7 +103,10 @@ pub fn dual_complex(
         &points,
         radii,
         params.shrink,
-        &TriangulationParams { seed: params.seed },
+        &TriangulationParams {
+            seed: params.seed,
+            ..Default::default()
+        },
     )?;
     Ok(dual_complex_of(&tri))
 }
@@ -117,40 +120,52 @@ pub fn dual_complex(
 pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
     let slots = tri.num_slots();
 
-    // Decide each slot independently (deterministic whatever the thread count).
-    let keep: Vec<bool> = (0..slots as u32)
-        .into_par_iter()
-        .with_min_len(4096)
-        .map(|t| {
-            let cell = tri.tet(t);
-            if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
-                return false;
-            }
-            let p = cell.map(|v| tri.point(v));
-            let w = cell.map(|v| tri.scaled_weight(v));
-            orthocentre_power_sign(p, w) <= 0
-        })
-        .collect();
-    let mut index = vec![NO_TET; slots];
-    let mut tets = Vec::new();
-    for (t, &k) in keep.iter().enumerate() {
-        if k {
-            index[t] = tets.len() as u32;
-            tets.push(tri.tet(t as u32));
+    // Decide each slot independently (deterministic whatever the thread count), 64 slots to
+    // a word; a kept slot's index in the complex is the number of kept slots before it.
+    let kept = |t: u32| {
+        let cell = tri.tet(t);
+        if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
+            return false;
         }
-    }
-    let neighbours: Vec<[u32; 4]> = (0..slots as u32)
-        .filter(|&t| keep[t as usize])
-        .map(|t| {
-            tri.neighbours(t).map(|n| {
-                if keep[n as usize] {
-                    index[n as usize]
-                } else {
-                    NO_TET
-                }
-            })
+        let p = cell.map(|v| tri.point(v));
+        let w = cell.map(|v| tri.scaled_weight(v));
+        orthocentre_power_sign(p, w) <= 0
+    };
+    let keep: Vec<u64> = (0..slots.div_ceil(64) as u32)
+        .into_par_iter()
+        .with_min_len(64)
+        .map(|word| {
+            let first = 64 * word;
+            let last = (first + 64).min(slots as u32);
+            (first..last).fold(0u64, |bits, t| bits | (u64::from(kept(t)) << (t - first)))
         })
         .collect();
+    let mut before = Vec::with_capacity(keep.len() + 1);
+    let mut count = 0u32;
+    for bits in &keep {
+        before.push(count);
+        count += bits.count_ones();
+    }
+    // The complex's index of slot `t`, or NO_TET when it is not kept.
+    let index = |t: u32| {
+        let (word, bit) = ((t / 64) as usize, t % 64);
+        let bits = keep[word];
+        if bits >> bit & 1 == 0 {
+            return NO_TET;
+        }
+        before[word] + (bits & ((1u64 << bit) - 1)).count_ones()
+    };
+    let kept_slots = || {
+        keep.iter().enumerate().flat_map(|(word, &bits)| {
+            (0..64u32)
+                .filter(move |&bit| bits >> bit & 1 == 1)
+                .map(move |bit| 64 * word as u32 + bit)
+        })
+    };
+    let mut tets = Vec::with_capacity(count as usize);
+    tets.extend(kept_slots().map(|t| tri.tet(t)));
+    let mut neighbours = Vec::with_capacity(count as usize);
+    neighbours.extend(kept_slots().map(|t| tri.neighbours(t).map(index)));
     DualComplex {
         tets,
         neighbours,
