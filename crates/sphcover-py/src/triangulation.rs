@@ -34,6 +34,7 @@ pub fn regular_triangulation<'py>(
         let weights: Vec<f64> = radii.iter().map(|r| r * r).collect();
         let params = seed.map_or_else(TriangulationParams::default, |seed| TriangulationParams {
             seed,
+            ..Default::default()
         });
         let tri = RegularTriangulation::new(&points, &weights, &params).map_err(tetra_error)?;
         let tets: Vec<[u32; 4]> = tri.finite_tets().map(|t| tri.tet(t)).collect();

@@ -79,13 +79,14 @@ fn main() {
     let c2 = cpu_seconds().unwrap_or(0.0);
     let s = tri.stats();
     println!(
-        "triangulation: {:.3} s ({} vertices, {} hidden, {} finite tets, {:.1} walk steps/point, {:.1} conflict tets/point)",
+        "triangulation: {:.3} s ({} vertices, {} hidden, {} finite tets, {:.1} walk steps/point, {:.1} conflict tets/point, {} deferred to one-by-one insertion)",
         (t1 - t0).as_secs_f64(),
         s.vertices,
         s.hidden,
         s.finite_tets,
         s.walk_steps as f64 / s.points as f64,
-        s.conflict_tets as f64 / s.points as f64
+        s.conflict_tets as f64 / s.points as f64,
+        s.deferred
     );
     println!(
         "filter: {:.3} s ({} dual tets)",

@@ -46,15 +46,17 @@
 //! * `spatial_sort` (private): the insertion order.
 //! * [`RegularTriangulation`]: incremental Bowyer–Watson with a remembering
 //!   stochastic walk, an infinite vertex, hidden (redundant) points; `u32` handles, per
-//!   tetrahedron one 32-byte block of its 4 vertices and 4 neighbours, a free list.
+//!   tetrahedron one 32-byte block of its 4 vertices and 4 neighbours, a free list; large
+//!   rounds of the insertion order inserted in parallel, region by region.
 //! * [`dual_complex()`]: the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
 //!   `σ_t` of thesis §3.5.2.
 //! * [`TetMesh`]: plain arrays and CSR offsets.
 //! * [`marching_tetrahedra`]: marching tetrahedra on a [`TetMesh`].
 //!
 //! Determinism: the same input and seed give the same output, whatever the thread count
-//! (insertion is sequential; the sorts of distinct keys, the renumbering and the
-//! per-tetrahedron filter run in parallel, item by item).
+//! (large insertion rounds run region by region, with regions that depend on the input
+//! alone; the sorts of distinct keys, the renumbering and the per-tetrahedron filter run in
+//! parallel, item by item).
 //!
 //! Parameter structs implement `Default` with the documented defaults; set what you need and
 //! take the rest with `..Default::default()`, as the example does.

@@ -60,15 +60,30 @@ pub fn hilbert_sort(points: &[Point], indices: &mut [u32]) {
     if indices.len() < 2 {
         return;
     }
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for &i in indices.iter() {
-        let p = points[i as usize];
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
+    // The bounding box, in parallel: min and max give the same box in any order.
+    let (lo, hi) = indices
+        .par_iter()
+        .with_min_len(4096)
+        .fold(
+            || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(mut lo, mut hi), &i| {
+                let p = points[i as usize];
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+                (lo, hi)
+            },
+        )
+        .reduce(
+            || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(a, b), (c, d)| {
+                (
+                    std::array::from_fn(|k| a[k].min(c[k])),
+                    std::array::from_fn(|k| b[k].max(d[k])),
+                )
+            },
+        );
     let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f64, f64::max);
     let scale = if extent > 0.0 {
         ((1u64 << HILBERT_BITS) - 1) as f64 / extent
@@ -95,8 +110,8 @@ pub fn hilbert_sort(points: &[Point], indices: &mut [u32]) {
 }
 
 /// The BRIO order of `indices`: shuffled with `seed`, split into rounds of doubling size
-/// (the last holds half the points), each round Hilbert-sorted.
-pub fn brio_order(points: &[Point], indices: &mut [u32], seed: u64) {
+/// (the last holds half the points), each round Hilbert-sorted. Returns the rounds' ends.
+pub fn brio_order(points: &[Point], indices: &mut [u32], seed: u64) -> Vec<usize> {
     let n = indices.len();
     let mut rng = SplitMix64::new(seed);
     for i in (1..n).rev() {
@@ -113,10 +128,11 @@ pub fn brio_order(points: &[Point], indices: &mut [u32], seed: u64) {
     ends.push(end);
     ends.reverse();
     let mut start = 0;
-    for end in ends {
+    for &end in &ends {
         hilbert_sort(points, &mut indices[start..end]);
         start = end;
     }
+    ends
 }
 
 #[cfg(test)]

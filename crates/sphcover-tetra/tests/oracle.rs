@@ -40,7 +40,15 @@ fn brute_force_tets(p: &[[f64; 3]], w: &[f64]) -> Vec<[u32; 4]> {
 }
 
 fn triangulated_tets(p: &[[f64; 3]], w: &[f64], seed: u64) -> Vec<[u32; 4]> {
-    let t = RegularTriangulation::new(p, w, &TriangulationParams { seed }).unwrap();
+    let t = RegularTriangulation::new(
+        p,
+        w,
+        &TriangulationParams {
+            seed,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let tets: Vec<[u32; 4]> = t.finite_tets().map(|c| t.tet(c)).collect();
     canonical(&tets)
 }

@@ -6,8 +6,10 @@
 //! test, so a fault in the stitching shows without a second implementation of the
 //! predicates.
 
-use super::{INFINITE_VERTEX, NO_TET, RegularTriangulation, VertexStatus, face_key};
-use crate::predicates::orient3d;
+use super::conflict::conflict;
+use super::prepare::distinct_points;
+use super::{Geometry, INFINITE_VERTEX, NO_TET, RegularTriangulation, VertexStatus, face_key};
+use crate::predicates::{Point, orient3d};
 
 impl RegularTriangulation {
     /// Brute-force validity check, `O(T · n)` (for tests): the structure is sound (see
@@ -17,17 +19,18 @@ impl RegularTriangulation {
     /// Returns the first violation found.
     pub fn check_validity(&self) -> Result<(), String> {
         self.check_structure()?;
+        let in_conflict = self.conflict_test();
         for t in 0..self.cells.len() as u32 {
             if !self.is_live(t) {
                 continue;
             }
-            for v in 0..self.pw.len() as u32 {
+            for v in 0..self.num_points() as u32 {
                 if self.status[v as usize] == VertexStatus::Duplicate
                     || self.cells[t as usize].v.contains(&v)
                 {
                     continue;
                 }
-                if self.in_conflict(t, v) {
+                if in_conflict(t, v) {
                     return Err(format!(
                         "point {v} ({:?}) conflicts with tet {t}",
                         self.status[v as usize]
@@ -45,6 +48,7 @@ impl RegularTriangulation {
     /// implies global regularity). Does not test hidden points.
     pub fn check_local_regularity(&self) -> Result<(), String> {
         self.check_structure()?;
+        let in_conflict = self.conflict_test();
         for t in 0..self.cells.len() as u32 {
             if !self.is_live(t) {
                 continue;
@@ -57,7 +61,7 @@ impl RegularTriangulation {
                     .position(|&x| x == t)
                     .unwrap_or(0);
                 let v = self.cells[n as usize].v[j];
-                if v != INFINITE_VERTEX && self.in_conflict(t, v) {
+                if v != INFINITE_VERTEX && in_conflict(t, v) {
                     return Err(format!(
                         "vertex {v} of tet {n} conflicts with its neighbour {t}"
                     ));
@@ -67,8 +71,26 @@ impl RegularTriangulation {
         Ok(())
     }
 
+    /// The construction's conflict test on this triangulation, with the ranks of the
+    /// symbolic perturbation recomputed (the construction drops them when it is done).
+    fn conflict_test(&self) -> impl Fn(u32, u32) -> bool + '_ {
+        let points: Vec<Point> = self.geometry.pw.iter().map(|q| q.p).collect();
+        let weights: Vec<f64> = self.geometry.pw.iter().map(|q| q.w).collect();
+        let mut status = vec![VertexStatus::Vertex; points.len()];
+        let mut rank = vec![0u32; points.len()];
+        distinct_points(&points, &weights, &mut status, &mut rank);
+        let geometry = Geometry {
+            pw: self.geometry.pw.clone(),
+            grid: None,
+            grid_inverse_unit: 0.0,
+            grid_orient_limit: 0.0,
+            rank,
+        };
+        move |t, v| conflict(&self.cells[..], &geometry, t, v) == Some(true)
+    }
+
     fn check_structure(&self) -> Result<(), String> {
-        let mut used = vec![false; self.pw.len()];
+        let mut used = vec![false; self.num_points()];
         for t in 0..self.cells.len() as u32 {
             if !self.is_live(t) {
                 continue;

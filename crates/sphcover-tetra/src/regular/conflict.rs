@@ -6,35 +6,51 @@
 //! the grid stages and the exact fallbacks stay together here, where the hottest calls of
 //! the construction can be read in one place.
 
-use super::{INFINITE_VERTEX, RegularTriangulation};
+use super::cells::CellRead;
+use super::{Geometry, INFINITE_VERTEX};
 use crate::predicates::{
     Point, grid_lifted_sign, lifted_sign_fixed, orient3d, orient3d_filter, orient3d_grid,
     power_test_exact, power_test_filter,
 };
 
-impl RegularTriangulation {
-    /// Whether point `v` conflicts with tetrahedron `t` (perturbed power test; for an
-    /// infinite tetrahedron: beyond its hull facet, or on its plane and inside the facet's
-    /// power circle).
-    #[inline]
-    pub(super) fn in_conflict(&self, t: u32, v: u32) -> bool {
-        let cell = self.cells[t as usize].v;
-        let q = self.point(v);
-        let wq = self.pw[v as usize].w;
-        if let Some(k) = cell.iter().position(|&x| x == INFINITE_VERTEX) {
-            let mut ids = cell;
-            ids[k] = v;
-            let o = self.orient(ids);
-            if o != 0 {
-                return o > 0;
-            }
-            // On the hull facet's plane: conflict with the facet's power circle. For a
-            // coplanar query that equals conflict with the orthosphere of the finite cell on
-            // the facet (both are the lifted plane through the facet's lifted vertices), and
-            // the perturbation agrees too (the apex's term is the flat orient(a, b, c, q)).
-            let finite = self.cells[t as usize].n[k];
-            return self.in_conflict(finite, v);
+/// Whether point `v` conflicts with cell `t` of `cells` (perturbed power test; for an
+/// infinite cell: beyond its hull facet, or on its plane and inside the facet's power
+/// circle). `None` when that last case needs the neighbours of a cell the caller may only
+/// read (they can be stale there).
+#[inline]
+pub(super) fn conflict<C: CellRead + ?Sized>(
+    cells: &C,
+    geometry: &Geometry,
+    t: u32,
+    v: u32,
+) -> Option<bool> {
+    let cell = cells.cell(t).v;
+    if let Some(k) = cell.iter().position(|&x| x == INFINITE_VERTEX) {
+        let mut ids = cell;
+        ids[k] = v;
+        let o = geometry.orient(ids);
+        if o != 0 {
+            return Some(o > 0);
         }
+        // On the hull facet's plane: conflict with the facet's power circle. For a
+        // coplanar query that equals conflict with the orthosphere of the finite cell on
+        // the facet (both are the lifted plane through the facet's lifted vertices), and
+        // the perturbation agrees too (the apex's term is the flat orient(a, b, c, q)).
+        if !cells.owns(t) {
+            return None;
+        }
+        let finite = cells.cell(t).n[k];
+        return Some(geometry.finite_conflict(&cells.cell(finite).v, v));
+    }
+    Some(geometry.finite_conflict(&cell, v))
+}
+
+impl Geometry {
+    /// Whether point `v` conflicts with the finite tetrahedron `cell` (perturbed power test).
+    #[inline]
+    pub(super) fn finite_conflict(&self, cell: &[u32; 4], v: u32) -> bool {
+        let q = &self.pw[v as usize].p;
+        let wq = self.pw[v as usize].w;
         // Plain indexing (an array `map` here is not always inlined, and this is the hottest
         // call of the construction).
         let (a, b, c, d) = (
@@ -53,7 +69,7 @@ impl RegularTriangulation {
             };
         let s = match equal_grid.or_else(|| power_test_filter(p, w, q, wq)) {
             Some(s) => s,
-            None => self.exact_power_test(&cell, v, p, w, q, wq),
+            None => self.exact_power_test(cell, v, p, w, q, wq),
         };
         if s != 0 {
             return s < 0;
@@ -75,7 +91,7 @@ impl RegularTriangulation {
             }
             rank[i] = u32::MAX;
             left -= 1;
-            let mut ids = cell;
+            let mut ids = *cell;
             ids[i] = v;
             let o = self.orient(ids);
             if o != 0 {

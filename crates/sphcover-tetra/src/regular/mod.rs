@@ -2,10 +2,12 @@
 //!
 //! The method is described on [`RegularTriangulation`].
 
+mod cells;
 mod check;
 mod conflict;
 mod domain;
 mod insert;
+mod parallel;
 mod prepare;
 
 use rayon::prelude::*;
@@ -39,11 +41,25 @@ pub enum VertexStatus {
 pub struct TriangulationParams {
     /// Seed of the insertion order and of the walk (same seed → same triangulation).
     pub seed: u64,
+    /// Inputs of at least this many distinct points insert their large rounds in parallel,
+    /// region by region (default 131,072); smaller ones are inserted one point after another.
+    /// The tetrahedra are the same either way, the slots they take are not (and whatever
+    /// follows slot order, such as the dual complex's order, follows them). The thread count
+    /// changes neither.
+    pub parallel_from: usize,
+    /// Points per region of a parallel round (default 32,768): a round of at least half this
+    /// many points is split into its size over this, rounded down to a power of two, regions
+    /// (from 2 to 64).
+    pub region_points: usize,
 }
 
 impl Default for TriangulationParams {
     fn default() -> Self {
-        Self { seed: 0x5eed_7e7a }
+        Self {
+            seed: 0x5eed_7e7a,
+            parallel_from: 1 << 17,
+            region_points: 1 << 15,
+        }
     }
 }
 
@@ -73,6 +89,9 @@ pub struct TriangulationStats {
     pub walk_steps: u64,
     /// Tetrahedra found in conflict over all insertions.
     pub conflict_tets: u64,
+    /// Points of parallel rounds whose region could not insert them (their walk or conflict
+    /// zone crossed a region border), inserted after the round one after another.
+    pub deferred: u64,
 }
 
 /// A 3D regular triangulation of weighted points (weights are squared radii).
@@ -117,8 +136,17 @@ pub struct TriangulationStats {
 /// ten of them between equal weights).
 ///
 /// Parallelism: the sorts (duplicate detection, the Hilbert rounds) and the final renumbering
-/// run on rayon; the insertions are sequential. Sorted keys are distinct pairs, so every order
-/// is the same whatever the thread count.
+/// run on rayon; sorted keys are distinct pairs, so every order is the same whatever the
+/// thread count. On inputs of at least [`TriangulationParams::parallel_from`] points, the
+/// insertions of a large round run region by region: the round is split
+/// by median planes into boxes, each box inserts its points on its own thread and may change
+/// only the cells whose vertices all lie in it; a point whose walk or conflict zone reaches
+/// across a border is deferred to a second pass with other planes, and what remains after
+/// that is inserted one point after another (module `parallel`). The number of regions
+/// depends on the round's size alone, so the output is the same for every thread count; the
+/// triangulation is unique, so its tetrahedra are those of the one-by-one construction (on
+/// the 1M-sphere octree benchmark cover about 2% of the points are left to the one-by-one
+/// insertion).
 ///
 /// Input domain: the predicates are exact only while nothing they compute under- or
 /// overflows. The construction works on a copy of the input scaled by a power of two (exact,
@@ -127,21 +155,31 @@ pub struct TriangulationStats {
 ///
 /// Layout: the types, the constructor and the queries are here; `domain` (the exact range and
 /// the scaling into it), `prepare` (duplicates, ranks, the dyadic grid), `insert` (the first
-/// cell, the walk, the conflict zone, the cone), `conflict` (the exact predicates on vertex
+/// cell, the walk, the conflict zone, the cone), `cells` (where an insertion reads and writes
+/// cells), `parallel` (the rounds by regions), `conflict` (the exact predicates on vertex
 /// handles) and `check` (validity checks for tests) hold the phases.
 #[derive(Clone, Debug)]
 pub struct RegularTriangulation {
-    /// `[x, y, z, w]` per point (one cache line holds two), scaled into the exact range:
-    /// coordinates times `2^scale_log2`, weights times `2^(2·scale_log2)`. While building,
-    /// indexed by insertion rank (neighbouring cells then touch neighbouring memory);
-    /// afterwards by input index, like every handle the API returns.
-    pw: Vec<WeightedPoint>,
+    /// The points as the predicates see them (see [`Geometry`]).
+    geometry: Geometry,
     /// The power of two the input was scaled by (see `domain`).
     scale_log2: i32,
     /// Tetrahedron slots: vertices and neighbours together (one cache line per cell).
     cells: Vec<Cell>,
     free: Vec<u32>,
     status: Vec<VertexStatus>,
+    stats: TriangulationStats,
+}
+
+/// The points and what the exact predicates know of them; only read while building, so the
+/// insertions of separate regions share it.
+#[derive(Clone, Debug)]
+struct Geometry {
+    /// `[x, y, z, w]` per point (one cache line holds two), scaled into the exact range:
+    /// coordinates times `2^scale_log2`, weights times `2^(2·scale_log2)`. While building,
+    /// indexed by insertion rank (neighbouring cells then touch neighbouring memory);
+    /// afterwards by input index, like every handle the API returns.
+    pw: Vec<WeightedPoint>,
     /// While building, when every centre lies on one dyadic grid (grids, octrees): each
     /// centre as integers in units of `2^e`, so exact tie-breaking skips the bit analysis.
     grid: Option<(i32, Vec<[i32; 3]>)>,
@@ -151,10 +189,18 @@ pub struct RegularTriangulation {
     /// exact grid orientation ([`orient3d_grid`](crate::predicates::orient3d_grid));
     /// otherwise 0.
     grid_orient_limit: f64,
-    /// Lexicographic rank of each point's centre (ties share a rank; only distinct centres
-    /// are inserted), the order of the symbolic perturbation.
+    /// While building, the lexicographic rank of each point's centre (ties share a rank;
+    /// only distinct centres are inserted), the order of the symbolic perturbation; empty
+    /// afterwards (the validity checks recompute it).
     rank: Vec<u32>,
-    stats: TriangulationStats,
+}
+
+impl Geometry {
+    /// The centre of point `v`, scaled into the exact range.
+    #[inline]
+    fn point(&self, v: u32) -> &Point {
+        &self.pw[v as usize].p
+    }
 }
 
 /// One tetrahedron slot: its vertices and, in slot `i` of `n`, the neighbour across the face
@@ -167,11 +213,22 @@ struct Cell {
     n: [u32; 4],
 }
 
-/// Scratch buffers reused across insertions (no allocation in the steady state).
-struct Scratch {
+/// Per-cell and per-vertex marks of the insertions. One set serves the whole construction:
+/// the insertions of separate regions write disjoint entries of it.
+struct Marks {
     /// Per tet: [`UNTESTED`], [`IN_CONFLICT`] or [`OUTSIDE`] for the current insertion; reset
     /// before the next one (one byte keeps the array cache-resident).
     mark: Vec<u8>,
+    /// Per vertex: the insertion stamp of the last cavity boundary it was on.
+    vmark: Vec<u32>,
+    /// Per vertex (insertion numbering): hidden on arrival or swallowed later.
+    hidden: Vec<bool>,
+}
+
+/// Buffers of one inserting thread, reused across insertions (no allocation in the steady
+/// state).
+struct Scratch {
+    /// The current insertion's stamp (see [`Marks::vmark`] and [`Scratch::edge_table`]).
     stamp: u32,
     stack: Vec<u32>,
     cavity: Vec<u32>,
@@ -180,10 +237,25 @@ struct Scratch {
     /// their boundary edge; a power of two long, entries valid for the current stamp only.
     edge_table: Vec<EdgeSlot>,
     rng: SplitMix64,
-    /// Per vertex: the insertion stamp of the last cavity boundary it was on.
-    vmark: Vec<u32>,
-    /// Per vertex (insertion numbering): hidden on arrival or swallowed later.
-    hidden: Vec<bool>,
+    /// Orientation steps of the walks.
+    walk_steps: u64,
+    /// Tetrahedra found in conflict.
+    conflict_tets: u64,
+}
+
+impl Scratch {
+    fn new(seed: u64, stamp: u32) -> Self {
+        Scratch {
+            stamp,
+            stack: Vec::new(),
+            cavity: Vec::new(),
+            boundary: Vec::new(),
+            edge_table: Vec::new(),
+            rng: SplitMix64::new(seed),
+            walk_steps: 0,
+            conflict_tets: 0,
+        }
+    }
 }
 
 /// A face of the conflict zone's boundary: face `face` of the zone's cell `old`, and the new
@@ -192,6 +264,8 @@ struct Scratch {
 struct BoundaryFace {
     old: u32,
     face: u8,
+    /// The cell across the face is one the insertion may only read (see `cells::CellRead`).
+    read_only: bool,
     new: u32,
 }
 
@@ -282,66 +356,75 @@ impl RegularTriangulation {
         let mut rank = vec![0u32; n];
         let mut order = distinct_points(points, weights, &mut status, &mut rank);
         let distinct = order.len();
-        brio_order(points, &mut order, params.seed);
+        let rounds = brio_order(points, &mut order, params.seed);
         // While building, vertex `i` is the `i`-th point inserted.
-        let mut tri = RegularTriangulation {
-            pw: order
-                .iter()
-                .map(|&e| WeightedPoint {
-                    p: points[e as usize],
-                    w: weights[e as usize],
-                })
-                .collect(),
-            rank: order.iter().map(|&e| rank[e as usize]).collect(),
-            scale_log2,
-            cells: Vec::with_capacity(7 * distinct + 16),
-            free: Vec::new(),
-            status: Vec::new(),
-            grid: None,
-            grid_inverse_unit: 0.0,
-            grid_orient_limit: 0.0,
-            stats: TriangulationStats {
-                points: n,
-                ..Default::default()
-            },
-        };
-        tri.grid = integer_grid(&tri.pw);
-        tri.grid_inverse_unit = match &tri.grid {
+        let pw: Vec<WeightedPoint> = order
+            .iter()
+            .map(|&e| WeightedPoint {
+                p: points[e as usize],
+                w: weights[e as usize],
+            })
+            .collect();
+        let grid = integer_grid(&pw);
+        let grid_inverse_unit = match &grid {
             // 2^-e is a normal f64 for e in -1022..=1022.
             Some((e, _)) if (-1022..=1022).contains(e) => f64::from_bits(((1023 - e) as u64) << 52),
             _ => 0.0,
         };
-        tri.grid_orient_limit = match &tri.grid {
+        let grid_orient_limit = match &grid {
             // 2^(e+16), a normal f64 in this range.
             Some((e, _)) if (-300..=300).contains(e) => {
                 f64::from_bits(((1023 + 16 + e) as u64) << 52)
             }
             _ => 0.0,
         };
+        let mut tri = RegularTriangulation {
+            geometry: Geometry {
+                pw,
+                grid,
+                grid_inverse_unit,
+                grid_orient_limit,
+                rank: order.iter().map(|&e| rank[e as usize]).collect(),
+            },
+            scale_log2,
+            // Room for the final cells (about 6.9 per point) and the margin of a round by
+            // regions (`parallel`); pages never written cost no memory.
+            cells: Vec::with_capacity(15 * distinct / 2 + 16),
+            free: Vec::new(),
+            status: Vec::new(),
+            stats: TriangulationStats {
+                points: n,
+                ..Default::default()
+            },
+        };
+        drop(rank);
         let first =
             tri.initial_simplex(distinct)
                 .map_err(|dimension| TetraError::NotFullDimensional {
                     dimension,
                     distinct,
                 })?;
-        let mut scratch = Scratch {
+        let mut marks = Marks {
             mark: Vec::with_capacity(7 * distinct + 16),
-            stamp: 0,
-            stack: Vec::new(),
-            cavity: Vec::new(),
-            boundary: Vec::new(),
-            edge_table: Vec::new(),
-            rng: SplitMix64::new(params.seed ^ 0xa5a5_5a5a_dead_beef),
             vmark: vec![0; distinct],
             hidden: vec![false; distinct],
         };
+        let mut scratch = Scratch::new(params.seed ^ 0xa5a5_5a5a_dead_beef, 0);
         let mut hint = 0u32;
-        for v in 0..distinct as u32 {
-            if first.contains(&v) {
-                continue;
+        let mut start = 0;
+        for end in rounds {
+            let round = (start as u32, end as u32);
+            if distinct >= params.parallel_from && end - start >= parallel::min_round(params) {
+                hint = tri.insert_by_regions(round, first, hint, &mut marks, &mut scratch, params);
+            } else {
+                for v in (round.0..round.1).filter(|v| !first.contains(v)) {
+                    hint = tri.insert(v, hint, &mut marks, &mut scratch);
+                }
             }
-            hint = tri.insert(v, hint, &mut scratch);
+            start = end;
         }
+        tri.stats.walk_steps += scratch.walk_steps;
+        tri.stats.conflict_tets += scratch.conflict_tets;
         // Back to input numbering.
         tri.cells
             .par_iter_mut()
@@ -355,20 +438,22 @@ impl RegularTriangulation {
                     }
                 }
             });
-        for (i, &h) in scratch.hidden.iter().enumerate() {
+        for (i, &h) in marks.hidden.iter().enumerate() {
             if h {
                 status[order[i] as usize] = VertexStatus::Hidden;
             }
         }
-        tri.grid = None;
-        tri.grid_inverse_unit = 0.0;
-        tri.grid_orient_limit = 0.0;
-        tri.pw = points
-            .iter()
-            .zip(weights)
-            .map(|(&p, &w)| WeightedPoint { p, w })
-            .collect();
-        tri.rank = rank;
+        tri.geometry = Geometry {
+            pw: points
+                .iter()
+                .zip(weights)
+                .map(|(&p, &w)| WeightedPoint { p, w })
+                .collect(),
+            grid: None,
+            grid_inverse_unit: 0.0,
+            grid_orient_limit: 0.0,
+            rank: Vec::new(),
+        };
         tri.status = status;
         let count = |k: VertexStatus| tri.status.iter().filter(|s| **s == k).count();
         tri.stats.duplicates = count(VertexStatus::Duplicate);
@@ -382,18 +467,18 @@ impl RegularTriangulation {
     /// The centre of point `v` as the predicates see it: scaled into the exact range.
     #[inline]
     pub(crate) fn point(&self, v: u32) -> &Point {
-        &self.pw[v as usize].p
+        self.geometry.point(v)
     }
 
     /// The weight of point `v` as the predicates see it: scaled into the exact range.
     #[inline]
     pub(crate) fn scaled_weight(&self, v: u32) -> f64 {
-        self.pw[v as usize].w
+        self.geometry.pw[v as usize].w
     }
 
     /// Number of input points (vertices, hidden points and duplicates).
     pub fn num_points(&self) -> usize {
-        self.pw.len()
+        self.geometry.pw.len()
     }
 
     /// Centre of input point `v`, in the caller's units (exactly as given).
