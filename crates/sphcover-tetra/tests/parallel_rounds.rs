@@ -9,7 +9,7 @@ use proptest::prelude::*;
 use sphcover_core::random::SplitMix64;
 use sphcover_tetra::{RegularTriangulation, TriangulationParams, VertexStatus};
 
-/// Every round of at least half `region_points` points by regions of about that many.
+/// Every round of at least an eighth of `region_points` points by regions of about that many.
 fn by_regions(seed: u64, region_points: usize) -> TriangulationParams {
     TriangulationParams {
         seed,

@@ -47,9 +47,9 @@ pub struct TriangulationParams {
     /// follows slot order, such as the dual complex's order, follows them). The thread count
     /// changes neither.
     pub parallel_from: usize,
-    /// Points per region of a parallel round (default 32,768): a round of at least half this
-    /// many points is split into its size over this, rounded down to a power of two, regions
-    /// (from 2 to 64).
+    /// Points per region of a parallel round (default 32,768): a round of at least an eighth
+    /// of this many points is split into its size over this, rounded down to a power of two,
+    /// regions (from 2 to 64).
     pub region_points: usize,
 }
 
@@ -359,7 +359,8 @@ impl RegularTriangulation {
         let rounds = brio_order(points, &mut order, params.seed);
         // While building, vertex `i` is the `i`-th point inserted.
         let pw: Vec<WeightedPoint> = order
-            .iter()
+            .par_iter()
+            .with_min_len(4096)
             .map(|&e| WeightedPoint {
                 p: points[e as usize],
                 w: weights[e as usize],
@@ -384,7 +385,11 @@ impl RegularTriangulation {
                 grid,
                 grid_inverse_unit,
                 grid_orient_limit,
-                rank: order.iter().map(|&e| rank[e as usize]).collect(),
+                rank: order
+                    .par_iter()
+                    .with_min_len(4096)
+                    .map(|&e| rank[e as usize])
+                    .collect(),
             },
             scale_log2,
             // Room for the final cells (about 6.9 per point) and the margin of a round by
@@ -445,7 +450,8 @@ impl RegularTriangulation {
         }
         tri.geometry = Geometry {
             pw: points
-                .iter()
+                .par_iter()
+                .with_min_len(4096)
                 .zip(weights)
                 .map(|(&p, &w)| WeightedPoint { p, w })
                 .collect(),
@@ -460,7 +466,12 @@ impl RegularTriangulation {
         tri.stats.hidden = count(VertexStatus::Hidden);
         tri.stats.vertices = n - tri.stats.duplicates - tri.stats.hidden;
         tri.stats.tets = tri.cells.len() - tri.free.len();
-        tri.stats.finite_tets = tri.finite_tets().count();
+        tri.stats.finite_tets = tri
+            .cells
+            .par_iter()
+            .with_min_len(4096)
+            .filter(|c| c.v[0] != DEAD && !c.v.contains(&INFINITE_VERTEX))
+            .count();
         Ok(tri)
     }
 
