@@ -1,6 +1,6 @@
 //! End-to-end benchmark harness for `sphcover`, with peers side by side.
 //!
-//! Four binaries live here:
+//! Five binaries live here:
 //!
 //! * `recon-bench` generates the standard synthetic scans of ground-truth meshes
 //!   (`sphcover_evaluation::scan_simulation`), runs `sphcover recon` and any peer given as a command
@@ -12,12 +12,16 @@
 //! * `head-ct-bench` does the same on the generated clinical head CT
 //!   (`sphcover_evaluation::head_ct_phantom`) with the clinical scores of
 //!   `sphcover_evaluation::head_sheet_metrics`;
-//! * `recon-score` scores one reconstruction against its ground truth as JSON.
+//! * `recon-score` scores one reconstruction against its ground truth as JSON;
+//! * `tetra-bench` times `sphcover_tetra::RegularTriangulation` against CGAL's
+//!   `Regular_triangulation_3` (`peers/cgal_regular.cpp`) on generated weighted point sets
+//!   ([`sphere_sets`]) and checks that both give the same tetrahedra ([`tet_lists`],
+//!   [`cgal_peer`]).
 //!
 //! A tool that fails or is missing gets a row that says so; the run goes on. The
 //! per-function criterion benchmarks live next to each crate (`cargo bench -p
 //! sphcover-core`). This library holds what the binaries share: peer command templates,
-//! measured runs and markdown tables.
+//! measured runs, markdown tables, and the sphere sets and tetrahedron lists of `tetra-bench`.
 //!
 //! ```
 //! use std::path::Path;
@@ -45,9 +49,12 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod cgal_peer;
 pub mod command_template;
 pub mod markdown_table;
 pub mod measured_run;
+pub mod sphere_sets;
+pub mod tet_lists;
 
 use std::path::{Path, PathBuf};
 

@@ -1,4 +1,5 @@
-//! An adaptive octree cover of a torus, shared by the example and the benchmark.
+//! An adaptive octree cover of a torus, shared by the example, the criterion benchmark and
+//! `tetra-bench` (each includes this file).
 //!
 //! Octree cells of the unit cube are refined while the surface may cross them (distance below half the diagonal) (major
 //! radius 0.3, tube radius 0.1, centred in the cube); each leaf gets a support at its centre
