@@ -511,32 +511,33 @@ impl PointIndex {
         }
         debug_assert!(dist2.as_ref().is_none_or(|d| d.len() == slots.len()));
         let r2 = r * r;
-        let distance2 = |s: u32| (self.points[s as usize] - x).length_squared();
         self.for_each_leaf_near::<false>(x, r2, |leaf| {
-            let range = leaf.lo..leaf.hi;
-            if leaf.box_farthest2(x) < r2 {
-                slots.extend(range.clone());
-                if let Some(dist2) = dist2.as_deref_mut() {
-                    dist2.extend(range.map(distance2));
+            let points = &self.points[leaf.lo as usize..leaf.hi as usize];
+            let start = slots.len();
+            // Every slot of the leaf is appended, then those outside are squeezed out: a
+            // write per point without a branch, through slices whose length the compiler
+            // knows (writing through `slots[len]` checked a bound per point).
+            slots.extend(leaf.lo..leaf.hi);
+            let whole = leaf.box_farthest2(x) < r2;
+            match dist2.as_deref_mut() {
+                Some(dist2) => {
+                    dist2.extend(points.iter().map(|&p| (p - x).length_squared()));
+                    if !whole {
+                        let kept = keep_inside(&mut slots[start..], &mut dist2[start..], r2);
+                        slots.truncate(start + kept);
+                        dist2.truncate(start + kept);
+                    }
                 }
-                return;
-            }
-            let mut len = slots.len();
-            slots.resize(len + range.len(), 0);
-            if let Some(dist2) = dist2.as_deref_mut() {
-                dist2.resize(len + range.len(), 0.0);
-            }
-            for s in range {
-                let d2 = distance2(s);
-                slots[len] = s;
-                if let Some(dist2) = dist2.as_deref_mut() {
-                    dist2[len] = d2;
+                None if !whole => {
+                    let out = &mut slots[start..];
+                    let mut kept = 0;
+                    for (s, &p) in (leaf.lo..).zip(points) {
+                        out[kept] = s;
+                        kept += usize::from((p - x).length_squared() < r2);
+                    }
+                    slots.truncate(start + kept);
                 }
-                len += usize::from(d2 < r2);
-            }
-            slots.truncate(len);
-            if let Some(dist2) = dist2.as_deref_mut() {
-                dist2.truncate(len);
+                None => {}
             }
         });
     }
@@ -578,6 +579,22 @@ impl PointIndex {
             }
         }
     }
+}
+
+/// Moves the pairs `(slots[k], dist2[k])` with `dist2[k] < r2` to the front, in order,
+/// without a branch per pair; returns how many there are.
+#[inline]
+fn keep_inside(slots: &mut [u32], dist2: &mut [f64], r2: f64) -> usize {
+    let n = slots.len().min(dist2.len());
+    let (slots, dist2) = (&mut slots[..n], &mut dist2[..n]);
+    let mut kept = 0;
+    for k in 0..n {
+        let d2 = dist2[k];
+        slots[kept] = slots[k];
+        dist2[kept] = d2;
+        kept += usize::from(d2 < r2);
+    }
+    kept
 }
 
 /// Lexicographic `(distance², index)` order.
