@@ -723,10 +723,20 @@ fn build(items: &mut [(DVec3, u32)], base: usize) -> Vec<Node> {
     }
     let mid = n / 2;
     // Ties in the coordinate are broken by index, so the partition is a pure function of
-    // the input.
-    items.select_nth_unstable_by(mid, |a, b| {
-        a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1))
-    });
+    // the input. One comparison per axis: indexing the point by a variable axis inside the
+    // comparison cost a branch per point.
+    fn select_by(items: &mut [(DVec3, u32)], mid: usize, coordinate: impl Fn(DVec3) -> f64) {
+        items.select_nth_unstable_by(mid, |a, b| {
+            coordinate(a.0)
+                .total_cmp(&coordinate(b.0))
+                .then(a.1.cmp(&b.1))
+        });
+    }
+    match axis {
+        0 => select_by(items, mid, |p| p.x),
+        1 => select_by(items, mid, |p| p.y),
+        _ => select_by(items, mid, |p| p.z),
+    }
     let split = items[mid].0[axis];
     let (left, right) = items.split_at_mut(mid);
     let (left_nodes, right_nodes) = if n >= PARALLEL_BUILD {
