@@ -437,6 +437,9 @@ impl Sums {
     /// registers.
     fn of(samples: &FitSamples, radius: f64) -> Sums {
         let FitSamples { x, y, z, w } = samples;
+        // One length for the four columns, so the loops check no bound.
+        let n = w.len();
+        let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
         let mut moment = [[0.0; 5]; 5];
         let (mut w2, mut wz2, mut nearest2) = (0.0, 0.0, f64::INFINITY);
         let mut rhs = [0.0; TERMS];
