@@ -536,10 +536,11 @@ where
     let range = pairs.offsets()[i] as usize..pairs.offsets()[i + 1] as usize;
     let mut sum = T::default();
     let mut total = 0.0;
-    for k in range {
-        let w = weights[k];
+    // The row's weights and neighbours as slices of one length: no bound check per entry.
+    let neighbours = &pairs.neighbour_array()[range.clone()];
+    for (&w, &j) in weights[range].iter().zip(neighbours) {
         if w > 0.0 {
-            sum = sum + value(pairs.neighbour_array()[k] as usize) * w;
+            sum = sum + value(j as usize) * w;
             total += w;
         }
     }
