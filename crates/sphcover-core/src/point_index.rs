@@ -219,6 +219,63 @@ impl PointIndex {
         }
     }
 
+    /// The smallest squared distance `‖p − x‖²` from `x` to an indexed point (the first
+    /// distance [`PointIndex::nearest_k_with_distances`] gives for `k = 1`, the same bits),
+    /// with the slot of a point at that distance; `None` for a non-finite `x` or an empty
+    /// index. `hint`, the slot of a point near `x` (the answer for a neighbouring query, say),
+    /// bounds the search from the start; the distance does not depend on it.
+    pub fn nearest_distance2(&self, x: DVec3, hint: Option<usize>) -> Option<(f64, usize)> {
+        if self.nodes.is_empty() || !x.is_finite() {
+            return None;
+        }
+        // Only the distance is asked for, not which of several points at it: a subtree
+        // whose box is no nearer than the best distance so far is pruned, ties included,
+        // with no list of candidates kept.
+        let mut best = match hint.filter(|&s| s < self.points.len()) {
+            Some(s) => ((self.points[s] - x).length_squared(), s),
+            None => (f64::INFINITY, usize::MAX),
+        };
+        let mut stack = [(0u32, 0.0f64); 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (n, box_d2) = stack[top];
+            if box_d2 >= best.0 {
+                continue;
+            }
+            let n = n as usize;
+            let node = &self.nodes[n];
+            if node.right == 0 {
+                let (lo, hi) = (node.lo as usize, node.hi as usize);
+                for (s, &p) in (lo..).zip(&self.points[lo..hi]) {
+                    let d2 = (p - x).length_squared();
+                    if d2 < best.0 {
+                        best = (d2, s);
+                    }
+                }
+                continue;
+            }
+            let (left, right) = (n + 1, n + node.right as usize);
+            let (dl, dr) = (
+                self.nodes[left].box_distance2(x),
+                self.nodes[right].box_distance2(x),
+            );
+            let (near, far) = if dl <= dr {
+                ((left, dl), (right, dr))
+            } else {
+                ((right, dr), (left, dl))
+            };
+            stack[top] = (far.0 as u32, far.1);
+            stack[top + 1] = (near.0 as u32, near.1);
+            top += 2;
+        }
+        // Every point at an infinite distance (coordinates near overflow) leaves no slot.
+        if best.1 == usize::MAX {
+            best = (f64::INFINITY, 0);
+        }
+        Some(best)
+    }
+
     /// The branch-and-bound search behind [`PointIndex::nearest_k_with_distances`], offering
     /// every point that may belong to the answer to `set`.
     fn search_nearest(&self, x: DVec3, set: &mut impl NearestSet) {
@@ -816,6 +873,34 @@ mod tests {
             sample.dedup();
             prop_assert_eq!(sample.len(), total);
             prop_assert_eq!(sample.is_empty(), brute == 0);
+        }
+
+        /// The nearest distance is bitwise the first of the `k = 1` search, whatever the
+        /// hint, and its slot holds a point at that distance.
+        #[test]
+        fn nearest_distance_matches_the_nearest_search(
+            points in prop::collection::vec(
+                (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64)
+                    .prop_map(|(x, y, z)| DVec3::new(x, y, z)),
+                0..300,
+            ),
+            queries in prop::collection::vec((-1.5..1.5f64, -1.5..1.5f64, -1.5..1.5f64), 1..20),
+            hint in any::<prop::sample::Index>(),
+        ) {
+            let index = PointIndex::new(&points).unwrap();
+            let mut found = Vec::new();
+            for (x, y, z) in queries {
+                let x = DVec3::new(x, y, z);
+                index.nearest_k_with_distances(x, 1, &mut found);
+                let hint = (!points.is_empty()).then(|| hint.index(points.len()));
+                for h in [None, hint] {
+                    let got = index.nearest_distance2(x, h);
+                    prop_assert_eq!(got.map(|g| g.0.to_bits()), found.first().map(|f| f.0.to_bits()));
+                    if let Some((d2, s)) = got {
+                        prop_assert_eq!((index.points[s] - x).length_squared().to_bits(), d2.to_bits());
+                    }
+                }
+            }
         }
     }
 }

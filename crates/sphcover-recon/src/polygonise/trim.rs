@@ -47,12 +47,20 @@ pub(crate) fn distances_squared(
     seeds: &[DVec3],
 ) -> Result<Vec<f64>, PolygoniseError> {
     let index = PointIndex::new(seeds)?;
+    // Consecutive points (mesh vertices or triangle centres) mostly lie close together, so
+    // the previous point's nearest seed bounds each search from the start.
     Ok(points
         .par_iter()
-        .map_init(Vec::new, |found, &p| {
-            index.nearest_k_with_distances(p, 1, found);
-            found.first().map_or(f64::INFINITY, |&(d2, _)| d2)
-        })
+        .map_init(
+            || None,
+            |hint, &p| match index.nearest_distance2(p, *hint) {
+                Some((d2, slot)) => {
+                    *hint = Some(slot);
+                    d2
+                }
+                None => f64::INFINITY,
+            },
+        )
         .collect())
 }
 
