@@ -276,6 +276,57 @@ impl PointIndex {
         Some(best)
     }
 
+    /// The largest squared distance among the `k` nearest indexed points to `x` (among all
+    /// of them when fewer are indexed): the last distance
+    /// [`PointIndex::nearest_k_with_distances`] gives, the same bits. `None` for `k = 0`, a
+    /// non-finite `x` or an empty index. Which points tie at a distance does not change the
+    /// `k`-th distance, so the search keeps distances alone and prunes ties.
+    pub(crate) fn kth_nearest_distance2(&self, x: DVec3, k: usize) -> Option<f64> {
+        let k = k.min(self.len());
+        if k == 0 || !x.is_finite() {
+            return None;
+        }
+        // The smallest distances met, ascending, at most `k`.
+        let mut kept: Vec<f64> = Vec::with_capacity(k + 1);
+        let mut stack = [(0u32, 0.0f64); 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (n, box_d2) = stack[top];
+            let bound = if kept.len() == k { kept[k - 1] } else { f64::INFINITY };
+            if box_d2 >= bound {
+                continue;
+            }
+            let n = n as usize;
+            let node = &self.nodes[n];
+            if node.right == 0 {
+                for &p in &self.points[node.lo as usize..node.hi as usize] {
+                    let d2 = (p - x).length_squared();
+                    if kept.len() < k || d2 < kept[k - 1] {
+                        let at = kept.partition_point(|&e| e <= d2);
+                        kept.insert(at, d2);
+                        kept.truncate(k);
+                    }
+                }
+                continue;
+            }
+            let (left, right) = (n + 1, n + node.right as usize);
+            let (dl, dr) = (
+                self.nodes[left].box_distance2(x),
+                self.nodes[right].box_distance2(x),
+            );
+            let (near, far) = if dl <= dr {
+                ((left, dl), (right, dr))
+            } else {
+                ((right, dr), (left, dl))
+            };
+            stack[top] = (far.0 as u32, far.1);
+            stack[top + 1] = (near.0 as u32, near.1);
+            top += 2;
+        }
+        kept.last().copied()
+    }
+
     /// The branch-and-bound search behind [`PointIndex::nearest_k_with_distances`], offering
     /// every point that may belong to the answer to `set`.
     fn search_nearest(&self, x: DVec3, set: &mut impl NearestSet) {
@@ -893,6 +944,14 @@ mod tests {
                 let x = DVec3::new(x, y, z);
                 index.nearest_k_with_distances(x, 1, &mut found);
                 let hint = (!points.is_empty()).then(|| hint.index(points.len()));
+                for k in [1, 2, 5, 15] {
+                    index.nearest_k_with_distances(x, k, &mut found);
+                    prop_assert_eq!(
+                        index.kth_nearest_distance2(x, k).map(f64::to_bits),
+                        found.last().map(|f| f.0.to_bits())
+                    );
+                }
+                index.nearest_k_with_distances(x, 1, &mut found);
                 for h in [None, hint] {
                     let got = index.nearest_distance2(x, h);
                     prop_assert_eq!(got.map(|g| g.0.to_bits()), found.first().map(|f| f.0.to_bits()));

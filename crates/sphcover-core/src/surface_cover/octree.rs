@@ -445,11 +445,10 @@ impl Octree<'_> {
         let empty = own_points == 0;
         let mut grown = false;
         if cand.len() < self.params.n_min {
-            let mut nearest = Vec::with_capacity(self.params.n_min);
-            samples
+            let farthest = samples
                 .index
-                .nearest_k_with_distances(centre, self.params.n_min, &mut nearest);
-            let farthest = nearest.last()?.0.sqrt();
+                .kth_nearest_distance2(centre, self.params.n_min)?
+                .sqrt();
             radius = natural.max(farthest * REACH);
             grown = radius > natural;
             cand.gather(samples, centre, radius);
