@@ -74,15 +74,6 @@ fn brute_force(c: &[DVec3], r: &[f64]) -> (Vec<[u32; 4]>, Vec<[u32; 4]>) {
     (sure, unsure)
 }
 
-fn random_cover(n: usize, seed: u64) -> (Vec<DVec3>, Vec<f64>) {
-    let (p, w) = random_points(n, 1.0, seed);
-    let c: Vec<DVec3> = p.iter().map(|x| DVec3::from_array(*x)).collect();
-    // Radii around the typical spacing, so tetrahedra both pass and fail the filter.
-    let spacing = (1.0 / n as f64).cbrt();
-    let r: Vec<f64> = w.iter().map(|x| spacing * (0.4 + 1.2 * x)).collect();
-    (c, r)
-}
-
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 

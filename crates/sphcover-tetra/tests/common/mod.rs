@@ -12,6 +12,19 @@ pub fn random_points(n: usize, wmax: f64, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>
     (pts, w)
 }
 
+/// `n` random spheres in the unit cube, with radii around the typical spacing so that
+/// tetrahedra both pass and fail the dual complex filter.
+pub fn random_cover(n: usize, seed: u64) -> (Vec<sphcover_core::DVec3>, Vec<f64>) {
+    let (p, w) = random_points(n, 1.0, seed);
+    let c = p
+        .iter()
+        .map(|x| sphcover_core::DVec3::from_array(*x))
+        .collect();
+    let spacing = (1.0 / n as f64).cbrt();
+    let r = w.iter().map(|x| spacing * (0.4 + 1.2 * x)).collect();
+    (c, r)
+}
+
 /// Points of an `n³` integer grid (scaled by `h`), all weights `w`.
 pub fn grid(n: usize, h: f64, w: f64) -> (Vec<[f64; 3]>, Vec<f64>) {
     let mut pts = Vec::new();
