@@ -50,13 +50,14 @@
 //!   rounds of the insertion order inserted in parallel, region by region.
 //! * [`dual_complex()`]: the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
 //!   `σ_t` of thesis §3.5.2.
-//! * [`TetMesh`]: plain arrays and CSR offsets.
+//! * [`TetMesh`]: plain arrays and CSR offsets, built vertex by vertex in parallel.
 //! * [`marching_tetrahedra`]: marching tetrahedra on a [`TetMesh`].
 //!
 //! Determinism: the same input and seed give the same output, whatever the thread count
 //! (large insertion rounds run region by region, with regions that depend on the input
-//! alone; the sorts of distinct keys, the renumbering and the per-tetrahedron filter run in
-//! parallel, item by item).
+//! alone; the sorts of distinct keys, the renumbering, the per-tetrahedron filter and the
+//! mesh's per-vertex edges and rings run in parallel, item by item, and are concatenated in
+//! item order).
 //!
 //! Parameter structs implement `Default` with the documented defaults; set what you need and
 //! take the rest with `..Default::default()`, as the example does.

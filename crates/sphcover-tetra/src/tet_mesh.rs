@@ -3,6 +3,10 @@
 //!
 //! The method is described on [`TetMesh`].
 
+use std::ops::Range;
+
+use rayon::prelude::*;
+
 use crate::dual_complex::DualComplex;
 use crate::regular::NO_TET;
 
@@ -53,33 +57,38 @@ impl TetMesh {
     /// Builds the mesh from tetrahedra over `num_points` input points (positively oriented)
     /// and their face adjacency (`neighbours[t][i]` across the face opposite vertex `i`, or
     /// [`NO_TET`]).
+    ///
+    /// Runs on rayon; the output does not depend on the number of threads. Each vertex's
+    /// edges and rings, and each tetrahedron's edges, are computed on their own; the pieces
+    /// are concatenated in vertex order.
     pub fn from_tets(num_points: usize, tets: &[[u32; 4]], neighbours: &[[u32; 4]]) -> TetMesh {
-        let mut map = vec![NO_TET; num_points];
+        // The supports in use, with their number of tetrahedra (the vertex → tetrahedra
+        // offsets); then the same array maps each support to its mesh vertex.
+        let mut map = vec![0u32; num_points];
         for t in tets {
             for &v in t {
-                map[v as usize] = 0;
+                map[v as usize] += 1;
             }
         }
         let mut vertices = Vec::new();
+        let mut vt_off = vec![0u32];
         for (i, m) in map.iter_mut().enumerate() {
-            if *m == 0 {
+            if *m > 0 {
+                vt_off.push(vt_off[vertices.len()] + *m);
                 *m = vertices.len() as u32;
                 vertices.push(i as u32);
             }
         }
-        let tets: Vec<[u32; 4]> = tets.iter().map(|t| t.map(|v| map[v as usize])).collect();
+        let tets: Vec<[u32; 4]> = tets
+            .par_iter()
+            .with_min_len(4096)
+            .map(|t| t.map(|v| map[v as usize]))
+            .collect();
+        drop(map);
         let nv = vertices.len();
 
-        // Vertex → tetrahedra (CSR), to enumerate each vertex's higher neighbours.
-        let mut vt_off = vec![0u32; nv + 1];
-        for t in &tets {
-            for &v in t {
-                vt_off[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..nv {
-            vt_off[i + 1] += vt_off[i];
-        }
+        // Vertex → tetrahedra, ascending per vertex. Sequential: a parallel fill would need
+        // atomic cursors and a sort per vertex, more work than this one scatter.
         let mut fill = vt_off.clone();
         let mut vt = vec![0u32; 4 * tets.len()];
         for (ti, t) in tets.iter().enumerate() {
@@ -88,27 +97,30 @@ impl TetMesh {
                 fill[v as usize] += 1;
             }
         }
+        drop(fill);
 
-        // Unique edges, sorted: for each a, its neighbours b > a.
-        let mut edges: Vec<[u32; 2]> = Vec::new();
-        let mut first_edge = vec![0u32; nv + 1];
-        let mut seen = vec![u32::MAX; nv];
-        let mut nbrs: Vec<u32> = Vec::new();
-        for a in 0..nv {
-            first_edge[a] = edges.len() as u32;
-            nbrs.clear();
-            for &t in &vt[vt_off[a] as usize..vt_off[a + 1] as usize] {
-                for &b in &tets[t as usize] {
-                    if b as usize > a && seen[b as usize] != a as u32 {
-                        seen[b as usize] = a as u32;
-                        nbrs.push(b);
-                    }
-                }
-            }
-            nbrs.sort_unstable();
-            edges.extend(nbrs.iter().map(|&b| [a as u32, b]));
+        // Unique edges `(a, b)`, `a < b`, sorted, and their rings: vertex by vertex, in tasks
+        // of `VERTEX_CHUNK` vertices.
+        let chunks: Vec<EdgeChunk> = (0..nv.div_ceil(VERTEX_CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let vs = c * VERTEX_CHUNK..((c + 1) * VERTEX_CHUNK).min(nv);
+                edges_and_rings(vs, &tets, neighbours, &vt_off, &vt)
+            })
+            .collect();
+        drop((vt_off, vt));
+        let first_edge = offsets(chunks.iter().map(|c| &c.edge_ends[..]));
+        let edge_ring_offsets = offsets(chunks.iter().map(|c| &c.ring_ends[..]));
+        let (mut edges, mut rings, mut closed) = (Vec::new(), Vec::new(), Vec::new());
+        for c in chunks {
+            edges.push(c.edges);
+            rings.push(c.rings);
+            closed.push(c.closed);
         }
-        first_edge[nv] = edges.len() as u32;
+        let edge_rings = concat(rings);
+        let edge_ring_closed = concat(closed);
+        let edges = concat(edges);
+
         let find = |a: u32, b: u32| -> u32 {
             let (a, b) = if a < b { (a, b) } else { (b, a) };
             let range =
@@ -118,68 +130,13 @@ impl TetMesh {
                 .expect("every tetrahedron edge is listed");
             first_edge[a as usize] + k as u32
         };
-        let mut edge_tet = vec![NO_TET; edges.len()];
         let tet_edges: Vec<[u32; 6]> = tets
-            .iter()
-            .enumerate()
-            .map(|(ti, t)| {
-                TET_EDGE_VERTICES.map(|[i, j]| {
-                    let e = find(t[i], t[j]);
-                    if edge_tet[e as usize] == NO_TET {
-                        edge_tet[e as usize] = ti as u32;
-                    }
-                    e
-                })
-            })
+            .par_iter()
+            .with_min_len(4096)
+            .map(|t| TET_EDGE_VERTICES.map(|[i, j]| find(t[i], t[j])))
             .collect();
 
-        // Rings.
-        let mut edge_ring_offsets = Vec::with_capacity(edges.len() + 1);
-        let mut edge_rings = Vec::with_capacity(6 * tets.len());
-        let mut edge_ring_closed = Vec::with_capacity(edges.len());
-        edge_ring_offsets.push(0u32);
-        for (e, &[a, b]) in edges.iter().enumerate() {
-            let t0 = edge_tet[e];
-            // Step across the face opposite `c` (forward) or `d` (backward), where `c, d` are
-            // the other two vertices ordered so that (a, b, c, d) is positive.
-            let step = |t: u32, forward: bool| -> u32 {
-                let cell = &tets[t as usize];
-                let (pc, pd) = ring_positions(cell, a, b);
-                neighbours[t as usize][if forward { pc } else { pd }]
-            };
-            // Walk backwards to the ring's start (an open ring) or all the way round (a
-            // closed ring, which starts at its smallest tetrahedron).
-            let mut start = t0;
-            let mut min = t0;
-            let mut closed = false;
-            loop {
-                let p = step(start, false);
-                if p == NO_TET {
-                    break;
-                }
-                if p == t0 {
-                    closed = true;
-                    break;
-                }
-                start = p;
-                min = min.min(p);
-            }
-            if closed {
-                start = min;
-            }
-            let mut t = start;
-            loop {
-                edge_rings.push(t);
-                t = step(t, true);
-                if t == NO_TET || t == start {
-                    break;
-                }
-            }
-            edge_ring_closed.push(closed);
-            edge_ring_offsets.push(edge_rings.len() as u32);
-        }
-
-        // Vertex → edges.
+        // Vertex → edges: a sequential pass over the edges in order, so ascending per vertex.
         let mut vertex_edge_offsets = vec![0u32; nv + 1];
         for e in &edges {
             vertex_edge_offsets[e[0] as usize + 1] += 1;
@@ -198,10 +155,11 @@ impl TetMesh {
         }
 
         // Neighbours are already in tetrahedron indices; keep them as given.
+        let tet_neighbours = neighbours.par_iter().with_min_len(4096).copied().collect();
         TetMesh {
             vertices,
             tets,
-            tet_neighbours: neighbours.to_vec(),
+            tet_neighbours,
             edges,
             tet_edges,
             edge_ring_offsets,
@@ -254,6 +212,133 @@ impl TetMesh {
         self.vertices.len() as i64 - self.edges.len() as i64 + self.num_triangles() as i64
             - self.tets.len() as i64
     }
+}
+
+/// Vertices per task of the edge and ring enumeration (the output does not depend on it).
+const VERTEX_CHUNK: usize = 1024;
+
+/// The edges and rings of a range of vertices, in order.
+struct EdgeChunk {
+    /// Per vertex `a`, the end in `edges` of its edges `(a, b)`, `b > a`.
+    edge_ends: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+    /// Per edge, the end of its ring in `rings`.
+    ring_ends: Vec<u32>,
+    rings: Vec<u32>,
+    closed: Vec<bool>,
+}
+
+/// The edges `(a, b)`, `b > a`, of the vertices `a` in `vs`, sorted, and their rings.
+fn edges_and_rings(
+    vs: Range<usize>,
+    tets: &[[u32; 4]],
+    neighbours: &[[u32; 4]],
+    vt_off: &[u32],
+    vt: &[u32],
+) -> EdgeChunk {
+    let mut out = EdgeChunk {
+        edge_ends: Vec::with_capacity(vs.len()),
+        edges: Vec::new(),
+        ring_ends: Vec::new(),
+        rings: Vec::new(),
+        closed: Vec::new(),
+    };
+    // The higher neighbours `b` of `a`, each with the smallest tetrahedron containing
+    // `(a, b)`. A vertex has few of them (7 on average at 1M spheres): a linear search
+    // is cheaper than a sort of all 35 or so candidates, or a stamp array per task.
+    let mut higher: Vec<(u32, u32)> = Vec::new();
+    for a in vs {
+        higher.clear();
+        // Ascending tetrahedra: the first one met with `b` is the smallest.
+        for &t in &vt[vt_off[a] as usize..vt_off[a + 1] as usize] {
+            for &b in &tets[t as usize] {
+                if b as usize > a && !higher.iter().any(|h| h.0 == b) {
+                    higher.push((b, t));
+                }
+            }
+        }
+        higher.sort_unstable();
+        for &(b, t0) in &higher {
+            out.edges.push([a as u32, b]);
+            // The tetrahedra around `a` were just read: the walks find them in cache.
+            out.closed
+                .push(walk_ring(tets, neighbours, a as u32, b, t0, &mut out.rings));
+            out.ring_ends.push(out.rings.len() as u32);
+        }
+        out.edge_ends.push(out.edges.len() as u32);
+    }
+    out
+}
+
+/// Appends the ring of edge `(a, b)` through `t0`, its smallest tetrahedron, to `ring` and
+/// returns whether it is closed.
+///
+/// A closed ring starts at `t0`; an open one at the tetrahedron reached by stepping backwards
+/// from `t0` until the boundary. Each tetrahedron is visited once.
+fn walk_ring(
+    tets: &[[u32; 4]],
+    neighbours: &[[u32; 4]],
+    a: u32,
+    b: u32,
+    t0: u32,
+    ring: &mut Vec<u32>,
+) -> bool {
+    // Step across the face opposite `c` (forward) or `d` (backward), where `c, d` are the
+    // other two vertices ordered so that (a, b, c, d) is positive.
+    let step = |t: u32, forward: bool| -> u32 {
+        let (pc, pd) = ring_positions(&tets[t as usize], a, b);
+        neighbours[t as usize][if forward { pc } else { pd }]
+    };
+    let start = ring.len();
+    let mut t = t0;
+    loop {
+        ring.push(t);
+        t = step(t, true);
+        if t == t0 {
+            return true;
+        }
+        if t == NO_TET {
+            break;
+        }
+    }
+    // Open: the tetrahedra before `t0`, met backwards, go in front of it in reverse.
+    let after = ring.len();
+    let mut t = step(t0, false);
+    while t != NO_TET {
+        ring.push(t);
+        t = step(t, false);
+    }
+    let before = ring.len() - after;
+    ring[after..].reverse();
+    ring[start..].rotate_right(before);
+    false
+}
+
+/// CSR offsets from per-chunk end offsets (each relative to its chunk): a leading 0, then
+/// every end shifted by the total of the chunks before.
+fn offsets<'a>(chunk_ends: impl Iterator<Item = &'a [u32]>) -> Vec<u32> {
+    let mut out = vec![0u32];
+    for ends in chunk_ends {
+        let base = *out.last().expect("starts with 0");
+        out.extend(ends.iter().map(|&e| base + e));
+    }
+    out
+}
+
+/// The concatenation of `parts`, copied in parallel; each part is freed once copied.
+fn concat<T: Copy + Default + Send + Sync>(parts: Vec<Vec<T>>) -> Vec<T> {
+    let mut out = vec![T::default(); parts.iter().map(Vec::len).sum()];
+    let mut rest = out.as_mut_slice();
+    let mut pieces = Vec::with_capacity(parts.len());
+    for part in parts {
+        let (head, tail) = rest.split_at_mut(part.len());
+        pieces.push((head, part));
+        rest = tail;
+    }
+    pieces
+        .into_par_iter()
+        .for_each(|(dst, src)| dst.copy_from_slice(&src));
+    out
 }
 
 /// Positions in `cell` of the two vertices other than `a` and `b`, ordered so that the
