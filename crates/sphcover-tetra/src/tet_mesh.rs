@@ -59,16 +59,15 @@ impl TetMesh {
     /// [`NO_TET`]).
     ///
     /// Runs on rayon; the output does not depend on the number of threads. Each vertex's
-    /// edges and rings, and each tetrahedron's edges, are computed on their own; the pieces
-    /// are concatenated in vertex order.
+    /// edges and rings, and each tetrahedron's edges, are computed on their own, and the
+    /// pieces concatenated in vertex order; the vertex → tetrahedra and vertex → edges
+    /// incidences are scattered by vertex ranges.
     pub fn from_tets(num_points: usize, tets: &[[u32; 4]], neighbours: &[[u32; 4]]) -> TetMesh {
-        // The supports in use, with their number of tetrahedra (the vertex → tetrahedra
-        // offsets); then the same array maps each support to its mesh vertex.
+        // The number of tetrahedra of each support, zero for those not in use (the
+        // vertex → tetrahedra offsets); then the same array maps each support to its vertex.
         let mut map = vec![0u32; num_points];
-        for t in tets {
-            for &v in t {
-                map[v as usize] += 1;
-            }
+        for &v in tets.iter().flatten() {
+            map[v as usize] += 1;
         }
         let mut vertices = Vec::new();
         let mut vt_off = vec![0u32];
@@ -86,18 +85,8 @@ impl TetMesh {
             .collect();
         drop(map);
         let nv = vertices.len();
-
-        // Vertex → tetrahedra, ascending per vertex. Sequential: a parallel fill would need
-        // atomic cursors and a sort per vertex, more work than this one scatter.
-        let mut fill = vt_off.clone();
-        let mut vt = vec![0u32; 4 * tets.len()];
-        for (ti, t) in tets.iter().enumerate() {
-            for &v in t {
-                vt[fill[v as usize] as usize] = ti as u32;
-                fill[v as usize] += 1;
-            }
-        }
-        drop(fill);
+        // Vertex → tetrahedra, ascending per vertex.
+        let vt = transpose(&tets, &vt_off);
 
         // Unique edges `(a, b)`, `a < b`, sorted, and their rings: vertex by vertex, in tasks
         // of `VERTEX_CHUNK` vertices.
@@ -136,23 +125,15 @@ impl TetMesh {
             .map(|t| TET_EDGE_VERTICES.map(|[i, j]| find(t[i], t[j])))
             .collect();
 
-        // Vertex → edges: a sequential pass over the edges in order, so ascending per vertex.
+        // Vertex → edges, ascending per vertex.
         let mut vertex_edge_offsets = vec![0u32; nv + 1];
-        for e in &edges {
-            vertex_edge_offsets[e[0] as usize + 1] += 1;
-            vertex_edge_offsets[e[1] as usize + 1] += 1;
+        for &v in edges.iter().flatten() {
+            vertex_edge_offsets[v as usize + 1] += 1;
         }
         for i in 0..nv {
             vertex_edge_offsets[i + 1] += vertex_edge_offsets[i];
         }
-        let mut fill = vertex_edge_offsets.clone();
-        let mut vertex_edges = vec![0u32; 2 * edges.len()];
-        for (ei, e) in edges.iter().enumerate() {
-            for &v in e {
-                vertex_edges[fill[v as usize] as usize] = ei as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let vertex_edges = transpose(&edges, &vertex_edge_offsets);
 
         // Neighbours are already in tetrahedron indices; keep them as given.
         let tet_neighbours = neighbours.par_iter().with_min_len(4096).copied().collect();
@@ -216,6 +197,43 @@ impl TetMesh {
 
 /// Vertices per task of the edge and ring enumeration (the output does not depend on it).
 const VERTEX_CHUNK: usize = 1024;
+
+/// The transpose of `items` (tetrahedra or edges) given its CSR offsets (the running count
+/// of items per vertex): per vertex, the indices of the items containing it, ascending.
+///
+/// A scatter split into vertex ranges, one per thread: each task reads all the items and
+/// writes those of its own vertices, in item order, so the output does not depend on the
+/// split. An extra task costs one more read of `items`; atomic cursors would cost more, and a
+/// sort per vertex after them.
+fn transpose<const K: usize>(items: &[[u32; K]], offsets: &[u32]) -> Vec<u32> {
+    let nv = offsets.len() - 1;
+    let tasks = rayon::current_num_threads().clamp(1, nv.max(1));
+    let mut out = vec![0u32; offsets[nv] as usize];
+    let mut parts = Vec::with_capacity(tasks);
+    let mut rest = out.as_mut_slice();
+    for k in 0..tasks {
+        let vs = k * nv / tasks..(k + 1) * nv / tasks;
+        let (head, tail) = rest.split_at_mut((offsets[vs.end] - offsets[vs.start]) as usize);
+        parts.push((vs, head));
+        rest = tail;
+    }
+    parts.into_par_iter().for_each(|(vs, out)| {
+        let base = offsets[vs.start];
+        let mut fill: Vec<u32> = offsets[vs.clone()].iter().map(|&o| o - base).collect();
+        for (i, item) in items.iter().enumerate() {
+            for &v in item {
+                let slot = (v as usize)
+                    .checked_sub(vs.start)
+                    .and_then(|j| fill.get_mut(j));
+                if let Some(f) = slot {
+                    out[*f as usize] = i as u32;
+                    *f += 1;
+                }
+            }
+        }
+    });
+    out
+}
 
 /// The edges and rings of a range of vertices, in order.
 struct EdgeChunk {
