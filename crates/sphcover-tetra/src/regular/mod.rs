@@ -145,7 +145,7 @@ pub struct TriangulationStats {
 /// that is inserted one point after another (module `parallel`). The number of regions
 /// depends on the round's size alone, so the output is the same for every thread count; the
 /// triangulation is unique, so its tetrahedra are those of the one-by-one construction (on
-/// the 1M-sphere octree benchmark cover about 2% of the points are left to the one-by-one
+/// the 1M-sphere octree benchmark cover about 1% of the points are left to the one-by-one
 /// insertion).
 ///
 /// Input domain: the predicates are exact only while nothing they compute under- or
