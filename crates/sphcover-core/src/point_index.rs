@@ -293,7 +293,11 @@ impl PointIndex {
         while top > 0 {
             top -= 1;
             let (n, box_d2) = stack[top];
-            let bound = if kept.len() == k { kept[k - 1] } else { f64::INFINITY };
+            let bound = if kept.len() == k {
+                kept[k - 1]
+            } else {
+                f64::INFINITY
+            };
             if box_d2 >= bound {
                 continue;
             }
