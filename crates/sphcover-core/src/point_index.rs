@@ -228,47 +228,17 @@ impl PointIndex {
         if self.nodes.is_empty() || !x.is_finite() {
             return None;
         }
-        // Only the distance is asked for, not which of several points at it: a subtree
-        // whose box is no nearer than the best distance so far is pruned, ties included,
-        // with no list of candidates kept.
-        let mut best = match hint.filter(|&s| s < self.points.len()) {
+        let best = match hint.filter(|&s| s < self.points.len()) {
             Some(s) => ((self.points[s] - x).length_squared(), s),
             None => (f64::INFINITY, usize::MAX),
         };
-        let mut stack = [(0u32, 0.0f64); 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let (n, box_d2) = stack[top];
-            if box_d2 >= best.0 {
-                continue;
-            }
-            let n = n as usize;
-            let node = &self.nodes[n];
-            if node.right == 0 {
-                let (lo, hi) = (node.lo as usize, node.hi as usize);
-                for (s, &p) in (lo..).zip(&self.points[lo..hi]) {
-                    let d2 = (p - x).length_squared();
-                    if d2 < best.0 {
-                        best = (d2, s);
-                    }
-                }
-                continue;
-            }
-            let (left, right) = (n + 1, n + node.right as usize);
-            let (dl, dr) = (
-                self.nodes[left].box_distance2(x),
-                self.nodes[right].box_distance2(x),
-            );
-            let (near, far) = if dl <= dr {
-                ((left, dl), (right, dr))
-            } else {
-                ((right, dr), (left, dl))
-            };
-            stack[top] = (far.0 as u32, far.1);
-            stack[top + 1] = (near.0 as u32, near.1);
-            top += 2;
-        }
+        let mut search = NearestDistance {
+            points: &self.points,
+            x,
+            best,
+        };
+        self.branch_and_bound(x, &mut search);
+        let mut best = search.best;
         // Every point at an infinite distance (coordinates near overflow) leaves no slot.
         if best.1 == usize::MAX {
             best = (f64::INFINITY, 0);
@@ -286,74 +256,46 @@ impl PointIndex {
         if k == 0 || !x.is_finite() {
             return None;
         }
-        // The smallest distances met, ascending, at most `k`.
-        let mut kept: Vec<f64> = Vec::with_capacity(k + 1);
-        let mut stack = [(0u32, 0.0f64); 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let (n, box_d2) = stack[top];
-            let bound = if kept.len() == k {
-                kept[k - 1]
-            } else {
-                f64::INFINITY
-            };
-            if box_d2 >= bound {
-                continue;
-            }
-            let n = n as usize;
-            let node = &self.nodes[n];
-            if node.right == 0 {
-                for &p in &self.points[node.lo as usize..node.hi as usize] {
-                    let d2 = (p - x).length_squared();
-                    if kept.len() < k || d2 < kept[k - 1] {
-                        let at = kept.partition_point(|&e| e <= d2);
-                        kept.insert(at, d2);
-                        kept.truncate(k);
-                    }
-                }
-                continue;
-            }
-            let (left, right) = (n + 1, n + node.right as usize);
-            let (dl, dr) = (
-                self.nodes[left].box_distance2(x),
-                self.nodes[right].box_distance2(x),
-            );
-            let (near, far) = if dl <= dr {
-                ((left, dl), (right, dr))
-            } else {
-                ((right, dr), (left, dl))
-            };
-            stack[top] = (far.0 as u32, far.1);
-            stack[top + 1] = (near.0 as u32, near.1);
-            top += 2;
-        }
-        kept.last().copied()
+        let mut search = KthDistance {
+            points: &self.points,
+            x,
+            k,
+            kept: Vec::with_capacity(k + 1),
+        };
+        self.branch_and_bound(x, &mut search);
+        search.kept.last().copied()
     }
 
     /// The branch-and-bound search behind [`PointIndex::nearest_k_with_distances`], offering
     /// every point that may belong to the answer to `set`.
     fn search_nearest(&self, x: DVec3, set: &mut impl NearestSet) {
+        let mut search = NearestK {
+            points: &self.points,
+            order: &self.order,
+            x,
+            set,
+        };
+        self.branch_and_bound(x, &mut search);
+    }
+
+    /// Visits the tree from the root, the child whose box is nearer to `x` first, skipping
+    /// every node whose box `search` prunes (asked when the node is taken, so a bound that
+    /// tightened meanwhile counts), and hands each leaf's slots to `search`.
+    #[inline(always)]
+    fn branch_and_bound(&self, x: DVec3, search: &mut impl BranchAndBound) {
         // The stack holds each node with the squared distance to its box.
         let mut stack = [(0u32, 0.0f64); 64];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
             let (n, box_d2) = stack[top];
-            let n = n as usize;
-            let node = &self.nodes[n];
-            // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
-            if set.bound().is_some_and(|b| box_d2 > b.0) {
+            if search.prunes(box_d2) {
                 continue;
             }
+            let n = n as usize;
+            let node = &self.nodes[n];
             if node.right == 0 {
-                for s in node.lo as usize..node.hi as usize {
-                    let d2 = (self.points[s] - x).length_squared();
-                    let key = (d2, self.order[s]);
-                    if set.bound().is_none_or(|b| less(key, b)) {
-                        set.insert(NearKey(d2, key.1, s as u32));
-                    }
-                }
+                search.leaf(node.lo as usize, node.hi as usize);
                 continue;
             }
             // The child whose box is nearer first (not the one on `x`'s side of the split:
@@ -719,6 +661,97 @@ fn less(a: (f64, u32), b: (f64, u32)) -> bool {
 /// heap: inserting into the vector moves half of it, which for the hundreds of neighbours
 /// of a scan's noise estimate costs more than the search itself.
 const SORTED_INSERTION_MAX: usize = 48;
+
+/// What a branch-and-bound search over the tree keeps (see
+/// `PointIndex::branch_and_bound`).
+trait BranchAndBound {
+    /// Whether a node whose box lies at squared distance `box_d2` can hold nothing better.
+    fn prunes(&self, box_d2: f64) -> bool;
+    /// Offers the points of slots `lo..hi`.
+    fn leaf(&mut self, lo: usize, hi: usize);
+}
+
+/// The smallest squared distance and a slot at it. Only the distance is asked for, not which
+/// of several points at it: a subtree whose box is no nearer than the best distance so far
+/// is pruned, ties included, with no list of candidates kept.
+struct NearestDistance<'a> {
+    points: &'a [DVec3],
+    x: DVec3,
+    best: (f64, usize),
+}
+
+impl BranchAndBound for NearestDistance<'_> {
+    #[inline(always)]
+    fn prunes(&self, box_d2: f64) -> bool {
+        box_d2 >= self.best.0
+    }
+
+    #[inline(always)]
+    fn leaf(&mut self, lo: usize, hi: usize) {
+        for (s, &p) in (lo..).zip(&self.points[lo..hi]) {
+            let d2 = (p - self.x).length_squared();
+            if d2 < self.best.0 {
+                self.best = (d2, s);
+            }
+        }
+    }
+}
+
+/// The `k` smallest squared distances met, ascending. Which points tie at a distance does
+/// not change them, so ties are pruned.
+struct KthDistance<'a> {
+    points: &'a [DVec3],
+    x: DVec3,
+    k: usize,
+    kept: Vec<f64>,
+}
+
+impl BranchAndBound for KthDistance<'_> {
+    #[inline(always)]
+    fn prunes(&self, box_d2: f64) -> bool {
+        self.kept.len() == self.k && box_d2 >= self.kept[self.k - 1]
+    }
+
+    #[inline(always)]
+    fn leaf(&mut self, lo: usize, hi: usize) {
+        let k = self.k;
+        for &p in &self.points[lo..hi] {
+            let d2 = (p - self.x).length_squared();
+            if self.kept.len() < k || d2 < self.kept[k - 1] {
+                let at = self.kept.partition_point(|&e| e <= d2);
+                self.kept.insert(at, d2);
+                self.kept.truncate(k);
+            }
+        }
+    }
+}
+
+/// The `k` nearest `(distance², index)` pairs, into a [`NearestSet`].
+struct NearestK<'a, S> {
+    points: &'a [DVec3],
+    order: &'a [u32],
+    x: DVec3,
+    set: &'a mut S,
+}
+
+impl<S: NearestSet> BranchAndBound for NearestK<'_, S> {
+    #[inline(always)]
+    fn prunes(&self, box_d2: f64) -> bool {
+        // A tie at exactly the bound may still hold a lower index, so prune only on `>`.
+        self.set.bound().is_some_and(|b| box_d2 > b.0)
+    }
+
+    #[inline(always)]
+    fn leaf(&mut self, lo: usize, hi: usize) {
+        for s in lo..hi {
+            let d2 = (self.points[s] - self.x).length_squared();
+            let key = (d2, self.order[s]);
+            if self.set.bound().is_none_or(|b| less(key, b)) {
+                self.set.insert(NearKey(d2, key.1, s as u32));
+            }
+        }
+    }
+}
 
 /// The best `(distance², index)` pairs a nearest-point search has met, at most `k`.
 trait NearestSet {
