@@ -451,9 +451,9 @@ impl RegularTriangulation {
             .with_min_len(4096)
             .map(|q| split.region_of(&q.p))
             .collect();
-        let mut members = vec![0u32; regions];
+        let mut counts = vec![0u32; regions];
         for v in points.iter() {
-            members[region_of[v as usize] as usize] += 1;
+            counts[region_of[v as usize] as usize] += 1;
         }
 
         // A start cell of each region: the cell holding a sampled point near the middle of
@@ -506,7 +506,7 @@ impl RegularTriangulation {
         // Each region's stamps in a range of their own: at most one per point.
         let mut stamp_offsets = Vec::with_capacity(regions);
         let mut offset = scratch.stamp;
-        for &m in &members {
+        for &m in &counts {
             stamp_offsets.push(offset);
             offset += m;
         }
