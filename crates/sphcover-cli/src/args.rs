@@ -318,7 +318,7 @@ pub enum MaterialArg {
 #[derive(Debug, Args)]
 pub struct SkeletonArgs {
     /// A CT volume (`.nii`, `.nii.gz`, `.inr`, `.inr.gz`) of a thin part, brighter than the
-    /// background, on axis-aligned axes with voxels at most 8:1 (beyond 2:1 resampled along
+    /// background, on axis-aligned axes with voxels at most 8:1 (beyond 1.75:1 resampled along
     /// the coarse axes first); or, with `--value-property`, a PLY file of scattered samples
     /// with values.
     #[arg(value_name = "CT")]

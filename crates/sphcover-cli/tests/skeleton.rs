@@ -286,7 +286,7 @@ fn thick_slices_are_resampled_with_a_note() {
     ]);
     let err = text(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{err}");
-    let note = "note: {}: voxels of 0.500000 x 0.500000 x 1.500000 are more than 2:1 \
+    let note = "note: {}: voxels of 0.500000 x 0.500000 x 1.500000 are more than 1.75:1 \
                 anisotropic; resampled by 2 along voxel axis k (spacing 1.500000 -> 0.750000) \
                 with cubic (Catmull-Rom) interpolation; 48 x 48 x 23 voxels\n";
     assert!(

@@ -4,20 +4,29 @@
 //! noise: how many holes the sheet leaves open, its Euler characteristic, coverage and
 //! spurious area, and what the repairs did.
 //!
-//! `cargo run --release -p sphcover-skeleton --example small_perforations [-- --no-perforations]`
+//! `cargo run --release -p sphcover-skeleton --example small_perforations [-- --no-perforations] [--write DIR]`
 //!
-//! `--no-perforations` switches the perforation repair off, to show the sheet without it.
+//! `--no-perforations` switches the perforation repair off, to show the sheet without it;
+//! `--write DIR` writes each sheet to `DIR/perforations_<noise>_z<step>_seed<seed>.ply`, for
+//! `sphcover render`.
+use sphcover_core::io::{WriteOptions, write_mesh};
 use sphcover_evaluation::sheet_metrics::{line_meets_mesh, score_mesh};
 use sphcover_evaluation::thin_phantoms::{
     PhantomParams, ThinShape, every_slice, perforations, thin_phantom,
 };
 use sphcover_skeleton::{SkeletonParams, extract_skeleton};
+use std::path::PathBuf;
 
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
     let mut params = SkeletonParams::default();
-    if std::env::args().any(|a| a == "--no-perforations") {
+    if args.iter().any(|a| a == "--no-perforations") {
         params.repairs.perforations = None;
     }
+    let write_dir = args
+        .iter()
+        .position(|a| a == "--write")
+        .map(|i| PathBuf::from(args.get(i + 1).expect("--write takes a directory")));
     println!(
         "| noise | z spacing | seed | holes open | χ (truth) | coverage | spurious | fans filled | perforations cut |"
     );
@@ -33,6 +42,11 @@ fn main() {
                 let phantom = thin_phantom(ThinShape::SmallPerforations, &phantom_params);
                 let volume = every_slice(&phantom.volume, step);
                 let (mesh, stats) = extract_skeleton(&volume, &params, &|_| {}).expect("a sheet");
+                if let Some(dir) = &write_dir {
+                    let name = format!("perforations_{:.0}_z{step}_seed{seed}.ply", 100.0 * noise);
+                    write_mesh(&dir.join(name), &mesh, &WriteOptions::default())
+                        .expect("the sheet written");
+                }
                 let m = score_mesh(&mesh, &phantom.truth, 1.0);
                 let holes = perforations(ThinShape::SmallPerforations, &phantom_params);
                 let open = holes

@@ -31,7 +31,7 @@
 //! ([`stage_names`]):
 //!
 //! ```text
-//! Volume ─► [not a stage: voxels 2:1 to 8:1 apart resampled along the coarse axes]
+//! Volume ─► [not a stage: voxels 1.75:1 to 8:1 apart resampled along the coarse axes]
 //!        ─► intensity model (on a CT in Hounsfield units the thin material and its
 //!                           window, see `Material`; threshold, noise, tolerance ε)
 //!        ─► object mask (drop noise specks above the threshold)

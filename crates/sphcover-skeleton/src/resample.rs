@@ -376,7 +376,7 @@ mod tests {
             )
             .unwrap()
         };
-        assert!(resample_if_anisotropic(&grid(1.0)).unwrap().is_none());
+        assert!(resample_if_anisotropic(&grid(0.875)).unwrap().is_none());
         let (resampled, record) = resample_if_anisotropic(&grid(2.5)).unwrap().unwrap();
         assert_eq!((record.dims, resampled.dims()), ([2, 2, 7], [2, 2, 7]));
         assert_eq!(record.original_dims, [2, 2, 3]);

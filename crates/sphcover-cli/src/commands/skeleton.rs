@@ -251,7 +251,7 @@ fn report_material(m: &MaterialReport, reporter: &Reporter) {
 
 /// Refuses, from the header, what the pipeline cannot treat correctly: several frames,
 /// voxels more than 8:1 anisotropic, and voxel axes that are not the world axes (up to order
-/// and sign). Notes how voxels more than 2:1 apart are resampled (returned), and warns about
+/// and sign). Notes how voxels more than 1.75:1 apart are resampled (returned), and warns about
 /// voxels processed though not cubic.
 fn check_volume(
     args: &SkeletonArgs,

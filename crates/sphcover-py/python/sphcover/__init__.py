@@ -486,7 +486,7 @@ def skeleton(
     ``method`` (``"ridge"``, or ``"nms"`` for the baseline's ridge points), ``seed``.
     As the command line does, the grid is checked first: voxels more than 8:1 anisotropic or
     axes oblique to the world's raise :class:`BadInputError` (resample first), several frames
-    too; voxels more than 2:1 apart are resampled along the coarse axes (Catmull–Rom, same
+    too; voxels more than 1.75:1 apart are resampled along the coarse axes (Catmull–Rom, same
     world frame) and give a ``UserWarning`` saying how, as do voxels processed though not
     cubic.
 

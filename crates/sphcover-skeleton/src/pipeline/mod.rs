@@ -23,6 +23,7 @@ use crate::repair::cleaning::CleaningStats;
 use crate::repair::perforations::VoxelPart;
 use crate::resample::{ResampledGrid, resample_if_anisotropic};
 use crate::ridge_points::RidgeFilter;
+use crate::voxel_grid::measured_after_resampling;
 pub(crate) use front_stages::{CoverStage, intensity_cover_params};
 use front_stages::{VolumeFront, volume_front_stages};
 pub(crate) use sheet_stages::sheet_stage_list;
@@ -208,7 +209,10 @@ pub fn extract_skeleton_until(
     // Resampled voxels are interpolated between slices, not measured: a column across bone
     // that runs along 2.9 mm slices reads values that pass for air, and the perforation
     // repair opened two vault holes of 28 and 37 mm on the head CT's 3:1 grid.
-    let measured = resampled.is_none().then_some(grid);
+    let measured = resampled
+        .as_ref()
+        .is_none_or(|(_, record)| measured_after_resampling(record.resampling.size))
+        .then_some(grid);
     let (sheet, mut stats) =
         sheet_from_cover(ctx.finish()?, measured, times, params, progress, stop)?;
     stats.resampled = resampled.map(|(_, record)| record);

@@ -39,8 +39,8 @@ impl Default for PerforationParams {
     /// grown to half of it. On the small perforations (radius 1.0–1.7 voxels through a
     /// 3-voxel plate, `small_perforations` example), 10% noise: with the threshold itself
     /// for air, the holes of radius 1.0–1.2 stay spanned (their vertices lie at their rims,
-    /// never over the middle); with a quarter, all eight open on isotropic voxels, and 6–8
-    /// on every second slice.
+    /// never over the middle); with a quarter, all eight open on isotropic voxels and on
+    /// every second slice (resampled to 1:1).
     fn default() -> PerforationParams {
         PerforationParams {
             column_half_length_voxels: 1.0,
