@@ -113,14 +113,17 @@ fn output_does_not_depend_on_the_thread_count() {
 
 #[test]
 fn small_perforations_stay_open() {
-    // Holes of radius 1.0–1.7 voxels through a plate 3 voxels thick, 10% noise: the cover's
-    // function passes over the smaller ones, and the sheet spanned 3–5 of the 8 (isotropic)
-    // and 1–3 (every second slice) before the perforation repair read the voxels.
+    // Holes of radius 1.0–1.7 voxels through a plate 3 voxels thick: the cover's function
+    // passes over the smaller ones, and at 10% noise the sheet spanned 3–5 of the 8
+    // (isotropic) and 1–3 (every second slice) before the perforation repair read the voxels.
     use sphcover_evaluation::sheet_metrics::line_meets_mesh;
     use sphcover_evaluation::thin_phantoms::{every_slice, perforations};
-    for seed in 1..=3 {
+    for (noise, seed) in [0.1, 0.3]
+        .into_iter()
+        .flat_map(|n| (1..=3).map(move |s| (n, s)))
+    {
         let params = PhantomParams {
-            noise: 0.1,
+            noise,
             seed,
             ..PhantomParams::default()
         };
@@ -138,13 +141,14 @@ fn small_perforations_stay_open() {
                 .filter(|h| !line_meets_mesh(&mesh, h.centre, h.axis, 3.0 * params.voxel))
                 .count();
             let m = score_mesh(&mesh, &phantom.truth, 1.0);
-            // Measured: all 8 open, spurious 0.003–0.005 on both grids (isotropic 0.04–0.07
-            // before the repair; 2× slices processed without resampling, 0.020–0.050 and
-            // 6–8 open).
-            let (least, spurious) = (8, 0.01);
-            assert!(open >= least, "seed {seed}, {grid}: {open} of 8 open");
-            assert!(m.spurious <= spurious, "seed {seed}, {grid}: {m:?}");
-            assert!(m.coverage >= 0.97, "seed {seed}, {grid}: {m:?}");
+            // Measured at 10% noise: all 8 open, spurious 0.003–0.005 on both grids (2×
+            // slices processed without resampling: 6–8 open, 0.020–0.050). At 30%: 5–7 open,
+            // spurious 0.015–0.039 (0.042–0.057 with the column's noise taken as 3 voxels').
+            let (least, spurious) = if noise < 0.2 { (8, 0.01) } else { (5, 0.05) };
+            let case = format!("noise {noise}, seed {seed}, {grid}");
+            assert!(open >= least, "{case}: {open} of 8 open");
+            assert!(m.spurious <= spurious, "{case}: {m:?}");
+            assert!(m.coverage >= 0.97, "{case}: {m:?}");
         }
     }
 }
