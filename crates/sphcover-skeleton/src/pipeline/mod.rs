@@ -244,8 +244,8 @@ pub(crate) fn offset<'p>(
 }
 
 /// Runs the stages after the cover, common to volumes and scattered samples, on the
-/// product of the front stages (`front`, whose stages took `times`) and, for a volume not
-/// resampled, the grid the cover was fitted to.
+/// product of the front stages (`front`, whose stages took `times`) and, for a volume read
+/// as measured or resampled from slices at most 2:1, the grid the cover was fitted to.
 pub(crate) fn sheet_from_cover(
     front: CoverStage,
     grid: Option<&Volume>,

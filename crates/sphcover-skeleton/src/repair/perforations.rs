@@ -63,8 +63,9 @@ impl Default for PerforationParams {
 /// and the part's threshold and noise.
 #[derive(Clone, Copy, Debug)]
 pub struct VoxelPart<'a> {
-    /// The volume as read, not resampled (interpolated voxels are not measurements) nor
-    /// windowed (windowing keeps the order of values about the threshold).
+    /// The volume as read, or resampled from slices at most twice its pixels apart (from
+    /// thicker slices, interpolated voxels are not measurements), and not windowed
+    /// (windowing keeps the order of values about the threshold).
     pub volume: &'a Volume,
     /// The part is where the values exceed this.
     pub threshold: f64,
