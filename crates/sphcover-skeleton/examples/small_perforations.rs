@@ -4,11 +4,12 @@
 //! noise: how many holes the sheet leaves open, its Euler characteristic, coverage and
 //! spurious area, and what the repairs did.
 //!
-//! `cargo run --release -p sphcover-skeleton --example small_perforations [-- --no-perforations] [--write DIR]`
+//! `cargo run --release -p sphcover-skeleton --example small_perforations [-- --no-perforations] [--seeds A-B] [--write DIR]`
 //!
 //! `--no-perforations` switches the perforation repair off, to show the sheet without it;
-//! `--write DIR` writes each sheet to `DIR/perforations_<noise>_z<step>_seed<seed>.ply`, for
-//! `sphcover render`.
+//! `--seeds A-B` runs noise seeds A to B (default 1-3, the seeds the parameters were chosen
+//! on; others are held out); `--write DIR` writes each sheet to
+//! `DIR/perforations_<noise>_z<step>_seed<seed>.ply`, for `sphcover render`.
 use sphcover_core::io::{WriteOptions, write_mesh};
 use sphcover_evaluation::sheet_metrics::{line_meets_mesh, score_mesh};
 use sphcover_evaluation::thin_phantoms::{
@@ -23,6 +24,11 @@ fn main() {
     if args.iter().any(|a| a == "--no-perforations") {
         params.repairs.perforations = None;
     }
+    let seeds = args.iter().position(|a| a == "--seeds").map_or(1..=3, |i| {
+        let range = args.get(i + 1).expect("--seeds takes A-B");
+        let (a, b) = range.split_once('-').expect("--seeds takes A-B");
+        a.parse().expect("a seed")..=b.parse().expect("a seed")
+    });
     let write_dir = args
         .iter()
         .position(|a| a == "--write")
@@ -33,7 +39,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|");
     for noise in [0.1, 0.3] {
         for step in [1, 2] {
-            for seed in 1..=3 {
+            for seed in seeds.clone() {
                 let phantom_params = PhantomParams {
                     noise,
                     seed,
