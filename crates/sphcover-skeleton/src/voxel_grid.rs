@@ -134,12 +134,18 @@ impl fmt::Display for Resampling {
 /// the perforation repair): up to 2:1, every point lies within one pixel of a measured slice;
 /// on a 3:1 head CT, bone running along 2.9 mm slices read as air between them.
 pub(crate) fn measured_after_resampling(size: DVec3) -> bool {
-    size.max_element() <= MAX_MEASURED_ANISOTROPY * (1.0 + RATIO_TOLERANCE) * size.min_element()
+    anisotropy_at_most(size, MAX_MEASURED_ANISOTROPY)
 }
 
 /// Whether voxels of `size` are at most [`MAX_RESAMPLED_ANISOTROPY`] apart.
 pub(crate) fn resamplable(size: DVec3) -> bool {
-    size.max_element() <= MAX_RESAMPLED_ANISOTROPY * (1.0 + RATIO_TOLERANCE) * size.min_element()
+    anisotropy_at_most(size, MAX_RESAMPLED_ANISOTROPY)
+}
+
+/// Whether the longest edge of voxels `size` is at most `ratio` times the shortest (with
+/// [`RATIO_TOLERANCE`]).
+fn anisotropy_at_most(size: DVec3, ratio: f64) -> bool {
+    size.max_element() <= ratio * (1.0 + RATIO_TOLERANCE) * size.min_element()
 }
 
 /// What [`check_voxel_grid`] says about a grid it accepts.
