@@ -55,8 +55,34 @@ pub mod markdown_table;
 pub mod measured_run;
 pub mod sphere_sets;
 pub mod tet_lists;
+pub mod this_process;
 
 use std::path::{Path, PathBuf};
+
+/// Opens a file of fixed-size records of `record_bytes` each (the binary files exchanged
+/// with the CGAL peer) and returns a buffered reader and the record count; an error naming
+/// the file when its size is not a whole number of `what`.
+pub(crate) fn open_records(
+    path: &Path,
+    record_bytes: u64,
+    what: &str,
+) -> std::io::Result<(std::io::BufReader<std::fs::File>, usize)> {
+    let file = std::fs::File::open(path)?;
+    let bytes = file.metadata()?.len();
+    if bytes % record_bytes != 0 {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "{}: {bytes} bytes is not a whole number of {what}",
+                path.display()
+            ),
+        ));
+    }
+    Ok((
+        std::io::BufReader::new(file),
+        (bytes / record_bytes) as usize,
+    ))
+}
 
 /// The workspace root (the parent of this crate's directory).
 pub fn workspace_root() -> PathBuf {

@@ -23,7 +23,7 @@
 //! # Ok::<(), std::io::Error>(())
 //! ```
 
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::Path;
 
 use sphcover_core::random::SplitMix64;
@@ -162,19 +162,7 @@ pub fn write_spheres(path: &Path, set: &SphereSet) -> std::io::Result<()> {
 /// Reads a file of [`write_spheres`], sphere by sphere into vectors of the exact size (no
 /// whole-file buffer: a measurement of peak memory after it sees only the set).
 pub fn read_spheres(path: &Path) -> std::io::Result<SphereSet> {
-    let file = std::fs::File::open(path)?;
-    let bytes = file.metadata()?.len();
-    if bytes % 32 != 0 {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!(
-                "{}: {bytes} bytes is not a whole number of spheres",
-                path.display()
-            ),
-        ));
-    }
-    let n = (bytes / 32) as usize;
-    let mut input = BufReader::new(file);
+    let (mut input, n) = crate::open_records(path, 32, "spheres")?;
     let mut points = Vec::with_capacity(n);
     let mut weights = Vec::with_capacity(n);
     let mut buf = [0u8; 32];

@@ -1,6 +1,5 @@
 //! Tetrahedra as vertex quadruples, compared between triangulators: canonical order,
-//! differences, fingerprints, the peer's binary file; and this process's peak memory and CPU
-//! time, which the comparison reports beside them.
+//! differences, fingerprints, the peer's binary file.
 //!
 //! ```
 //! use sphcover_benches::tet_lists::{canonical, differences, fnv1a};
@@ -12,7 +11,7 @@
 //! assert_ne!(fnv1a(ours.iter().copied()), fnv1a(theirs.iter().copied()));
 //! ```
 
-use std::io::{BufReader, Read};
+use std::io::Read;
 use std::path::Path;
 
 /// Each quadruple sorted ascending, then the list sorted: the same for two triangulations
@@ -63,57 +62,15 @@ pub fn fnv1a(tets: impl Iterator<Item = [u32; 4]>) -> u64 {
 
 /// Reads little-endian `u32` quadruples (the peer's output).
 pub fn read_tets(path: &Path) -> std::io::Result<Vec<[u32; 4]>> {
-    let file = std::fs::File::open(path)?;
-    let bytes = file.metadata()?.len();
-    if bytes % 16 != 0 {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!(
-                "{}: {bytes} bytes is not a whole number of tetrahedra",
-                path.display()
-            ),
-        ));
-    }
-    let mut input = BufReader::new(file);
-    let mut tets = Vec::with_capacity((bytes / 16) as usize);
+    let (mut input, n) = crate::open_records(path, 16, "tetrahedra")?;
+    let mut tets = Vec::with_capacity(n);
     let mut buf = [0u8; 16];
-    for _ in 0..bytes / 16 {
+    for _ in 0..n {
         input.read_exact(&mut buf)?;
         let v = |i: usize| u32::from_le_bytes(buf[4 * i..4 * i + 4].try_into().expect("4 bytes"));
         tets.push([v(0), v(1), v(2), v(3)]);
     }
     Ok(tets)
-}
-
-/// This process's peak resident memory (`VmHWM` of `/proc/self/status`) in bytes; `None`
-/// where there is no `/proc`.
-pub fn peak_resident_bytes() -> Option<u64> {
-    status_field("VmHWM:")
-}
-
-/// User plus system CPU seconds of this process, all threads (`/proc/self/stat`, in clock
-/// ticks of 1/100 s); `None` where there is no `/proc`.
-pub fn process_cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    let rest = stat.rsplit_once(')')?.1;
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let utime: f64 = fields.get(11)?.parse().ok()?;
-    let stime: f64 = fields.get(12)?.parse().ok()?;
-    Some((utime + stime) / 100.0)
-}
-
-/// Resets the peak resident memory to the current one (`5` into `/proc/self/clear_refs`,
-/// Linux ≥ 4.0), so that a later [`peak_resident_bytes`] sees only what came after. False
-/// when the kernel refuses.
-pub fn reset_peak_resident() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
-fn status_field(key: &str) -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with(key))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
 }
 
 #[cfg(test)]
