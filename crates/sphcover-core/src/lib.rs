@@ -52,6 +52,7 @@ mod kernel;
 mod local_function;
 mod mesh;
 mod mesh_topology;
+mod opposite_faces;
 mod parameter_error;
 mod partition_of_unity;
 mod point_cloud;
@@ -82,6 +83,9 @@ pub use mesh::{
     remove_unused_vertices, triangle_area, vertex_normals,
 };
 pub use mesh_topology::MeshTopology;
+pub use opposite_faces::{
+    COHERENT_RESULTANT, OPPOSED_COSINE, face_to_fit, faces_away, may_hold_opposite_faces,
+};
 pub use parameter_error::{LengthMismatch, ParameterError};
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};
 pub use point_cloud::PointCloud;

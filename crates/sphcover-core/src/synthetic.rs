@@ -14,8 +14,9 @@
 //! the same cover on every platform and for any thread count.
 //!
 //! Beside the covers, the plain shapes that tests, examples and benchmarks sample:
-//! [`fibonacci_sphere`] (evenly spread directions), [`uv_sphere`] (a closed triangle mesh) and
-//! [`voxel_subsamples`] (the points at which a voxel's partial volume is measured); and, for
+//! [`fibonacci_sphere`] (evenly spread directions), [`uv_sphere`] (a closed triangle mesh),
+//! [`thin_wall`] (both faces of a wall) and [`voxel_subsamples`] (the points at which a
+//! voxel's partial volume is measured); and, for
 //! the tests of the volume readers' limits, `gzip_with_zeros` (a decompression bomb).
 
 use crate::ParameterError;
@@ -199,6 +200,31 @@ pub fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
             DVec3::new(s * a.cos(), s * a.sin(), z)
         })
         .collect()
+}
+
+/// Oriented samples of both faces of a flat wall `thickness` thick: the plane `z = 0` with
+/// outward normal `−z` and the plane `z = thickness` with `+z`, each on a grid of spacing
+/// 0.01 over `[−0.2, 0.2]²`, the two grids offset by 0.003 along `x` and `y` respectively (so
+/// no sample lies straight across from another). Returns the points and their normals.
+///
+/// ```
+/// let (points, normals) = sphcover_core::synthetic::thin_wall(0.02);
+/// assert_eq!(points.len(), 2 * 41 * 41);
+/// assert!(points.iter().zip(&normals).all(|(p, n)| (p.z == 0.0) == (n.z < 0.0)));
+/// ```
+pub fn thin_wall(thickness: f64) -> (Vec<DVec3>, Vec<DVec3>) {
+    let mut points = Vec::new();
+    let mut normals = Vec::new();
+    for i in -20..=20 {
+        for j in -20..=20 {
+            let (x, y) = (f64::from(i) * 0.01, f64::from(j) * 0.01);
+            points.push(DVec3::new(x + 0.003, y, 0.0));
+            normals.push(-DVec3::Z);
+            points.push(DVec3::new(x, y + 0.003, thickness));
+            normals.push(DVec3::Z);
+        }
+    }
+    (points, normals)
 }
 
 /// A closed, outward-wound UV sphere of radius `radius` about the origin with poles on ±y:

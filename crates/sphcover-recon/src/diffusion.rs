@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 use sphcover_core::{
     Cover, CoverError, DVec3, LengthMismatch, LocalFunctions, ParameterError, PointIndex,
-    SupportLists, SupportSamples,
+    SupportLists, SupportSamples, face_to_fit, faces_away,
 };
 use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
 use std::time::{Duration, Instant};
@@ -137,7 +137,10 @@ impl FittingTerms {
     /// Gathers the sums of every support of the incidences' cover over its samples `points`
     /// (with outward `normals` and a `confidence` σ_k each; `incidence` was gathered from a
     /// point index over exactly `points`), in parallel. Samples with a zero or
-    /// non-finite normal contribute to `W` and `P` but not to `N`.
+    /// non-finite normal contribute to `W` and `P` but not to `N`. A support that holds two
+    /// opposite faces of a thin part sums over the face of its nearest sample only (as the
+    /// cover's fit does; see [`sphcover_core::may_hold_opposite_faces`]), else the fitting
+    /// terms pull its plane between the faces.
     pub fn gather(
         cover: &Cover,
         index: &PointIndex,
@@ -173,36 +176,42 @@ impl FittingTerms {
             .par_iter()
             .map(|&k| (normals[k as usize], confidence[k as usize]))
             .unzip();
-        let sums: Vec<(f64, DVec3, DVec3, f64)> = cover
+        let sums: Vec<FittingSums> = cover
             .centres()
             .par_iter()
             .zip(cover.radii().par_iter())
             .enumerate()
             .map(|(i, (&c, &r))| {
-                let mut sum = (0.0, DVec3::ZERO, DVec3::ZERO, 0.0);
-                incidence.for_each_slot_within(cover, index, i, |s, _| {
-                    let p = slot_points[s];
-                    let kw = kernel.weight(p, c, r);
-                    sum.3 += kw;
-                    let w = slot_confidence[s] * kw;
-                    if w > 0.0 {
-                        sum.0 += w;
+                // The sums over the samples of the face `reference` picks, or over all.
+                let sums = |reference: Option<DVec3>| {
+                    let mut sum = FittingSums::default();
+                    incidence.for_each_slot_within(cover, index, i, |s, _| {
                         let n = slot_normals[s];
-                        let len = n.length();
-                        if len > 0.0 && len.is_finite() {
-                            sum.1 -= (w / len) * n;
+                        if reference.is_none_or(|face| !faces_away(face, n)) {
+                            let p = slot_points[s];
+                            sum.add(p - c, n, kernel.weight(p, c, r), slot_confidence[s]);
                         }
-                        sum.2 += w * (p - c);
-                    }
+                    });
+                    sum
+                };
+                let all = sums(None);
+                let face = face_to_fit(all.weight, -all.normal, |visit| {
+                    incidence.for_each_slot_within(cover, index, i, |s, d2| {
+                        let w = kernel.weight(slot_points[s], c, r) * slot_confidence[s];
+                        visit(slot_normals[s], d2, w);
+                    });
                 });
-                sum
+                match face {
+                    Some(reference) => sums(Some(reference)),
+                    None => all,
+                }
             })
             .collect();
         Ok(FittingTerms {
-            weight: sums.iter().map(|s| s.0).collect(),
-            normal_sum: sums.iter().map(|s| s.1).collect(),
-            offset_sum: sums.iter().map(|s| s.2).collect(),
-            kernel_sum: sums.iter().map(|s| s.3).collect(),
+            weight: sums.iter().map(|s| s.weight).collect(),
+            normal_sum: sums.iter().map(|s| s.normal).collect(),
+            offset_sum: sums.iter().map(|s| s.offset).collect(),
+            kernel_sum: sums.iter().map(|s| s.kernel).collect(),
         })
     }
 
@@ -238,6 +247,32 @@ impl FittingTerms {
         let mid = coherence.len() / 2;
         let (_, median, _) = coherence.select_nth_unstable_by(mid, f64::total_cmp);
         *median
+    }
+}
+
+/// One support's terms of [`FittingTerms`] while they are summed.
+#[derive(Clone, Copy, Default)]
+struct FittingSums {
+    weight: f64,
+    normal: DVec3,
+    offset: DVec3,
+    kernel: f64,
+}
+
+impl FittingSums {
+    /// Adds a sample at `offset` from the centre with outward `normal`, kernel weight
+    /// `kernel_weight` and `confidence`.
+    fn add(&mut self, offset: DVec3, normal: DVec3, kernel_weight: f64, confidence: f64) {
+        self.kernel += kernel_weight;
+        let w = confidence * kernel_weight;
+        if w > 0.0 {
+            self.weight += w;
+            let len = normal.length();
+            if len > 0.0 && len.is_finite() {
+                self.normal -= (w / len) * normal;
+            }
+            self.offset += w * offset;
+        }
     }
 }
 

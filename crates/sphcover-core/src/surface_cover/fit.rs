@@ -7,14 +7,17 @@
 //! ```
 //!
 //! so `α = −n̄` and `β = n̄·(p̄ − c)` in the centred form, positive inside for outward
-//! normals. The error is `E = max_j |g(p_j)|` over the points in the open ball (points of
-//! zero confidence excluded). Both are single passes over the candidate points, which sum
-//! offsets from the centre so the sums stay well conditioned for small balls far from the
-//! origin. The candidates are slots of the point index: a ball's points lie in a few runs of
-//! consecutive slots, so the passes still read memory nearly sequentially.
+//! normals. Where the ball holds two opposite faces of a thin part, the sums run over one face
+//! only ([`crate::face_to_fit`]). The error is `E = max_j |g(p_j)|` over all the points in the
+//! open ball (points of zero confidence excluded). Both are single passes over the candidate
+//! points (three more for a ball across a thin part), which sum offsets from the centre so the
+//! sums stay well conditioned for small balls far from the origin. The candidates are slots of
+//! the point index: a ball's points lie in a few runs of consecutive slots, so the passes still
+//! read memory nearly sequentially.
 
 use crate::kernel::Kernel;
 use crate::local_function::LinearFunction;
+use crate::opposite_faces::{face_to_fit, faces_away};
 use crate::point_index::PointIndex;
 use glam::DVec3;
 use std::borrow::Cow;
@@ -112,33 +115,33 @@ impl Candidates {
     pub fn fit(&self, samples: &Samples<'_>, r: f64, kernel: Kernel, limit: f64) -> Option<Fit> {
         let len = self.len();
         let r2 = r * r;
-        let inv_r2 = 1.0 / r2;
         let c = self.centre;
         let points = samples.index.slot_points();
         let normals = &samples.normals[..];
         let slots = &self.slots[..len];
         let dist2 = &self.dist2[..len];
-        let mut sum_w = 0.0;
-        let mut sum_p = DVec3::ZERO;
-        let mut sum_n = DVec3::ZERO;
-        match &samples.confidence {
-            None => {
-                for j in 0..len {
-                    let s = slots[j] as usize;
-                    let w = kernel.value_sq_clamped(dist2[j] * inv_r2);
-                    sum_w += w;
-                    sum_p += w * (points[s] - c);
-                    sum_n += w * normals[s];
-                }
+        let (mut sum_w, mut sum_p, mut sum_n) = self.weighted_sums(samples, r, kernel, |_| true);
+        // Across a thin part, fit one face. The error below still counts the other, so a
+        // ball across a thin wall is refined as before.
+        let inv_r2 = 1.0 / r2;
+        let face = face_to_fit(sum_w, sum_n, |visit| {
+            for j in (0..len).filter(|&j| dist2[j] < r2) {
+                let s = slots[j] as usize;
+                let confidence = samples.confidence.as_ref().map_or(1.0, |w| w[s]);
+                visit(
+                    normals[s],
+                    dist2[j],
+                    kernel.value_sq_clamped(dist2[j] * inv_r2) * confidence,
+                );
             }
-            Some(conf) => {
-                for j in 0..len {
-                    let s = slots[j] as usize;
-                    let w = kernel.value_sq_clamped(dist2[j] * inv_r2) * conf[s];
-                    sum_w += w;
-                    sum_p += w * (points[s] - c);
-                    sum_n += w * normals[s];
-                }
+        });
+        if let Some(reference) = face {
+            let sums =
+                self.weighted_sums(samples, r, kernel, |s| !faces_away(reference, normals[s]));
+            // The face's samples have weight unless their kernel weights underflow; keep
+            // the plain sums if they have none.
+            if sums.0 > 0.0 && sums.2.length() > 0.0 {
+                (sum_w, sum_p, sum_n) = sums;
             }
         }
         let length = sum_n.length();
@@ -178,6 +181,52 @@ impl Candidates {
             centroid,
             error,
         })
+    }
+
+    /// `Σ w_j`, `Σ w_j (p_j − c)` and `Σ w_j n_j` over the candidates whose slot `keep`
+    /// accepts, with the kernel of radius `r` times the confidence as `w_j`.
+    fn weighted_sums(
+        &self,
+        samples: &Samples<'_>,
+        r: f64,
+        kernel: Kernel,
+        keep: impl Fn(usize) -> bool,
+    ) -> (f64, DVec3, DVec3) {
+        let len = self.len();
+        let inv_r2 = 1.0 / (r * r);
+        let c = self.centre;
+        let points = samples.index.slot_points();
+        let normals = &samples.normals[..];
+        let slots = &self.slots[..len];
+        let dist2 = &self.dist2[..len];
+        let mut sum_w = 0.0;
+        let mut sum_p = DVec3::ZERO;
+        let mut sum_n = DVec3::ZERO;
+        match &samples.confidence {
+            None => {
+                for j in 0..len {
+                    let s = slots[j] as usize;
+                    if keep(s) {
+                        let w = kernel.value_sq_clamped(dist2[j] * inv_r2);
+                        sum_w += w;
+                        sum_p += w * (points[s] - c);
+                        sum_n += w * normals[s];
+                    }
+                }
+            }
+            Some(conf) => {
+                for j in 0..len {
+                    let s = slots[j] as usize;
+                    if keep(s) {
+                        let w = kernel.value_sq_clamped(dist2[j] * inv_r2) * conf[s];
+                        sum_w += w;
+                        sum_p += w * (points[s] - c);
+                        sum_n += w * normals[s];
+                    }
+                }
+            }
+        }
+        (sum_w, sum_p, sum_n)
     }
 }
 
@@ -243,6 +292,17 @@ pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// `points` with their `normals`, as the build's samples.
+    fn samples_of(points: &[DVec3], normals: &[DVec3]) -> Samples<'static> {
+        let index = PointIndex::new(points).unwrap();
+        let normals = index.order().iter().map(|&i| normals[i as usize]).collect();
+        Samples {
+            index: Cow::Owned(index),
+            normals,
+            confidence: None,
+        }
+    }
+
     /// Points on a bumpy sphere (so the fit error is not monotone in the radius), with
     /// radial normals, as the build's samples.
     pub(crate) fn bumpy_sphere(n: usize, bump: f64) -> Samples<'static> {
@@ -260,13 +320,7 @@ pub(crate) mod tests {
                 (r * u, u)
             })
             .unzip();
-        let index = PointIndex::new(&points).unwrap();
-        let normals = index.order().iter().map(|&i| normals[i as usize]).collect();
-        Samples {
-            index: Cow::Owned(index),
-            normals,
-            confidence: None,
-        }
+        samples_of(&points, &normals)
     }
 
     fn vec3() -> impl Strategy<Value = DVec3> {
@@ -337,6 +391,34 @@ pub(crate) mod tests {
             } else {
                 prop_assert_eq!(bound, 0.0);
             }
+        }
+    }
+
+    proptest! {
+        /// A ball across both faces of a thin wall fits the face nearer its centre: the plane
+        /// through that face with its normal (averaging both put it between the faces, and
+        /// the wall thinned from both sides). Its error still counts the other face.
+        #[test]
+        fn a_ball_across_a_thin_wall_fits_its_nearer_face(
+            thickness in 0.02..0.05f64,
+            depth in 0.1..0.3f64,
+            (x, y) in (-0.05..0.05f64, -0.05..0.05f64),
+            radius_over_thickness in 2.5..4.0f64,
+        ) {
+            let (points, normals) = crate::synthetic::thin_wall(thickness);
+            let samples = samples_of(&points, &normals);
+            // The centre within the wall, `depth` of the way up from the lower face.
+            let centre = DVec3::new(x, y, depth * thickness);
+            let radius = radius_over_thickness * thickness;
+            let mut cand = Candidates::default();
+            cand.gather(&samples, centre, radius);
+            let fit = cand.fit(&samples, radius, Kernel::WendlandC2, f64::INFINITY).unwrap();
+            let plane = fit.linear();
+            // Positive inside (between the faces), zero on the lower face.
+            prop_assert!((fit.normal + DVec3::Z).length() < 1e-9, "normal {}", fit.normal);
+            prop_assert!(plane.beta > 0.0);
+            prop_assert!((plane.beta - depth * thickness).abs() < 1e-9 * thickness);
+            prop_assert!(fit.error >= thickness * (1.0 - 1e-9));
         }
     }
 
