@@ -1,6 +1,7 @@
 //! `recon-score REC GT`: scores one reconstructed mesh against a ground-truth mesh and prints
 //! the scores as JSON (the same numbers `recon-bench` puts in its tables).
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -82,6 +83,10 @@ fn run(args: Args) -> anyhow::Result<()> {
         json[format!("recall@{tag}")] = f.recall.into();
         json[format!("fscore@{tag}")] = f.fscore.into();
     }
-    println!("{}", serde_json::to_string_pretty(&json)?);
-    Ok(())
+    let text = serde_json::to_string_pretty(&json)?;
+    // A reader that stops early (`| head`) is not an error.
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        written => Ok(written?),
+    }
 }
