@@ -29,8 +29,8 @@ pub const OPPOSED_COSINE: f64 = -0.5;
 
 /// Whether a support whose samples' normals (unit, or of any length in `normal_sum` as long
 /// as `weight` sums the same weights times their lengths) sum to `normal_sum` with total
-/// `weight` may hold opposite faces, and so should be fitted to the face of its nearest
-/// sample only.
+/// `weight` may hold opposite faces, and so should be fitted to one face only
+/// ([`face_to_fit`]).
 ///
 /// ```
 /// use sphcover_core::{DVec3, may_hold_opposite_faces};
