@@ -55,7 +55,6 @@ pub mod markdown_table;
 pub mod measured_run;
 pub mod sphere_sets;
 pub mod tet_lists;
-pub mod this_process;
 
 use std::path::{Path, PathBuf};
 

@@ -49,10 +49,8 @@ use sphcover_benches::sphere_sets::{
     RANDOM_RADIUS, SphereSet, SphereSetKind, read_spheres, write_spheres,
 };
 use sphcover_benches::tet_lists::{canonical, differences, fnv1a};
-use sphcover_benches::this_process::{
-    peak_resident_bytes, process_cpu_seconds, reset_peak_resident,
-};
 use sphcover_benches::{command_line, release_dir, short_message};
+use sphcover_core::this_process::{peak_resident_bytes, process_cpu_seconds, reset_peak_resident};
 use sphcover_tetra::{RegularTriangulation, TriangulationParams};
 
 #[derive(Debug, Parser)]

@@ -67,6 +67,7 @@ mod support_samples;
 mod surface_cover;
 mod symmetric_eigen;
 pub mod synthetic;
+pub mod this_process;
 mod threads;
 mod volume;
 mod volume_cover;

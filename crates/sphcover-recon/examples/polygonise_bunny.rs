@@ -15,6 +15,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use sphcover_core::io::{ReadOptions, WriteOptions, read_mesh, write_mesh};
+use sphcover_core::this_process::process_cpu_seconds;
 use sphcover_core::{
     DVec3, MeshTopology, Normalisation, PuEvaluator, SurfaceCoverParams, SurfaceSamples, TriMesh,
     build_surface_cover,
@@ -57,17 +58,6 @@ fn sample(mesh: &TriMesh, n: usize) -> (Vec<DVec3>, Vec<DVec3>) {
     (points, normals)
 }
 
-/// CPU time of the process so far (user + system), from `/proc/self/stat` on Linux at the
-/// usual 100 ticks per second: on a loaded machine wall time says little.
-fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let path = args.first().map(PathBuf::from).unwrap_or_else(|| {
@@ -108,10 +98,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..PolygoniseParams::default()
     };
     let start = Instant::now();
-    let cpu_start = cpu_seconds();
+    let cpu_start = process_cpu_seconds();
     let (mut surface, stats) = polygonise(&eval, &points, &params)?;
     let polygonise_time = start.elapsed();
-    let cpu = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
+    let cpu = process_cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
     let topo = MeshTopology::of(&surface);
     println!(
         "{n} points, {} supports (cover {cover_time:.2?}); depth {depth}: step {:.3e}",

@@ -12,24 +12,8 @@ mod octree_torus;
 use std::time::Instant;
 
 use octree_torus::octree_torus_cover_of_size;
+use sphcover_core::this_process::{peak_resident_bytes, process_cpu_seconds};
 use sphcover_tetra::{RegularTriangulation, TetMesh, TriangulationParams, dual_complex_of};
-
-fn peak_memory_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
-/// User + system CPU seconds of this process (`/proc/self/stat`, clock ticks of 1/100 s).
-fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    let rest = stat.rsplit_once(')')?.1;
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let utime: f64 = fields.get(11)?.parse().ok()?;
-    let stime: f64 = fields.get(12)?.parse().ok()?;
-    Some((utime + stime) / 100.0)
-}
 
 /// FNV-1a over the vertex indices: a fingerprint to compare the output of two versions.
 fn checksum(tets: impl Iterator<Item = [u32; 4]>) -> u64 {
@@ -61,22 +45,22 @@ fn main() {
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
     let shrink: f64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(0.75);
     let (depth, band, centres, radii) = octree_torus_cover_of_size(n);
-    let base_memory = peak_memory_bytes().unwrap_or(0);
+    let base_memory = peak_resident_bytes().unwrap_or(0);
     println!(
         "octree torus cover: depth {depth}, band {band:.3}, {} supports, shrink {shrink}",
         centres.len()
     );
     let points: Vec<[f64; 3]> = centres.iter().map(|c| c.to_array()).collect();
     let weights: Vec<f64> = radii.iter().map(|r| (r * shrink) * (r * shrink)).collect();
-    let c0 = cpu_seconds().unwrap_or(0.0);
+    let c0 = process_cpu_seconds().unwrap_or(0.0);
     let t0 = Instant::now();
     let tri = RegularTriangulation::new(&points, &weights, &TriangulationParams::default())
         .expect("triangulation");
     let t1 = Instant::now();
-    let c1 = cpu_seconds().unwrap_or(0.0);
+    let c1 = process_cpu_seconds().unwrap_or(0.0);
     let dc = dual_complex_of(&tri);
     let t2 = Instant::now();
-    let c2 = cpu_seconds().unwrap_or(0.0);
+    let c2 = process_cpu_seconds().unwrap_or(0.0);
     let s = tri.stats();
     println!(
         "triangulation: {:.3} s ({} vertices, {} hidden, {} finite tets, {:.1} walk steps/point, {:.1} conflict tets/point, {} deferred to one-by-one insertion)",
@@ -100,7 +84,7 @@ fn main() {
         c1 - c0,
         c2 - c1
     );
-    if let Some(peak) = peak_memory_bytes() {
+    if let Some(peak) = peak_resident_bytes() {
         println!(
             "peak memory after the filter {:.1} MB ({:.0} bytes per sphere above the cover itself)",
             peak as f64 / 1e6,
@@ -122,8 +106,11 @@ fn main() {
         mesh.edges.len(),
         mesh.tets.len()
     );
-    println!("tet mesh CPU: {:.2} s", cpu_seconds().unwrap_or(0.0) - c2);
-    if let Some(peak) = peak_memory_bytes() {
+    println!(
+        "tet mesh CPU: {:.2} s",
+        process_cpu_seconds().unwrap_or(0.0) - c2
+    );
+    if let Some(peak) = peak_resident_bytes() {
         println!(
             "peak memory with the tet mesh {:.1} MB ({:.0} bytes per sphere above the cover itself)",
             peak as f64 / 1e6,

@@ -1,9 +1,8 @@
 //! This process's peak resident memory and CPU time, read from Linux's `/proc`, for the
-//! measurements a benchmark makes of work it runs itself (a peer's process is measured by
-//! [`crate::measured_run`]).
+//! benchmarks and examples that measure work they run themselves.
 //!
 //! ```
-//! use sphcover_benches::this_process::{peak_resident_bytes, process_cpu_seconds};
+//! use sphcover_core::this_process::{peak_resident_bytes, process_cpu_seconds};
 //!
 //! if let (Some(peak), Some(cpu)) = (peak_resident_bytes(), process_cpu_seconds()) {
 //!     assert!(peak > 0 && cpu >= 0.0);
