@@ -6,10 +6,12 @@
 //! `SHAPES=t_junction,wedge_plate` restricts the table to those shapes; `PLY_DIR=dir` also
 //! writes each ridge sheet there as `SHAPE_NOISE.ply` (ASCII, with normals), for inspection;
 //! `PARAMS=name=value,...` overrides numeric fields of the default parameters (see
-//! `overridden`), for measuring alternatives with the same command.
+//! `overridden`), for measuring alternatives with the same command; `SLICES=k` renders the
+//! phantom on slices `k` times thicker along z (each the mean of `k` slices, as a scanner
+//! acquires thick slices), which the pipeline resamples beyond 1.75:1.
 use sphcover_core::io::{self, PlyEncoding, WriteOptions};
 use sphcover_evaluation::sheet_metrics::{SheetMetrics, score_mesh, score_points};
-use sphcover_evaluation::thin_phantoms::{PhantomParams, ThinShape, thin_phantom};
+use sphcover_evaluation::thin_phantoms::{PhantomParams, ThinShape, thick_slices, thin_phantom};
 use sphcover_skeleton::{NmsParams, SkeletonParams, extract_skeleton, nms_skeleton};
 
 fn row(name: &str, method: &str, noise: f64, m: &SheetMetrics, truth_euler: i64, secs: f64) {
@@ -35,6 +37,11 @@ fn main() {
         .collect();
     let noises = if noises.is_empty() { vec![0.1] } else { noises };
     let params = overridden(SkeletonParams::default());
+    let slices: usize = std::env::var("SLICES")
+        .ok()
+        .and_then(|k| k.parse().ok())
+        .unwrap_or(1)
+        .max(1);
     println!(
         "| phantom | method | noise | coverage | spurious | spurious away from rim | p95 away from rim (vox) | components | Euler (true) | boundary reach (vox) | time (s) |"
     );
@@ -54,8 +61,15 @@ fn main() {
                     ..PhantomParams::default()
                 },
             );
+            let thick;
+            let volume = if slices > 1 {
+                thick = thick_slices(&ph.volume, slices);
+                &thick
+            } else {
+                &ph.volume
+            };
             let start = std::time::Instant::now();
-            match extract_skeleton(&ph.volume, &params, &|_| {}) {
+            match extract_skeleton(volume, &params, &|_| {}) {
                 Ok((mesh, _)) => {
                     let secs = start.elapsed().as_secs_f64();
                     let m = score_mesh(&mesh, &ph.truth, 1.0);
@@ -86,7 +100,7 @@ fn main() {
             }
             if std::env::var_os("NMS").is_some() {
                 let start = std::time::Instant::now();
-                match nms_skeleton(&ph.volume, &NmsParams::default()) {
+                match nms_skeleton(volume, &NmsParams::default()) {
                     Ok((points, _)) => {
                         let secs = start.elapsed().as_secs_f64();
                         let m = score_points(&points, &ph.truth, 1.0);
