@@ -35,50 +35,102 @@ impl Default for TunnelParams {
 /// A sparse Z2 vector of edge indices, sorted ascending.
 type Chain = Vec<u32>;
 
-fn add_chain(a: &Chain, b: &Chain) -> Chain {
-    let mut out = Vec::with_capacity(a.len() + b.len());
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() && j < b.len() {
-        match a[i].cmp(&b[j]) {
-            Ordering::Less => {
-                out.push(a[i]);
-                i += 1;
-            }
-            Ordering::Greater => {
-                out.push(b[j]);
-                j += 1;
-            }
-            Ordering::Equal => {
-                i += 1;
-                j += 1;
-            }
-        }
-    }
-    out.extend_from_slice(&a[i..]);
-    out.extend_from_slice(&b[j..]);
-    out
-}
-
 /// Column reduction over Z2: each stored column has a distinct largest entry (its pivot).
-#[derive(Default)]
+///
+/// A chain is reduced in a scratch indicator over the edges with a max-heap of its entries,
+/// so that adding a stored column costs that column's length, not the chain's: a loop that
+/// bounds a disk of triangles is reduced by adding their three-edge boundaries one by one,
+/// and merging sorted lists made each addition as long as the loop (20 s of the 21 s of the
+/// tunnel repair on the head CT's 2.9 mm slices). The stored columns are the same sorted
+/// chains either way.
 struct Reducer {
     by_pivot: HashMap<u32, Chain>,
+    /// Whether each edge is in the chain being reduced; all false between insertions.
+    in_chain: Vec<bool>,
+    /// The entries of the chain being reduced, and some that have left it since.
+    heap: BinaryHeap<u32>,
+    /// The edges set in `in_chain` during the insertion, to clear them after it.
+    touched: Vec<u32>,
 }
 
 impl Reducer {
-    /// Reduces `chain` against the stored columns; stores it when it stays non-zero and
-    /// returns whether it did (i.e. whether `chain` was independent of the stored ones).
-    fn insert(&mut self, mut chain: Chain) -> bool {
-        while let Some(&pivot) = chain.last() {
-            match self.by_pivot.get(&pivot) {
-                Some(column) => chain = add_chain(&chain, column),
-                None => {
-                    self.by_pivot.insert(pivot, chain);
-                    return true;
+    /// A reducer of chains over edges `0..edges`.
+    fn new(edges: usize) -> Reducer {
+        Reducer {
+            by_pivot: HashMap::new(),
+            in_chain: vec![false; edges],
+            heap: BinaryHeap::new(),
+            touched: Vec::new(),
+        }
+    }
+
+    /// Reduces `chain` (sorted, without repeats) against the stored columns; stores it when
+    /// it stays non-zero and returns whether it did (i.e. whether `chain` was independent of
+    /// the stored ones).
+    fn insert(&mut self, chain: Chain) -> bool {
+        let Some(&pivot) = chain.last() else {
+            return false;
+        };
+        if let std::collections::hash_map::Entry::Vacant(slot) = self.by_pivot.entry(pivot) {
+            slot.insert(chain);
+            return true;
+        }
+        let Reducer {
+            by_pivot,
+            in_chain,
+            heap,
+            touched,
+        } = self;
+        for &e in &chain {
+            in_chain[e as usize] = true;
+            heap.push(e);
+            touched.push(e);
+        }
+        let reduced = loop {
+            // The largest edge still in the chain; entries that left it are dropped here.
+            let pivot = loop {
+                match heap.peek() {
+                    Some(&e) if in_chain[e as usize] => break Some(e),
+                    Some(_) => {
+                        heap.pop();
+                    }
+                    None => break None,
+                }
+            };
+            let Some(pivot) = pivot else {
+                break None;
+            };
+            let Some(column) = by_pivot.get(&pivot) else {
+                let mut kept: Chain = touched
+                    .iter()
+                    .copied()
+                    .filter(|&e| in_chain[e as usize])
+                    .collect();
+                kept.sort_unstable();
+                kept.dedup();
+                break Some((pivot, kept));
+            };
+            for &e in column {
+                let slot = &mut in_chain[e as usize];
+                *slot = !*slot;
+                if *slot {
+                    heap.push(e);
+                    touched.push(e);
                 }
             }
+        };
+        for &e in touched.iter() {
+            in_chain[e as usize] = false;
         }
-        false
+        touched.clear();
+        heap.clear();
+        match reduced {
+            Some((pivot, kept)) => {
+                by_pivot.insert(pivot, kept);
+                true
+            }
+            None => false,
+        }
     }
 }
 
@@ -191,7 +243,7 @@ pub fn close_material_tunnels(
 
     // Rank of the boundary map; the cycle space has dimension E − V + components, so the
     // number of independent loops left to find is known and the search stops there.
-    let mut reducer = Reducer::default();
+    let mut reducer = Reducer::new(edges.len());
     let mut boundary_rank = 0usize;
     for chain in triangle_chains {
         boundary_rank += usize::from(reducer.insert(chain));
@@ -279,7 +331,7 @@ pub(crate) fn remove_closed_pockets(mesh: &mut TriMesh) -> usize {
         });
         triangle_edges.push(ids);
     }
-    let mut reducer = Reducer::default();
+    let mut reducer = Reducer::new(edge_index.len());
     let mut removed = vec![false; mesh.triangles.len()];
     let mut any = false;
     for &t in &order {
@@ -613,11 +665,55 @@ mod tests {
 
     #[test]
     fn z2_reduction_finds_dependence() {
-        let mut r = Reducer::default();
+        let mut r = Reducer::new(5);
         assert!(r.insert(vec![0, 1, 2]));
         assert!(r.insert(vec![2, 3, 4]));
         assert!(!r.insert(vec![0, 1, 3, 4]));
         assert!(!r.insert(Vec::new()));
         assert_eq!(add_chain(&vec![1, 3, 5], &vec![3, 4]), vec![1, 4, 5]);
+    }
+
+    /// The sum of two sorted Z2 chains, by merging.
+    fn add_chain(a: &Chain, b: &Chain) -> Chain {
+        let mut out: Chain = a.iter().chain(b).copied().collect();
+        out.sort_unstable();
+        let mut sum = Vec::with_capacity(out.len());
+        for e in out {
+            if sum.last() == Some(&e) {
+                sum.pop();
+            } else {
+                sum.push(e);
+            }
+        }
+        sum
+    }
+
+    proptest! {
+        /// The reducer answers and stores as the plain column reduction that adds sorted
+        /// chains by merging them.
+        #[test]
+        fn reduction_matches_merging_columns(
+            chains in prop::collection::vec(prop::collection::btree_set(0u32..24, 0..7), 0..40),
+        ) {
+            let mut fast = Reducer::new(24);
+            let mut plain: HashMap<u32, Chain> = HashMap::new();
+            for set in chains {
+                let mut chain: Chain = set.into_iter().collect();
+                let independent = fast.insert(chain.clone());
+                let stored = loop {
+                    let Some(&pivot) = chain.last() else { break false };
+                    match plain.get(&pivot) {
+                        Some(column) => chain = add_chain(&chain, column),
+                        None => {
+                            plain.insert(pivot, chain);
+                            break true;
+                        }
+                    }
+                };
+                prop_assert_eq!(independent, stored);
+                prop_assert_eq!(&fast.by_pivot, &plain);
+                prop_assert!(fast.in_chain.iter().all(|&b| !b));
+            }
+        }
     }
 }
