@@ -117,11 +117,7 @@ fn plan_web(
 ) -> Option<Web> {
     let m = rim.len();
     let centroid = rim.iter().copied().sum::<DVec3>() / m as f64;
-    // Newell's normal of the loop.
-    let normal = (0..m)
-        .map(|k| rim[k].cross(rim[(k + 1) % m]))
-        .sum::<DVec3>()
-        .try_normalize()?;
+    let normal = newell_normal(rim)?;
     let radius = rim.iter().map(|p| p.distance(centroid)).sum::<f64>() / m as f64;
     let edge = perimeter / m as f64;
     let ring_count = ((radius / edge).ceil() as usize).clamp(1, 64);
@@ -247,11 +243,7 @@ fn sheet_surrounds(
     mesh: &TriMesh,
 ) -> bool {
     let m = rim.len();
-    let Some(normal) = (0..m)
-        .map(|k| rim_points[k].cross(rim_points[(k + 1) % m]))
-        .sum::<DVec3>()
-        .try_normalize()
-    else {
+    let Some(normal) = newell_normal(rim_points) else {
         return false;
     };
     let outside = (0..m)
@@ -270,6 +262,16 @@ fn sheet_surrounds(
         })
         .count();
     2 * outside > m
+}
+
+/// Newell's normal of the closed polyline `rim` (about which it runs counter-clockwise),
+/// `None` when it encloses no area.
+fn newell_normal(rim: &[DVec3]) -> Option<DVec3> {
+    let m = rim.len();
+    (0..m)
+        .map(|k| rim[k].cross(rim[(k + 1) % m]))
+        .sum::<DVec3>()
+        .try_normalize()
 }
 
 /// The point at fraction `t` of the way around the closed polyline `rim`, by vertex count.
