@@ -91,109 +91,214 @@ impl Camera {
     }
 }
 
-/// Casts the ray grid of every camera, sized for about `target` hits in all; returns the hit
-/// points, the unit normals of the triangles hit and the unit ray directions, camera after
-/// camera, row after row.
-pub(crate) fn scan_with_cameras(
-    mesh: &TriMesh,
-    scanner: &VirtualScanner,
-    target: f64,
-    diagonal: f64,
-) -> Result<Vec<(DVec3, DVec3, DVec3)>, ScanError> {
-    let bvh = TriangleBvh::new(mesh)?;
-    let centre = mesh.bounding_box().centre();
-    let radius = 0.5 * diagonal;
-    let distance = scanner.distance * diagonal;
-    let up = scanner.up.normalize();
-    let e1 = up.any_orthonormal_vector();
-    let e2 = up.cross(e1);
-    let min_cos = scanner.max_incidence_degrees.to_radians().cos();
-    let tan_half = radius / (distance * distance - radius * radius).sqrt();
-    let baseline = scanner.projector_baseline * diagonal;
-    let ray_offset = PROJECTOR_RAY_OFFSET * diagonal;
+/// A sample of the scanner: the hit point, the unit normal of the triangle hit and the unit
+/// ray.
+pub(crate) type ScannerSample = (DVec3, DVec3, DVec3);
 
-    let cameras: Vec<Camera> = (0..scanner.views)
-        .map(|k| {
-            let azimuth = std::f64::consts::TAU * k as f64 / scanner.views as f64;
-            let elevation = if k % 2 == 0 {
-                scanner.low_elevation_degrees
-            } else {
-                scanner.high_elevation_degrees
-            }
-            .to_radians();
-            let dir =
-                elevation.cos() * (azimuth.cos() * e1 + azimuth.sin() * e2) + elevation.sin() * up;
-            let forward = -dir;
-            let right = forward.cross(up).try_normalize().unwrap_or(e1);
-            let position = centre + distance * dir;
-            Camera {
-                position,
-                forward,
-                right,
-                up: right.cross(forward),
-                tan_half,
-                projector: (baseline > 0.0).then(|| position + baseline * right),
-            }
+/// What one ray of a camera records.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Return {
+    /// A sample: the hit point, the unit normal of the triangle hit and the unit ray.
+    Sample(DVec3, DVec3, DVec3),
+    /// Surface the camera sees, not at a grazing angle, but hidden from the projector by
+    /// other surface: the shadow of a depth jump. The hit is `t` along the ray.
+    Shadow(f64),
+    /// No surface, surface seen at a grazing angle, or surface the projector cannot light
+    /// for its own angle.
+    Nothing,
+}
+
+/// The cameras of a [`VirtualScanner`] set up around one mesh, and the mesh's BVH they cast
+/// rays at.
+pub(crate) struct Rig {
+    bvh: TriangleBvh,
+    cameras: Vec<Camera>,
+    min_cos: f64,
+    ray_offset: f64,
+}
+
+/// The image coordinate in `[-1, 1]` of the centre of ray `i` of a grid `side` rays wide.
+pub(crate) fn grid_coordinate(side: usize, i: f64) -> f64 {
+    -1.0 + (2.0 * i + 1.0) / side as f64
+}
+
+impl Rig {
+    /// The cameras of `scanner` around `mesh`, whose bounding box has the diagonal `diagonal`.
+    pub(crate) fn new(
+        mesh: &TriMesh,
+        scanner: &VirtualScanner,
+        diagonal: f64,
+    ) -> Result<Rig, ScanError> {
+        let bvh = TriangleBvh::new(mesh)?;
+        let centre = mesh.bounding_box().centre();
+        let radius = 0.5 * diagonal;
+        let distance = scanner.distance * diagonal;
+        let up = scanner.up.normalize();
+        let e1 = up.any_orthonormal_vector();
+        let e2 = up.cross(e1);
+        let tan_half = radius / (distance * distance - radius * radius).sqrt();
+        let baseline = scanner.projector_baseline * diagonal;
+        let cameras = (0..scanner.views)
+            .map(|k| {
+                let azimuth = std::f64::consts::TAU * k as f64 / scanner.views as f64;
+                let elevation = if k % 2 == 0 {
+                    scanner.low_elevation_degrees
+                } else {
+                    scanner.high_elevation_degrees
+                }
+                .to_radians();
+                let dir = elevation.cos() * (azimuth.cos() * e1 + azimuth.sin() * e2)
+                    + elevation.sin() * up;
+                let forward = -dir;
+                let right = forward.cross(up).try_normalize().unwrap_or(e1);
+                let position = centre + distance * dir;
+                Camera {
+                    position,
+                    forward,
+                    right,
+                    up: right.cross(forward),
+                    tan_half,
+                    projector: (baseline > 0.0).then(|| position + baseline * right),
+                }
+            })
+            .collect();
+        Ok(Rig {
+            bvh,
+            cameras,
+            min_cos: scanner.max_incidence_degrees.to_radians().cos(),
+            ray_offset: PROJECTOR_RAY_OFFSET * diagonal,
         })
-        .collect();
+    }
 
-    // Does the projector at `projector` light the point `p` of a triangle of unit normal `n`
-    // that the camera sees along the unit ray `unit`? From the camera's side of the triangle,
-    // not at a grazing angle, and with nothing in between.
-    let lit = |projector: DVec3, p: DVec3, n: DVec3, unit: DVec3| -> bool {
+    /// Where camera `camera` stands, and the direction (not unit) of its ray through image
+    /// coordinates `(x, y)`.
+    pub(crate) fn ray(&self, camera: usize, x: f64, y: f64) -> (DVec3, DVec3) {
+        let cam = &self.cameras[camera];
+        (cam.position, cam.ray(x, y))
+    }
+
+    /// Is the segment from the point `p` (of a triangle of unit normal `n`, seen along the
+    /// unit ray `unit`) to the projector at `projector` free, and does it leave the triangle
+    /// on the camera's side, not at a grazing angle? `None` for the angle, `Some(false)` when
+    /// other surface is in between.
+    fn lit(&self, projector: DVec3, p: DVec3, n: DVec3, unit: DVec3) -> Option<bool> {
         let to_projector = projector - p;
         let length = to_projector.length();
         let towards = to_projector / length;
         let cos = n.dot(towards);
-        if cos.abs() < min_cos || cos * n.dot(unit) > 0.0 || length <= ray_offset {
-            return false;
-        }
-        bvh.first_hit(p + ray_offset * towards, towards, length - ray_offset)
-            .is_none()
-    };
-    // A hit the camera can record: the triangle is not seen at a grazing angle (and the
-    // projector, if any, lights it).
-    let cast = |cam: &Camera, x: f64, y: f64| -> Option<(DVec3, DVec3, DVec3)> {
-        let d = cam.ray(x, y);
-        let hit = bvh.first_hit(cam.position, d, f64::INFINITY)?;
-        let n = bvh.triangle_normal(hit.triangle);
-        let unit = d.normalize();
-        if n.dot(unit).abs() < min_cos {
+        if cos.abs() < self.min_cos || cos * n.dot(unit) > 0.0 || length <= self.ray_offset {
             return None;
         }
-        let p = cam.position + hit.t * d;
-        cam.projector
-            .is_none_or(|projector| lit(projector, p, n, unit))
-            .then_some((p, n, unit))
-    };
-    let grid = |n: usize| move |i: usize| -1.0 + (2 * i + 1) as f64 / n as f64;
+        Some(
+            self.bvh
+                .first_hit(
+                    p + self.ray_offset * towards,
+                    towards,
+                    length - self.ray_offset,
+                )
+                .is_none(),
+        )
+    }
 
-    let per_view = target / scanner.views as f64;
-    let mut hits = Vec::with_capacity(target as usize + target as usize / 8);
-    let mut any = false;
-    for cam in &cameras {
-        let g = grid(PILOT_GRID);
-        let pilot = (0..PILOT_GRID * PILOT_GRID)
-            .into_par_iter()
-            .filter(|&k| cast(cam, g(k % PILOT_GRID), g(k / PILOT_GRID)).is_some())
-            .count();
-        if pilot == 0 {
-            continue;
+    /// What camera `camera` records along its ray through image coordinates `(x, y)`.
+    pub(crate) fn cast(&self, camera: usize, x: f64, y: f64) -> Return {
+        let cam = &self.cameras[camera];
+        let d = cam.ray(x, y);
+        let Some(hit) = self.bvh.first_hit(cam.position, d, f64::INFINITY) else {
+            return Return::Nothing;
+        };
+        let n = self.bvh.triangle_normal(hit.triangle);
+        let unit = d.normalize();
+        if n.dot(unit).abs() < self.min_cos {
+            return Return::Nothing;
         }
-        any = true;
-        let fill = pilot as f64 / (PILOT_GRID * PILOT_GRID) as f64;
-        let side = ((per_view / fill).sqrt().ceil() as usize).max(1);
-        let g = grid(side);
-        let view_hits: Vec<Option<(DVec3, DVec3, DVec3)>> = (0..side * side)
-            .into_par_iter()
-            .map(|k| cast(cam, g(k % side), g(k / side)))
+        let p = cam.position + hit.t * d;
+        match cam
+            .projector
+            .map(|projector| self.lit(projector, p, n, unit))
+        {
+            None | Some(Some(true)) => Return::Sample(p, n, unit),
+            Some(Some(false)) => Return::Shadow(hit.t * d.length()),
+            Some(None) => Return::Nothing,
+        }
+    }
+
+    /// The side of each camera's square grid of rays, sized for about `target` samples in
+    /// all (`None` for a camera that sees nothing of the mesh).
+    pub(crate) fn grid_sides(&self, target: f64) -> Result<Vec<Option<usize>>, ScanError> {
+        let per_view = target / self.cameras.len() as f64;
+        let sides: Vec<Option<usize>> = (0..self.cameras.len())
+            .map(|camera| {
+                let pilot = (0..PILOT_GRID * PILOT_GRID)
+                    .into_par_iter()
+                    .filter(|&k| {
+                        let (x, y) = ((k % PILOT_GRID) as f64, (k / PILOT_GRID) as f64);
+                        matches!(
+                            self.cast(
+                                camera,
+                                grid_coordinate(PILOT_GRID, x),
+                                grid_coordinate(PILOT_GRID, y)
+                            ),
+                            Return::Sample(..)
+                        )
+                    })
+                    .count();
+                (pilot > 0).then(|| {
+                    let fill = pilot as f64 / (PILOT_GRID * PILOT_GRID) as f64;
+                    ((per_view / fill).sqrt().ceil() as usize).max(1)
+                })
+            })
             .collect();
-        hits.extend(view_hits.into_iter().flatten());
+        if sides.iter().all(Option::is_none) {
+            return Err(ScanError::NothingVisible);
+        }
+        Ok(sides)
     }
-    if !any {
-        return Err(ScanError::NothingVisible);
+
+    /// Every return of camera `camera` on its grid `side` rays wide, row after row.
+    pub(crate) fn image(&self, camera: usize, side: usize) -> Vec<Return> {
+        (0..side * side)
+            .into_par_iter()
+            .map(|k| {
+                let (x, y) = ((k % side) as f64, (k / side) as f64);
+                self.cast(camera, grid_coordinate(side, x), grid_coordinate(side, y))
+            })
+            .collect()
     }
-    Ok(hits)
+
+    /// The samples of every camera on the grids `sides` (see [`Rig::grid_sides`]): points,
+    /// unit normals of the triangles hit and unit ray directions, camera after camera, row
+    /// after row.
+    pub(crate) fn samples(&self, sides: &[Option<usize>]) -> Vec<ScannerSample> {
+        let mut samples = Vec::new();
+        for (camera, side) in sides.iter().enumerate() {
+            if let Some(side) = *side {
+                samples.extend(
+                    self.image(camera, side)
+                        .into_iter()
+                        .filter_map(|r| match r {
+                            Return::Sample(p, n, unit) => Some((p, n, unit)),
+                            _ => None,
+                        }),
+                );
+            }
+        }
+        samples
+    }
+}
+
+/// Casts the ray grid of every camera, sized for about `target` hits in all; returns the hit
+/// points, the unit normals of the triangles hit and the unit ray directions, camera after
+/// camera, row after row.
+#[cfg(test)]
+fn scan_with_cameras(
+    mesh: &TriMesh,
+    scanner: &VirtualScanner,
+    target: f64,
+    diagonal: f64,
+) -> Result<Vec<ScannerSample>, ScanError> {
+    let rig = Rig::new(mesh, scanner, diagonal)?;
+    Ok(rig.samples(&rig.grid_sides(target)?))
 }
 
 #[cfg(test)]

@@ -26,6 +26,7 @@ use sphcover_evaluation::invented_surface::{InputPoints, InventedSurface, Invent
 use sphcover_evaluation::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
 use sphcover_evaluation::scan_blocks::generate_scan_in_blocks;
 use sphcover_evaluation::scan_simulation::{ScanCase, ScanParams, generate_scan};
+use sphcover_evaluation::shadow_slits::{ShadowSlits, shadow_slits};
 
 /// The ground truth used when no `--mesh` is given (relative to the workspace root).
 const DEFAULT_MESH: &str = "bunny=fixtures/real/bunny00.off";
@@ -276,6 +277,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "comp.",
         "watertight",
         "invented %",
+        "slits bridged",
         "status",
     ]);
     for (mesh_name, _, gt) in &meshes {
@@ -327,6 +329,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                         gt,
                         &score_params,
                         input_points.as_ref().map(|p| (p, &invented_params)),
+                        has_shadows(&params).then_some(&params),
                         &root,
                         timeout,
                         args.repeat,
@@ -358,7 +361,9 @@ fn run(args: Args) -> anyhow::Result<()> {
             "Command: `{}`\n\nGround truth: {}. Scores on {} area-uniform samples per mesh; \
              lengths in % of the ground truth's bounding-box diagonal; NC = normal \
              consistency; comp. = connected components; invented = % of the output's area \
-             farther than 3 median sample spacings of the scan from every scan point.\n\n{rendered}",
+             farther than 3 median sample spacings of the scan from every scan point; slits \
+             bridged = shadow slits of the scan's camera rows, 1–2 and 3–5 rays wide, that the \
+             output joins across, of all such rows (scans with a projector).\n\n{rendered}",
             command_line(),
             gt_list.join("; "),
             args.samples
@@ -377,6 +382,13 @@ struct ToolResult {
     scores: Result<ReconMetrics, String>,
     /// Invented surface against the scan's points, when they were at hand.
     invented: Option<Result<InventedSurface, String>>,
+    /// The scan's shadow slits and which the output bridges (scans with a projector).
+    slits: Option<Result<ShadowSlits, String>>,
+}
+
+/// Whether the scan `params` describe has the shadows of a projector.
+fn has_shadows(params: &ScanParams) -> bool {
+    params.scanner.is_some_and(|s| s.projector_baseline > 0.0)
 }
 
 /// Generates the scan `params` describe a block at a time ([`generate_scan_in_blocks`]) into
@@ -418,7 +430,8 @@ fn write_scan_in_blocks(gt: &TriMesh, params: &ScanParams, path: &Path) -> anyho
 }
 
 /// Runs `tool` on `input` `repeat` times (stopping at a failure) and scores the output,
-/// against the ground truth and, given the scan's points, for invented surface.
+/// against the ground truth, given the scan's points for invented surface, and given the
+/// parameters of a scan with shadows for the slits it bridges.
 fn run_tool(
     tool: &Tool,
     input: &Path,
@@ -426,6 +439,7 @@ fn run_tool(
     gt: &TriMesh,
     params: &ReconMetricsParams,
     invented: Option<(&Result<InputPoints, String>, &InventedSurfaceParams)>,
+    shadowed_scan: Option<&ScanParams>,
     cwd: &Path,
     timeout: Duration,
     repeat: u32,
@@ -436,6 +450,7 @@ fn run_tool(
             wall_range: None,
             scores: Err(why.clone()),
             invented: None,
+            slits: None,
         };
     }
     let mut runs = Vec::new();
@@ -455,22 +470,24 @@ fn run_tool(
         })
     });
     let run = median_or_failed(runs);
-    let (scores, invented) = match run.outcome.failure(timeout) {
-        Some(why) => (Err(why), None),
-        None if !output.is_file() => (Err("exited 0 but wrote no output".into()), None),
+    let (scores, invented, slits) = match run.outcome.failure(timeout) {
+        Some(why) => (Err(why), None, None),
+        None if !output.is_file() => (Err("exited 0 but wrote no output".into()), None, None),
         None => {
             let opts = ReadOptions {
                 non_finite: NonFinitePolicy::Drop,
                 ..ReadOptions::default()
             };
             match io::read_mesh(output, &opts) {
-                Err(e) => (Err(format!("unreadable output: {e}")), None),
+                Err(e) => (Err(format!("unreadable output: {e}")), None, None),
                 Ok(rec) => (
                     score_reconstruction(&rec, gt, params).map_err(|e| e.to_string()),
                     invented.map(|(points, p)| {
                         let points = points.as_ref().map_err(Clone::clone)?;
                         points.score(&rec, p).map_err(|e| e.to_string())
                     }),
+                    shadowed_scan
+                        .map(|scan| shadow_slits(gt, scan, &rec).map_err(|e| e.to_string())),
                 ),
             }
         }
@@ -480,6 +497,7 @@ fn run_tool(
         wall_range,
         scores,
         invented,
+        slits,
     }
 }
 
@@ -516,10 +534,11 @@ fn row_cells(mesh: &str, case: &str, points: usize, tool: &str, r: &ToolResult) 
             s.topology.components.to_string(),
             if s.topology.watertight { "yes" } else { "no" }.to_string(),
             invented_cell(r),
+            slits_cell(r),
             "ok".to_string(),
         ]),
         Err(e) => {
-            cells.extend(std::iter::repeat_n("–".to_string(), 9));
+            cells.extend(std::iter::repeat_n("–".to_string(), 10));
             cells.push(short_message(e, 120));
         }
     }
@@ -535,6 +554,20 @@ fn invented_cell(r: &ToolResult) -> String {
             .map(|s| 100.0 * s.invented_fraction),
         2,
     )
+}
+
+/// The shadow-slit rows 1–2 and 3–5 rays wide that the output bridges, of all such rows, when
+/// they were measured.
+fn slits_cell(r: &ToolResult) -> String {
+    match &r.slits {
+        Some(Ok(slits)) => {
+            let (narrow, narrow_bridged) = slits.bridged_up_to(2);
+            let (wider, wider_bridged) = slits.bridged_within(3, 5);
+            format!("{narrow_bridged}/{narrow}, {wider_bridged}/{wider}")
+        }
+        Some(Err(e)) => short_message(e, 60),
+        None => "–".to_string(),
+    }
 }
 
 /// The wall time of the reported run, with the range over all runs when there were several.
