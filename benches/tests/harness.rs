@@ -77,7 +77,7 @@ fn recon_bench_scores_peers_and_reports_failures() {
         };
         let perfect = row("perfect");
         // Columns: mesh case points tool wall cpu peak steal chamfer h99 nc f.25 f.5 f1 comp
-        // wt invented status
+        // wt invented slits status
         assert_eq!(perfect[9], "0.0000", "{perfect:?}");
         assert_eq!(perfect[11], "1.0000");
         assert_eq!(perfect[14], "1.0000");
@@ -87,7 +87,9 @@ fn recon_bench_scores_peers_and_reports_failures() {
         // a random sample (about 2^-9 of the area, 0.2%) are farther than 3 spacings.
         let invented: f64 = perfect[17].parse().unwrap();
         assert!((0.0..1.0).contains(&invented), "{perfect:?}");
-        assert_eq!(perfect[18], "ok");
+        // No projector, so no slits.
+        assert_eq!(perfect[18], "–");
+        assert_eq!(perfect[19], "ok");
         // Two runs: the median's wall time and the range of both.
         let (wall, range) = perfect[5].split_once(' ').expect("a range after the time");
         let wall: f64 = wall.parse().unwrap();
@@ -104,9 +106,10 @@ fn recon_bench_scores_peers_and_reports_failures() {
         // A failing tool is not run again: its row has no range.
         let broken = row("broken");
         assert_eq!(broken[17], "–");
-        assert!(broken[18].contains("failed (exit 4): boom"));
+        assert_eq!(broken[18], "–");
+        assert!(broken[19].contains("failed (exit 4): boom"));
         assert!(!broken[5].contains('('), "{broken:?}");
-        assert!(row("sphcover")[18].starts_with("not built"));
+        assert!(row("sphcover")[19].starts_with("not built"));
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
