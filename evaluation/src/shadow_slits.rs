@@ -4,12 +4,17 @@
 //! A triangulation scanner records nothing where its projector cannot light the surface the
 //! camera sees: beside every depth jump lies a narrow unsampled *shadow*
 //! ([`crate::virtual_scanner`]). Along a row of the camera's image a shadow is a run of rays
-//! between two samples, the near side of the jump on one end and the far side on the other.
-//! Surface joining the two across the run is made up: the scanner saw a gap there, and the
-//! true surface (the wall of the jump, seen edge on, and the unlit strip beyond) cannot be
-//! told from it. A reconstruction keeps the slit *open* when, in the cross-section of the
-//! output by the plane of that row, the surface at one end does not reach the surface at the
-//! other without leaving the slit's neighbourhood.
+//! between two samples, the near side of the jump on one end and the far side on the other
+//! (with the rays that graze the occluder's rim, which record nothing either). A
+//! reconstruction keeps the slit *open* when, in the cross-section of the output by the plane
+//! of that row, the surface at one end does not reach the surface at the other without
+//! leaving the slit's neighbourhood.
+//!
+//! The scanner saw a gap there, so surface joining the two ends is a guess. Where the truth
+//! leaves the slit open too (a free edge before surface set back behind it) any bridge is made
+//! up. Where the shadow falls on a steep face continuous with both ends, a bridge may follow
+//! the face; how far it lies from the truth tells the two apart
+//! ([`SlitRow::deviation_rays`]).
 //!
 //! The scan has one sample per ray, so on surface facing the camera a ray of the grid is one
 //! sample spacing: a slit `w` rays wide is about `w` spacings wide.
@@ -19,7 +24,7 @@ use sphcover_core::{DVec3, TriMesh, VertexTriangles};
 
 use crate::scan_simulation::{ScanError, ScanParams, scanner_grids, surface_defects};
 use crate::surface_sampling::SurfaceSampler;
-use crate::triangle_bvh::{TriangleBvh, TriangleBvhError};
+use crate::triangle_bvh::{TriangleBvh, TriangleBvhError, closest_point_on_triangle};
 use crate::virtual_scanner::{Return, Rig, grid_coordinate};
 
 /// How far the cross-section's neighbourhood of a slit reaches beyond the two ends, in rays
@@ -32,6 +37,10 @@ const NEIGHBOURHOOD_RAYS: f64 = 2.0;
 /// chain together, thin enough that a path around the slit's end along the next rows leaves
 /// it.
 const SLAB_RAYS: f64 = 0.75;
+
+/// The output's distance to the truth across a bridged run is read along the rays at
+/// `k / DEVIATION_RAYS` of the way from one end ray to the other, `0 < k < DEVIATION_RAYS`.
+const DEVIATION_RAYS: usize = 8;
 
 /// Why the slits could not be measured.
 #[derive(Debug, thiserror::Error)]
@@ -60,6 +69,16 @@ pub struct SlitRow {
     pub ends_covered: bool,
     /// Whether the output joins the two ends across the run.
     pub bridged: bool,
+    /// For a bridged row, how far the output lies from the truth across the run: the
+    /// largest distance from the truth of the output's first hits along rays between the two
+    /// ends, in rays of the grid at the slit's depth. Where the shadow falls on a steep face
+    /// the truth is continuous across the run, and a bridge that follows it fills a gap of
+    /// a sample or two; a bridge far from it is made up.
+    pub deviation_rays: Option<f64>,
+    /// Whether the truth itself joins the two ends across the run (the shadow falls on
+    /// surface continuous with both, such as a steep face, rather than on surface set back
+    /// behind a free edge).
+    pub truth_joined: bool,
 }
 
 /// The shadow slits of a scan, row by row, and which the output bridges.
@@ -78,12 +97,25 @@ impl ShadowSlits {
     /// The slit rows `min_width..=max_width` rays wide, and how many of them the output
     /// bridges.
     pub fn bridged_within(&self, min_width: usize, max_width: usize) -> (usize, usize) {
-        let rows = self
-            .rows
+        let rows = self.rows_within(min_width, max_width);
+        rows.fold((0, 0), |(c, b), r| (c + 1, b + usize::from(r.bridged)))
+    }
+
+    /// How many slit rows `min_width..=max_width` rays wide the output bridges with surface
+    /// that is not the truth's: where the truth does not join the two ends, or farther than
+    /// `rays` from it (see [`SlitRow::deviation_rays`]).
+    pub fn bridged_off_truth(&self, min_width: usize, max_width: usize, rays: f64) -> usize {
+        let rows = self.rows_within(min_width, max_width);
+        rows.filter(|r| {
+            r.bridged && (!r.truth_joined || r.deviation_rays.is_some_and(|d| d > rays))
+        })
+        .count()
+    }
+
+    fn rows_within(&self, min_width: usize, max_width: usize) -> impl Iterator<Item = &SlitRow> {
+        self.rows
             .iter()
-            .filter(|r| (min_width..=max_width).contains(&r.width));
-        let (count, bridged) = rows.fold((0, 0), |(c, b), r| (c + 1, b + usize::from(r.bridged)));
-        (count, bridged)
+            .filter(move |r| (min_width..=max_width).contains(&r.width))
     }
 }
 
@@ -194,18 +226,21 @@ pub fn shadow_slits(
         Err(e) => return Err(ShadowSlitError::Output(e)),
     };
     let around = VertexTriangles::of(output);
+    let truth_around = VertexTriangles::of(truth);
     let rows = runs
         .par_iter()
         .map(|run| {
-            let width = run.last - run.first - 1;
-            let bridged = output_bvh
+            let across = output_bvh
                 .as_ref()
                 .and_then(|bvh| joined_across(&rig, bvh, &around, output, run));
+            let truth_across = joined_across(&rig, rig.mesh_bvh(), &truth_around, truth, run);
             SlitRow {
-                width,
+                width: run.last - run.first - 1,
                 ends: run.ends,
-                ends_covered: bridged.is_some(),
-                bridged: bridged == Some(true),
+                ends_covered: across.is_some(),
+                bridged: across.is_some_and(|a| a.is_some()),
+                deviation_rays: across.flatten(),
+                truth_joined: truth_across.is_some_and(|a| a.is_some()),
             }
         })
         .collect();
@@ -213,30 +248,43 @@ pub fn shadow_slits(
 }
 
 /// Whether `output` joins the surface at the two end rays of `run` within the slab of the
-/// run's row (`None` when an end ray misses the output).
+/// run's row: `None` when an end ray misses the output, `Some(None)` when the two are not
+/// joined, and when they are, how far from the truth the output lies across the run (see
+/// [`SlitRow::deviation_rays`]).
 fn joined_across(
     rig: &Rig,
     bvh: &TriangleBvh,
     around: &VertexTriangles,
     output: &TriMesh,
     run: &Run,
-) -> Option<bool> {
+) -> Option<Option<f64>> {
     let y = grid_coordinate(run.side, run.row as f64);
-    let end = |x: usize| {
-        let (origin, direction) = rig.ray(run.camera, grid_coordinate(run.side, x as f64), y);
+    let hit = |x: f64| {
+        let (origin, direction) = rig.ray(run.camera, grid_coordinate(run.side, x), y);
         let hit = bvh.first_hit(origin, direction, f64::INFINITY)?;
         Some((origin, direction, hit.triangle, origin + hit.t * direction))
     };
-    let (origin, d_first, from, p_first) = end(run.first)?;
-    let (_, d_last, to, p_last) = end(run.last)?;
-    if from == to {
-        return Some(true);
-    }
-    let normal = d_first.cross(d_last).try_normalize()?;
+    let (origin, d_first, from, p_first) = hit(run.first as f64)?;
+    let (_, d_last, to, p_last) = hit(run.last as f64)?;
     // One ray of the grid at the depth of the farther end.
     let depth = (p_first - origin).length().max((p_last - origin).length());
     let ray_width =
         depth * (d_last - d_first).length() / (d_first.length() * (run.last - run.first) as f64);
+    let deviation = || {
+        let rays = (1..DEVIATION_RAYS).filter_map(|k| {
+            let f = k as f64 / DEVIATION_RAYS as f64;
+            let (_, _, _, p) = hit(run.first as f64 + f * (run.last - run.first) as f64)?;
+            let closest = rig.mesh_bvh().closest_point(p)?;
+            Some(closest.distance_squared.sqrt())
+        });
+        Some(rays.fold(0.0, f64::max) / ray_width)
+    };
+    if from == to {
+        return Some(deviation());
+    }
+    let Some(normal) = d_first.cross(d_last).try_normalize() else {
+        return Some(None);
+    };
     let half_slab = SLAB_RAYS * ray_width;
     let centre = 0.5 * (p_first + p_last);
     let radius = 0.5 * (p_last - p_first).length() + NEIGHBOURHOOD_RAYS * ray_width;
@@ -247,8 +295,10 @@ fn joined_across(
             side[0].min(side[1]).min(side[2]),
             side[0].max(side[1]).max(side[2]),
         );
-        let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
-        lo <= half_slab && hi >= -half_slab && centroid.distance(centre) <= radius
+        let [a, b, c] = corners;
+        lo <= half_slab
+            && hi >= -half_slab
+            && closest_point_on_triangle(centre, a, b, c).distance(centre) <= radius
     };
     let mut seen = std::collections::HashSet::from([from]);
     let mut stack = vec![from];
@@ -256,7 +306,7 @@ fn joined_across(
         for &v in &output.triangles[t as usize] {
             for &next in around.triangles_at(v as usize) {
                 if next == to {
-                    return Some(true);
+                    return Some(deviation());
                 }
                 if inside(next) && seen.insert(next) {
                     stack.push(next);
@@ -264,7 +314,7 @@ fn joined_across(
             }
         }
     }
-    Some(false)
+    Some(None)
 }
 
 #[cfg(test)]
@@ -331,7 +381,42 @@ mod tests {
             let closed = shadow_slits(&truth, &params(seed), &skirted).unwrap();
             proptest::prop_assert_eq!(closed.rows.len(), rows);
             proptest::prop_assert_eq!(closed.bridged_up_to(usize::MAX), (rows, rows));
+            // The truth does not join the ends, so no bridge is the truth's.
+            proptest::prop_assert!(open.rows.iter().all(|r| !r.truth_joined));
+            proptest::prop_assert_eq!(closed.bridged_off_truth(1, usize::MAX, 2.0), rows);
         }
+    }
+
+    #[test]
+    fn a_bridge_that_follows_the_truth_over_a_steep_face_is_on_it() {
+        // A step seen from +z: a ledge at z = 0.4 for x < 0, a steep face down to the floor
+        // at x = 0.02, the floor beyond. The camera sees the face at a grazing angle, and the
+        // ledge's edge hides the floor's first stretch from the projector (on the −x side).
+        let profile = [(-1.0, 0.4), (0.0, 0.4), (0.02, 0.0), (1.0, 0.0)];
+        let vertices: Vec<DVec3> = profile
+            .iter()
+            .flat_map(|&(x, z)| [DVec3::new(x, -1.0, z), DVec3::new(x, 1.0, z)])
+            .collect();
+        let triangles = (0..3u32)
+            .flat_map(|k| {
+                let (a, b, c, d) = (2 * k, 2 * k + 2, 2 * k + 3, 2 * k + 1);
+                [[a, b, c], [a, c, d]]
+            })
+            .collect();
+        let step = TriMesh::new(vertices, triangles);
+        let slits = shadow_slits(&step, &params(3), &step).unwrap();
+        let (rows, bridged) = slits.bridged_up_to(usize::MAX);
+        assert!(rows > 20, "{rows}");
+        // The truth joins the ends (over the face), and lies on itself.
+        assert_eq!(bridged, rows);
+        assert!(slits.rows.iter().all(|r| r.truth_joined));
+        assert!(
+            slits
+                .rows
+                .iter()
+                .all(|r| r.deviation_rays.is_some_and(|d| d < 1e-9))
+        );
+        assert_eq!(slits.bridged_off_truth(1, usize::MAX, 1e-9), 0);
     }
 
     #[test]

@@ -177,6 +177,11 @@ impl Rig {
         (cam.position, cam.ray(x, y))
     }
 
+    /// The BVH of the mesh the rig scans.
+    pub(crate) fn mesh_bvh(&self) -> &TriangleBvh {
+        &self.bvh
+    }
+
     /// Is the segment from the point `p` (of a triangle of unit normal `n`, seen along the
     /// unit ray `unit`) to the projector at `projector` free, and does it leave the triangle
     /// on the camera's side, not at a grazing angle? `None` for the angle, `Some(false)` when

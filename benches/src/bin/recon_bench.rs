@@ -363,7 +363,9 @@ fn run(args: Args) -> anyhow::Result<()> {
              consistency; comp. = connected components; invented = % of the output's area \
              farther than 3 median sample spacings of the scan from every scan point; slits \
              bridged = shadow slits of the scan's camera rows, 1–2 and 3–5 rays wide, that the \
-             output joins across, of all such rows (scans with a projector).\n\n{rendered}",
+             output joins across, of all such rows, and in brackets the bridges that are not \
+             the truth's (where it leaves the slit open, or farther than 2 rays from it; scans \
+             with a projector).\n\n{rendered}",
             command_line(),
             gt_list.join("; "),
             args.samples
@@ -385,6 +387,11 @@ struct ToolResult {
     /// The scan's shadow slits and which the output bridges (scans with a projector).
     slits: Option<Result<ShadowSlits, String>>,
 }
+
+/// A bridge across a shadow slit farther than this from the truth, in rays of the camera's
+/// grid (about sample spacings), is made up; nearer, it follows a face the shadow fell on
+/// (the scan's range noise is under a spacing).
+const OFF_TRUTH_RAYS: f64 = 2.0;
 
 /// Whether the scan `params` describe has the shadows of a projector.
 fn has_shadows(params: &ScanParams) -> bool {
@@ -556,14 +563,18 @@ fn invented_cell(r: &ToolResult) -> String {
     )
 }
 
-/// The shadow-slit rows 1–2 and 3–5 rays wide that the output bridges, of all such rows, when
-/// they were measured.
+/// The shadow-slit rows 1–2 and 3–5 rays wide that the output bridges, of all such rows, and
+/// in brackets how many of those bridges are not the truth's ([`OFF_TRUTH_RAYS`]), when they
+/// were measured.
 fn slits_cell(r: &ToolResult) -> String {
     match &r.slits {
         Some(Ok(slits)) => {
-            let (narrow, narrow_bridged) = slits.bridged_up_to(2);
-            let (wider, wider_bridged) = slits.bridged_within(3, 5);
-            format!("{narrow_bridged}/{narrow}, {wider_bridged}/{wider}")
+            let cell = |lo: usize, hi: usize| {
+                let (rows, bridged) = slits.bridged_within(lo, hi);
+                let made_up = slits.bridged_off_truth(lo, hi, OFF_TRUTH_RAYS);
+                format!("{bridged}/{rows} ({made_up})")
+            };
+            format!("{}, {}", cell(1, 2), cell(3, 5))
         }
         Some(Err(e)) => short_message(e, 60),
         None => "–".to_string(),
