@@ -62,6 +62,9 @@ pub struct InventedSurfaceParams {
     pub spacings: f64,
     /// Input points (at most) whose distance to the reconstruction is measured.
     pub input_samples: usize,
+    /// Input points farther than this many spacings from the reconstruction are left out
+    /// by it (surface the scanner saw and the reconstruction dropped).
+    pub uncovered_spacings: f64,
 }
 
 impl Default for InventedSurfaceParams {
@@ -71,6 +74,7 @@ impl Default for InventedSurfaceParams {
             seed: 0,
             spacings: 3.0,
             input_samples: 50_000,
+            uncovered_spacings: 2.0,
         }
     }
 }
@@ -89,6 +93,9 @@ pub struct InventedSurface {
     pub input_to_rec_median: f64,
     /// 95th percentile of the distances from the input points to the reconstruction.
     pub input_to_rec_p95: f64,
+    /// Share of the measured input points farther than `uncovered_spacings` spacings from
+    /// the reconstruction (0 to 1).
+    pub uncovered_fraction: f64,
     /// Area samples drawn.
     pub samples: usize,
     /// Input points whose distance to the reconstruction was measured.
@@ -150,7 +157,11 @@ impl InputPoints {
                 "at least one area sample is needed",
             ));
         }
-        if !(params.spacings.is_finite() && params.spacings >= 0.0) {
+        if !(params.spacings.is_finite()
+            && params.spacings >= 0.0
+            && params.uncovered_spacings.is_finite()
+            && params.uncovered_spacings >= 0.0)
+        {
             return Err(InventedSurfaceError::InvalidParameter(
                 "the threshold in spacings must be finite and at least 0",
             ));
@@ -203,6 +214,11 @@ impl InputPoints {
             invented_fraction: invented as f64 / params.samples as f64,
             input_to_rec_median: percentile(&to_rec, 50.0),
             input_to_rec_p95: percentile(&to_rec, 95.0),
+            uncovered_fraction: to_rec
+                .iter()
+                .filter(|&&d| d > params.uncovered_spacings * self.spacing)
+                .count() as f64
+                / to_rec.len().max(1) as f64,
             samples: params.samples,
             input_samples: to_rec.len(),
         })
@@ -262,6 +278,25 @@ mod tests {
         // Up to rounding.
         assert!(s.input_to_rec_median < 1e-12 && s.input_to_rec_p95 < 1e-12);
         assert_eq!(s.input_samples, 10_201);
+        assert_eq!(s.uncovered_fraction, 0.0);
+    }
+
+    #[test]
+    fn input_the_reconstruction_leaves_out_is_uncovered() {
+        // The output holds the quarter [0, 0.5]² of the sampled unit square: within 2.5
+        // spacings (0.025) of it lie the 53 × 53 points up to 0.52 but the corner (0.52,
+        // 0.52), 0.028 away.
+        let points = grid(101, 0.0);
+        let p = InventedSurfaceParams {
+            uncovered_spacings: 2.5,
+            ..params(10_000)
+        };
+        let s = score_invented_surface(&square(0.0, 0.5, 0.0), &points, &p).unwrap();
+        let covered = 53.0 * 53.0 - 1.0;
+        assert!(
+            (s.uncovered_fraction - (1.0 - covered / 10_201.0)).abs() < 1e-12,
+            "{s:?}"
+        );
     }
 
     #[test]

@@ -38,6 +38,11 @@ const NEIGHBOURHOOD_RAYS: f64 = 2.0;
 /// it.
 const SLAB_RAYS: f64 = 0.75;
 
+/// How far from the sample at an end of a run, in rays of the grid, the output may pass and
+/// still hold the surface at that end: above the scan's range noise (under a ray), below the
+/// depth of any slit.
+const END_REACH_RAYS: f64 = 3.0;
+
 /// The output's distance to the truth across a bridged run is read along the rays at
 /// `k / DEVIATION_RAYS` of the way from one end ray to the other, `0 < k < DEVIATION_RAYS`.
 const DEVIATION_RAYS: usize = 8;
@@ -64,8 +69,8 @@ pub struct SlitRow {
     pub width: usize,
     /// The samples at its two ends, in the order of the row.
     pub ends: [DVec3; 2],
-    /// Whether the output holds surface along both end rays (else the slit is open there by
-    /// the output's own border).
+    /// Whether the output holds surface at both ends: it passes within 3 rays of both end
+    /// samples (else the slit is open there by the output's own border).
     pub ends_covered: bool,
     /// Whether the output joins the two ends across the run.
     pub bridged: bool,
@@ -110,6 +115,14 @@ impl ShadowSlits {
             r.bridged && (!r.truth_joined || r.deviation_rays.is_some_and(|d| d > rays))
         })
         .count()
+    }
+
+    /// How many slit rows `min_width..=max_width` rays wide lack the output's surface at an
+    /// end (see [`SlitRow::ends_covered`]): open because the output left out what the scanner
+    /// saw there.
+    pub fn unheld_within(&self, min_width: usize, max_width: usize) -> usize {
+        let rows = self.rows_within(min_width, max_width);
+        rows.filter(|r| !r.ends_covered).count()
     }
 
     fn rows_within(&self, min_width: usize, max_width: usize) -> impl Iterator<Item = &SlitRow> {
@@ -259,22 +272,31 @@ fn joined_across(
     run: &Run,
 ) -> Option<Option<f64>> {
     let y = grid_coordinate(run.side, run.row as f64);
-    let hit = |x: f64| {
-        let (origin, direction) = rig.ray(run.camera, grid_coordinate(run.side, x), y);
-        let hit = bvh.first_hit(origin, direction, f64::INFINITY)?;
-        Some((origin, direction, hit.triangle, origin + hit.t * direction))
-    };
-    let (origin, d_first, from, p_first) = hit(run.first as f64)?;
-    let (_, d_last, to, p_last) = hit(run.last as f64)?;
+    let ray = |x: f64| rig.ray(run.camera, grid_coordinate(run.side, x), y);
+    let (origin, d_first) = ray(run.first as f64);
+    let (_, d_last) = ray(run.last as f64);
     // One ray of the grid at the depth of the farther end.
-    let depth = (p_first - origin).length().max((p_last - origin).length());
+    let depth = (run.ends[0] - origin)
+        .length()
+        .max((run.ends[1] - origin).length());
     let ray_width =
         depth * (d_last - d_first).length() / (d_first.length() * (run.last - run.first) as f64);
+    // The output's surface at each end: its triangle nearest the end's sample, if near. (Not
+    // the end ray's hit: past a rounded corner of the output that ray reaches what lies
+    // behind, and two ends on the surface behind would read as joined.)
+    let reach = END_REACH_RAYS * ray_width;
+    let held = |sample: DVec3| {
+        let closest = bvh.closest_point(sample)?;
+        (closest.distance_squared <= reach * reach).then_some((closest.triangle, closest.point))
+    };
+    let (from, p_first) = held(run.ends[0])?;
+    let (to, p_last) = held(run.ends[1])?;
     let deviation = || {
         let rays = (1..DEVIATION_RAYS).filter_map(|k| {
             let f = k as f64 / DEVIATION_RAYS as f64;
-            let (_, _, _, p) = hit(run.first as f64 + f * (run.last - run.first) as f64)?;
-            let closest = rig.mesh_bvh().closest_point(p)?;
+            let (origin, direction) = ray(run.first as f64 + f * (run.last - run.first) as f64);
+            let hit = bvh.first_hit(origin, direction, f64::INFINITY)?;
+            let closest = rig.mesh_bvh().closest_point(origin + hit.t * direction)?;
             Some(closest.distance_squared.sqrt())
         });
         Some(rays.fold(0.0, f64::max) / ray_width)
@@ -326,18 +348,21 @@ mod tests {
     fn plate_before_wall(gap: f64, joined: bool) -> TriMesh {
         let quad =
             |z: f64, h: f64| [(-h, -h), (h, -h), (h, h), (-h, h)].map(|(x, y)| DVec3::new(x, y, z));
+        // The wall's outer corners (0–3) and the corners of the square behind the plate
+        // (4–7), then the plate (8–11).
         let mut vertices = quad(0.0, 1.0).to_vec();
+        vertices.extend(quad(0.0, 0.4));
         vertices.extend(quad(gap, 0.4));
-        let mut triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
-        if joined {
-            // The plate's rim joined to the wall by four skirts sharing its vertices: a
-            // truncated pyramid, as a reconstruction bridging every slit would give.
-            vertices.extend(quad(0.0, 0.4 + gap));
-            for k in 0..4u32 {
-                let (a, b) = (4 + k, 4 + (k + 1) % 4);
-                let (c, d) = (8 + k, 8 + (k + 1) % 4);
-                triangles.push([c, d, b]);
-                triangles.push([c, b, a]);
+        let mut triangles = vec![[4, 5, 6], [4, 6, 7], [8, 9, 10], [8, 10, 11]];
+        for k in 0..4u32 {
+            let next = (k + 1) % 4;
+            triangles.push([k, next, 4 + next]);
+            triangles.push([k, 4 + next, 4 + k]);
+            if joined {
+                // The plate's rim joined straight down to the wall by skirts sharing its
+                // vertices and the wall's, as a reconstruction bridging every slit would.
+                triangles.push([4 + k, 4 + next, 8 + next]);
+                triangles.push([4 + k, 8 + next, 8 + k]);
             }
         }
         TriMesh::new(vertices, triangles)
@@ -426,6 +451,13 @@ mod tests {
         let slits = shadow_slits(&truth, &params(2), &empty).unwrap();
         assert!(!slits.rows.is_empty());
         assert!(slits.rows.iter().all(|r| !r.ends_covered && !r.bridged));
+        // Without the plate, the rays at its end reach the wall behind it, far from the
+        // plate's samples: that end is not held either, though the wall joins the rays.
+        let mut wall = truth.clone();
+        wall.triangles.retain(|t| t.iter().all(|&v| v < 8));
+        let slits = shadow_slits(&truth, &params(2), &wall).unwrap();
+        assert!(slits.rows.iter().all(|r| !r.ends_covered && !r.bridged));
+        assert_eq!(slits.unheld_within(1, usize::MAX), slits.rows.len());
     }
 
     #[test]

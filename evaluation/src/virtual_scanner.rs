@@ -309,44 +309,20 @@ fn scan_with_cameras(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ground_truth_meshes::icosphere;
+    use crate::ground_truth_meshes::{boxes, icosphere};
     use crate::scan_simulation::{ScanCase, ScanParams, generate_scan};
 
     /// A square `[-1, 1]²` in the plane `z = 0` and, 0.3 in front of it (towards +z), a box
     /// `[-0.6, 0.6] × [-0.2, 0.2] × [0.3, 0.4]`: a depth jump along each of the box's sides.
     fn box_before_wall() -> TriMesh {
-        let mut m = TriMesh::new(
-            vec![
-                DVec3::new(-1.0, -1.0, 0.0),
-                DVec3::new(1.0, -1.0, 0.0),
-                DVec3::new(1.0, 1.0, 0.0),
-                DVec3::new(-1.0, 1.0, 0.0),
-            ],
-            vec![[0, 1, 2], [0, 2, 3]],
-        );
-        let (lo, hi) = (DVec3::new(-0.6, -0.2, 0.3), DVec3::new(0.6, 0.2, 0.4));
-        let corner = |i: u32| {
-            DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        };
-        let base = m.vertices.len() as u32;
-        m.vertices.extend((0..8).map(corner));
-        // Outward faces of the box (corner bits: x = 1, y = 2, z = 4).
-        for q in [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ] {
-            let [a, b, c, d] = q.map(|v| v + base);
-            m.triangles.push([a, b, c]);
-            m.triangles.push([a, c, d]);
-        }
+        let mut m = boxes(&[(DVec3::new(-0.6, -0.2, 0.3), DVec3::new(0.6, 0.2, 0.4))]);
+        m.vertices.extend([
+            DVec3::new(-1.0, -1.0, 0.0),
+            DVec3::new(1.0, -1.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(-1.0, 1.0, 0.0),
+        ]);
+        m.triangles.extend([[8, 9, 10], [8, 10, 11]]);
         m
     }
 

@@ -21,7 +21,7 @@ use sphcover_benches::measured_run::{RunMeasurement, run_measured};
 use sphcover_benches::{command_line, release_dir, short_message, workspace_root};
 use sphcover_core::io::{self, NonFinitePolicy, PlyEncoding, Precision, ReadOptions, WriteOptions};
 use sphcover_core::{DVec3, TriMesh};
-use sphcover_evaluation::ground_truth_meshes::{icosphere, torus_mesh};
+use sphcover_evaluation::ground_truth_meshes::{icosphere, plates_before_wall, torus_mesh};
 use sphcover_evaluation::invented_surface::{InputPoints, InventedSurface, InventedSurfaceParams};
 use sphcover_evaluation::recon_metrics::{ReconMetrics, ReconMetricsParams, score_reconstruction};
 use sphcover_evaluation::scan_blocks::generate_scan_in_blocks;
@@ -46,7 +46,7 @@ struct Args {
     /// with a projector: the shadows of a raw range scan).
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
-    /// Ground-truth mesh as NAME=PATH, or `sphere` or `torus` for an analytic shape
+    /// Ground-truth mesh as NAME=PATH, or `sphere`, `torus` or `plates` (plates before a wall) for an analytic shape
     /// (repeatable); default `bunny=fixtures/real/bunny00.off`.
     #[arg(long = "mesh")]
     meshes: Vec<String>,
@@ -183,7 +183,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     for spec in &mesh_specs {
         let Some((name, path)) = spec.split_once('=') else {
             let mesh = builtin_mesh(spec).with_context(|| {
-                format!("--mesh wants NAME=PATH or one of sphere, torus; got `{spec}`")
+                format!("--mesh wants NAME=PATH or one of sphere, torus, plates; got `{spec}`")
             })?;
             meshes.push((
                 spec.clone(),
@@ -277,6 +277,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "comp.",
         "watertight",
         "invented %",
+        "uncovered %",
         "slits bridged",
         "status",
     ]);
@@ -361,10 +362,13 @@ fn run(args: Args) -> anyhow::Result<()> {
             "Command: `{}`\n\nGround truth: {}. Scores on {} area-uniform samples per mesh; \
              lengths in % of the ground truth's bounding-box diagonal; NC = normal \
              consistency; comp. = connected components; invented = % of the output's area \
-             farther than 3 median sample spacings of the scan from every scan point; slits \
+             farther than 3 median sample spacings of the scan from every scan point; uncovered \
+             = % of the scan's points (50,000 of them at most) farther than 2 spacings from \
+             the output; slits \
              bridged = shadow slits of the scan's camera rows, 1–2 and 3–5 rays wide, that the \
              output joins across, of all such rows, and in brackets the bridges that are not \
-             the truth's (where it leaves the slit open, or farther than 2 rays from it; scans \
+             the truth's (where it leaves the slit open, or farther than 2 rays from it) and \
+             the rows whose end samples the output does not come within 3 rays of (scans \
              with a projector).\n\n{rendered}",
             command_line(),
             gt_list.join("; "),
@@ -540,39 +544,42 @@ fn row_cells(mesh: &str, case: &str, points: usize, tool: &str, r: &ToolResult) 
             fixed(s.fscore_at(0.01), 4),
             s.topology.components.to_string(),
             if s.topology.watertight { "yes" } else { "no" }.to_string(),
-            invented_cell(r),
+            input_score_cell(r, |s| s.invented_fraction),
+            input_score_cell(r, |s| s.uncovered_fraction),
             slits_cell(r),
             "ok".to_string(),
         ]),
         Err(e) => {
-            cells.extend(std::iter::repeat_n("–".to_string(), 10));
+            cells.extend(std::iter::repeat_n("–".to_string(), 11));
             cells.push(short_message(e, 120));
         }
     }
     cells
 }
 
-/// The invented share of the output's area in %, when it was measured.
-fn invented_cell(r: &ToolResult) -> String {
+/// A share from the scores against the scan's points (`share` of them), in %, when they
+/// were measured.
+fn input_score_cell(r: &ToolResult, share: impl Fn(&InventedSurface) -> f64) -> String {
     fixed(
         r.invented
             .as_ref()
             .and_then(|s| s.as_ref().ok())
-            .map(|s| 100.0 * s.invented_fraction),
+            .map(|s| 100.0 * share(s)),
         2,
     )
 }
 
 /// The shadow-slit rows 1–2 and 3–5 rays wide that the output bridges, of all such rows, and
-/// in brackets how many of those bridges are not the truth's ([`OFF_TRUTH_RAYS`]), when they
-/// were measured.
+/// in brackets how many of those bridges are not the truth's ([`OFF_TRUTH_RAYS`]) and how
+/// many rows lack the output's surface at an end, when they were measured.
 fn slits_cell(r: &ToolResult) -> String {
     match &r.slits {
         Some(Ok(slits)) => {
             let cell = |lo: usize, hi: usize| {
                 let (rows, bridged) = slits.bridged_within(lo, hi);
                 let made_up = slits.bridged_off_truth(lo, hi, OFF_TRUTH_RAYS);
-                format!("{bridged}/{rows} ({made_up})")
+                let unheld = slits.unheld_within(lo, hi);
+                format!("{bridged}/{rows} ({made_up}, {unheld})")
             };
             format!("{}, {}", cell(1, 2), cell(3, 5))
         }
@@ -592,11 +599,13 @@ fn wall_cell(r: &ToolResult) -> String {
 
 /// The analytic ground truths: a sphere of radius 0.5 (81,920 triangles) and a torus of
 /// radii 0.35 and 0.15 (65,536 triangles), fine enough that their facets are far below the
-/// errors measured.
+/// errors measured; and plates floating before a wall, whose single view has shadow slits
+/// the truth leaves open ([`plates_before_wall`]).
 fn builtin_mesh(name: &str) -> Option<TriMesh> {
     match name {
         "sphere" => Some(icosphere(DVec3::ZERO, 0.5, 6)),
         "torus" => Some(torus_mesh(0.35, 0.15, 256, 128)),
+        "plates" => Some(plates_before_wall()),
         _ => None,
     }
 }
