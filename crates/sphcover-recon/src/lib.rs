@@ -85,13 +85,14 @@ pub use options::{
     MAX_DEPTH, MAX_NORMAL_NEIGHBOURS, NoiseOption, OptionError, ReconOptions, TrimOption,
 };
 pub use pipeline::{
-    DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_NEAR, ONE_VIEW_REACH, PointBlocks, ReconError,
-    ReconParams, ReconStats, Reconstruction, ScanFile, SequentialStreamedTiles, SequentialTiles,
-    StreamedReconstruction, StreamedTile, StreamedTileProduct, StreamedTileRunner,
-    TILE_DIRECTORY_PREFIX, TileFunction, TileInput, TileRunner, TileStats, Tiling, ToleranceNote,
-    Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth, reconstruct, reconstruct_streamed,
-    reconstruct_tiled, reconstruct_tiled_with, reconstruct_until, stage_names,
-    streamed_stage_names, streamed_tile_function, tile_function, tiled_stage_names,
+    DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_LAYER_GAP, ONE_VIEW_NEAR, ONE_VIEW_REACH,
+    PointBlocks, ReconError, ReconParams, ReconStats, Reconstruction, ScanFile,
+    SequentialStreamedTiles, SequentialTiles, StreamedReconstruction, StreamedTile,
+    StreamedTileProduct, StreamedTileRunner, TILE_DIRECTORY_PREFIX, TileFunction, TileInput,
+    TileRunner, TileStats, Tiling, ToleranceNote, Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
+    reconstruct, reconstruct_streamed, reconstruct_tiled, reconstruct_tiled_with,
+    reconstruct_until, stage_names, streamed_stage_names, streamed_tile_function, tile_function,
+    tiled_stage_names,
 };
 pub use polygonise::{
     FieldPiece, GridStep, PiecewiseFunction, PolygoniseError, PolygoniseParams, PolygoniseStats,

@@ -17,13 +17,13 @@ use std::borrow::Cow;
 
 use super::tiled::{TileRunner, TiledFunctions, Tiling};
 use super::{
-    DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_NEAR, ONE_VIEW_REACH, ReconError, ReconParams,
-    ReconStats, Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
+    DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_LAYER_GAP, ONE_VIEW_NEAR, ONE_VIEW_REACH, ReconError,
+    ReconParams, ReconStats, Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
 };
 use crate::confidence::{
     SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
 };
-use crate::diffusion::{FittingTerms, diffuse};
+use crate::diffusion::{DiffusionParams, FittingTerms, diffuse};
 use crate::graph_cut::graph_cut_sig_alongside;
 use crate::graphcut_reconstruction::reconstruct_graphcut;
 use crate::normals::estimate_normals;
@@ -512,13 +512,14 @@ fn diffuse_functions(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     // The supports the cut found inconsistent start the diffusion from zero; no stage before
     // this one reads the local functions after the cut.
     zero_functions(cover, &ctx.zeroed)?;
-    ctx.stats.diffusion = Some(diffuse(
-        cover,
-        &pairs,
-        &terms,
-        &at_centres,
-        &ctx.params.diffusion,
-    )?);
+    // A single view's layers (surface before surface, seen from one side) are kept apart
+    // unless the parameters set the gate themselves.
+    let one_view_gap = ONE_VIEW_LAYER_GAP * ctx.stats.eps;
+    let params = DiffusionParams {
+        layer_gap: (ctx.params.diffusion.layer_gap).or(ctx.scan.one_view.then_some(one_view_gap)),
+        ..ctx.params.diffusion
+    };
+    ctx.stats.diffusion = Some(diffuse(cover, &pairs, &terms, &at_centres, &params)?);
     Ok(())
 }
 
