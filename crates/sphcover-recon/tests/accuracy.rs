@@ -327,6 +327,18 @@ fn a_single_view_of_plates_before_a_wall_keeps_both_layers_and_their_slits() {
     let slits = shadow_slits(&truth, &params, &rec.mesh).expect("slits");
     assert!(slits.rows.len() > 100, "{}", slits.rows.len());
     assert_eq!(slits.bridged_off_truth(1, usize::MAX, 2.0), 0);
+    // Tiles keep the layers apart as the whole scan does (each is told the scan is one view).
+    let tiled = sphcover_recon::reconstruct_tiled(
+        &scan.cloud,
+        &ReconParams::default(),
+        &sphcover_recon::Tiling::cubes(2),
+        &|_| {},
+    )
+    .expect("tiled recon");
+    let scores = points
+        .score(&tiled.mesh, &InventedSurfaceParams::default())
+        .expect("score");
+    assert!(scores.uncovered_fraction <= 0.01, "tiled: {scores:?}");
 }
 
 #[test]

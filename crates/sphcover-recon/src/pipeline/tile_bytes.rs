@@ -11,9 +11,9 @@ use super::ReconError;
 use super::streamed::{StreamedTile, StreamedTileProduct};
 use super::tiled::{TileFunction, TileInput};
 
-const INPUT_TAG: &[u8; 8] = b"SPCTIN01";
+const INPUT_TAG: &[u8; 8] = b"SPCTIN02";
 const FUNCTION_TAG: &[u8; 8] = b"SPCTFN01";
-const STREAMED_TILE_TAG: &[u8; 8] = b"SPCSTT01";
+const STREAMED_TILE_TAG: &[u8; 8] = b"SPCSTT02";
 const STREAMED_PRODUCT_TAG: &[u8; 8] = b"SPCSTP01";
 
 impl StreamedTile {
@@ -42,6 +42,7 @@ impl StreamedTile {
         w.f64(self.noise);
         w.f64(self.eps);
         w.0.push(u8::from(self.drop_isolated));
+        w.0.push(u8::from(self.one_view));
         w.u64(u64::from(self.depth));
         w.0
     }
@@ -71,6 +72,7 @@ impl StreamedTile {
         };
         let (spacing, noise, eps) = (r.f64()?, r.f64()?, r.f64()?);
         let drop_isolated = r.flag()?;
+        let one_view = r.flag()?;
         let depth = u32::try_from(r.u64()?).map_err(|_| r.error("a depth beyond u32"))?;
         r.end()?;
         Ok(StreamedTile {
@@ -85,6 +87,7 @@ impl StreamedTile {
             noise,
             eps,
             drop_isolated,
+            one_view,
             depth,
         })
     }
@@ -154,6 +157,7 @@ impl TileInput {
         w.f64(self.noise);
         w.f64(self.eps);
         w.0.push(u8::from(self.drop_isolated));
+        w.0.push(u8::from(self.one_view));
         w.u64(u64::from(self.depth));
         w.0.push(u8::from(self.scanner.is_some()));
         self.points.iter().for_each(|&p| w.vec3(p));
@@ -177,6 +181,7 @@ impl TileInput {
         let n = r.len()?;
         let (spacing, noise, eps) = (r.f64()?, r.f64()?, r.f64()?);
         let drop_isolated = r.flag()?;
+        let one_view = r.flag()?;
         let depth = u32::try_from(r.u64()?).map_err(|_| r.error("a depth beyond u32"))?;
         let has_scanner = r.flag()?;
         let points = r.vec3s(n)?;
@@ -212,6 +217,7 @@ impl TileInput {
             noise,
             eps,
             drop_isolated,
+            one_view,
             depth,
         })
     }
@@ -470,6 +476,7 @@ mod tests {
             noise: 1e-4,
             eps: 2.5e-3,
             drop_isolated: seed.is_multiple_of(3),
+            one_view: seed.is_multiple_of(2),
             depth: 6,
         }
     }
@@ -515,6 +522,7 @@ mod tests {
             noise: 2e-5,
             eps: 2.5e-3,
             drop_isolated: seed.is_multiple_of(3),
+            one_view: seed.is_multiple_of(2),
             depth: 9,
         }
     }
@@ -602,6 +610,7 @@ mod tests {
             noise: 0.0,
             eps: 2.5e-3,
             drop_isolated: false,
+            one_view: false,
             depth: 6,
         };
         let function = tile_function(&input, &ReconParams::default())

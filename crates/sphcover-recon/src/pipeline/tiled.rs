@@ -248,6 +248,8 @@ pub struct TileInput {
     pub eps: f64,
     /// Whether isolated samples are left out of the cover.
     pub drop_isolated: bool,
+    /// Whether the whole scan is one view (its diffusion keeps layers apart).
+    pub one_view: bool,
     /// The polygonisation depth of the whole scan.
     pub depth: u32,
 }
@@ -355,6 +357,7 @@ fn build_tiles(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
             noise: ctx.scan.noise,
             eps: ctx.stats.eps,
             drop_isolated: ctx.drop_isolated,
+            one_view: ctx.scan.one_view,
             depth,
         }
     };
@@ -505,7 +508,7 @@ pub(super) fn tile_function_and_samples(
         noise: input.noise,
         isolated: std::mem::take(&mut input.isolated),
         isolated_count,
-        one_view: false,
+        one_view: input.one_view,
     };
     tile.drop_isolated = input.drop_isolated && tile.scan.isolated_count > 0;
     tile.stats.eps = input.eps;

@@ -93,6 +93,8 @@ pub struct StreamedTile {
     pub eps: f64,
     /// Whether isolated samples are left out of the cover.
     pub drop_isolated: bool,
+    /// Whether the whole scan is one view (its diffusion keeps layers apart).
+    pub one_view: bool,
     /// The polygonisation depth of the whole scan.
     pub depth: u32,
 }
@@ -185,6 +187,7 @@ pub fn streamed_tile_function(
         noise: task.noise,
         eps: task.eps,
         drop_isolated: task.drop_isolated,
+        one_view: task.one_view,
         depth: task.depth,
     };
     let (product, input) = tile_function_and_samples(input, Some(index), params)?;
@@ -264,6 +267,7 @@ pub(super) fn build_tile_functions(ctx: &mut Streamed<'_>) -> Result<(), ReconEr
             noise: ctx.noise,
             eps: ctx.stats.eps,
             drop_isolated: ctx.drop_isolated,
+            one_view: ctx.stats.scan.one_view,
             depth: ctx.stats.depth,
         })
         .collect();
