@@ -716,3 +716,57 @@ impl SymmetricOperator for ScreenedStiffness<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sphcover_core::SphereIntersectionGraph;
+
+    proptest::proptest! {
+        /// The layer gate is symmetric and in (0, 1]: 1 between supports whose planes are
+        /// one plane, `1 / (1 + (g / h)⁴)` between supports on two parallel planes `g` apart,
+        /// whatever the supports' centres, radii and gradient lengths.
+        #[test]
+        fn the_layer_gate_parts_two_planes_and_keeps_one(
+            supports in proptest::collection::vec(
+                (0.0f64..1.0, 0.0f64..1.0, -0.05f64..0.05, 0.2f64..0.4, 0.5f64..4.0, proptest::bool::ANY),
+                2..40,
+            ),
+            gap in 0.01f64..0.2,
+            h in 0.005f64..0.1,
+        ) {
+            let layer = |upper: bool| if upper { gap } else { 0.0 };
+            let centres: Vec<DVec3> = supports
+                .iter()
+                .map(|&(x, y, dz, _, _, upper)| DVec3::new(x, y, layer(upper) + dz))
+                .collect();
+            let radii: Vec<f64> = supports.iter().map(|s| s.3).collect();
+            // Each support's zero plane is its layer: α·(x − c) + β = 0 at z = layer.
+            let alpha: Vec<DVec3> = supports.iter().map(|s| DVec3::new(0.0, 0.0, s.4)).collect();
+            let beta: Vec<f64> = supports
+                .iter()
+                .zip(&centres)
+                .map(|(s, c)| -s.4 * (layer(s.5) - c.z))
+                .collect();
+            let graph = SphereIntersectionGraph::build(&centres, &radii, 1.0).unwrap();
+            let pairs = PairGeometry::build(&centres, &radii, &graph).unwrap();
+            let gates = layer_gates(&pairs, &centres, &alpha, &beta, h);
+            let apart = 1.0 / (1.0 + (gap / h).powi(4));
+            let offsets = pairs.offsets();
+            for i in 0..centres.len() {
+                for k in offsets[i] as usize..offsets[i + 1] as usize {
+                    let j = pairs.neighbour_array()[k] as usize;
+                    let g = gates[k];
+                    proptest::prop_assert!(g > 0.0 && g <= 1.0);
+                    let expected = if supports[i].5 == supports[j].5 { 1.0 } else { apart };
+                    proptest::prop_assert!((g - expected).abs() <= 1e-9, "{} vs {}", g, expected);
+                    let back = (offsets[j] as usize..offsets[j + 1] as usize)
+                        .find(|&m| pairs.neighbour_array()[m] as usize == i);
+                    if let Some(m) = back {
+                        proptest::prop_assert_eq!(gates[m], g);
+                    }
+                }
+            }
+        }
+    }
+}
