@@ -728,8 +728,16 @@ mod tests {
         /// whatever the supports' centres, radii and gradient lengths.
         #[test]
         fn the_layer_gate_parts_two_planes_and_keeps_one(
+            // x, y, the centre's offset from its layer, radius, gradient length, upper layer.
             supports in proptest::collection::vec(
-                (0.0f64..1.0, 0.0f64..1.0, -0.05f64..0.05, 0.2f64..0.4, 0.5f64..4.0, proptest::bool::ANY),
+                (
+                    0.0f64..1.0,
+                    0.0f64..1.0,
+                    -0.05f64..0.05,
+                    0.2f64..0.4,
+                    0.5f64..4.0,
+                    proptest::bool::ANY,
+                ),
                 2..40,
             ),
             gap in 0.01f64..0.2,
