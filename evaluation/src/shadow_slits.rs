@@ -22,8 +22,7 @@
 use rayon::prelude::*;
 use sphcover_core::{DVec3, TriMesh, VertexTriangles};
 
-use crate::scan_simulation::{ScanError, ScanParams, scanner_grids, surface_defects};
-use crate::surface_sampling::SurfaceSampler;
+use crate::scan_simulation::{ScanError, ScanParams, scanned_grid_sides};
 use crate::triangle_bvh::{TriangleBvh, TriangleBvhError, closest_point_on_triangle};
 use crate::virtual_scanner::{Return, Rig, grid_coordinate};
 
@@ -188,18 +187,7 @@ pub fn shadow_slits(
     let scanner = params.scanner.as_ref().ok_or(ShadowSlitError::NoScanner)?;
     let diagonal = truth.bounding_box().diagonal();
     let rig = Rig::new(truth, scanner, diagonal)?;
-    // The grids `generate_scan` cast: the holes and gradient are drawn first from the seed.
-    let sampler = SurfaceSampler::new(truth).map_err(ScanError::from)?;
-    let mut rng = <rand_pcg::Pcg64 as rand::SeedableRng>::seed_from_u64(params.seed);
-    let (in_hole, gradient) = surface_defects(truth, params, &sampler, &mut rng);
-    let keep_probability = |p: DVec3| {
-        if in_hole(p) {
-            0.0
-        } else {
-            gradient.as_ref().map_or(1.0, |g| g(p))
-        }
-    };
-    let (sides, _) = scanner_grids(&rig, params.count, keep_probability)?;
+    let sides = scanned_grid_sides(truth, params, &rig)?;
 
     let mut runs = Vec::new();
     for (camera, side) in sides.iter().enumerate() {
@@ -226,7 +214,7 @@ pub fn shadow_slits(
                         last_sample = Some((x, p));
                         shadowed = false;
                     }
-                    Return::Shadow(_) => shadowed = true,
+                    Return::Shadow => shadowed = true,
                     Return::Nothing => {}
                 }
             }
@@ -246,41 +234,70 @@ pub fn shadow_slits(
             let across = output_bvh
                 .as_ref()
                 .and_then(|bvh| joined_across(&rig, bvh, &around, output, run));
-            let truth_across = joined_across(&rig, rig.mesh_bvh(), &truth_around, truth, run);
+            let bridged = across == Some(true);
             SlitRow {
                 width: run.last - run.first - 1,
                 ends: run.ends,
                 ends_covered: across.is_some(),
-                bridged: across.is_some_and(|a| a.is_some()),
-                deviation_rays: across.flatten(),
-                truth_joined: truth_across.is_some_and(|a| a.is_some()),
+                bridged,
+                deviation_rays: output_bvh
+                    .as_ref()
+                    .filter(|_| bridged)
+                    .map(|bvh| deviation_from_truth(&rig, bvh, run)),
+                truth_joined: joined_across(&rig, rig.mesh_bvh(), &truth_around, truth, run)
+                    == Some(true),
             }
         })
         .collect();
     Ok(ShadowSlits { rows })
 }
 
-/// Whether `output` joins the surface at the two end rays of `run` within the slab of the
-/// run's row: `None` when an end ray misses the output, `Some(None)` when the two are not
-/// joined, and when they are, how far from the truth the output lies across the run (see
+/// The ray through image column `x` (fractional) of `run`'s row: the camera's position and
+/// the ray's direction.
+fn run_ray(rig: &Rig, run: &Run, x: f64) -> (DVec3, DVec3) {
+    let y = grid_coordinate(run.side, run.row as f64);
+    rig.ray(run.camera, grid_coordinate(run.side, x), y)
+}
+
+/// The width of one ray of the grid at the depth of the farther end of `run`.
+fn ray_width(rig: &Rig, run: &Run) -> f64 {
+    let (origin, d_first) = run_ray(rig, run, run.first as f64);
+    let (_, d_last) = run_ray(rig, run, run.last as f64);
+    let depth = (run.ends[0] - origin)
+        .length()
+        .max((run.ends[1] - origin).length());
+    depth * (d_last - d_first).length() / (d_first.length() * (run.last - run.first) as f64)
+}
+
+/// How far the output (`bvh`) lies from the truth across `run`, in rays (see
 /// [`SlitRow::deviation_rays`]).
+fn deviation_from_truth(rig: &Rig, bvh: &TriangleBvh, run: &Run) -> f64 {
+    let span = (run.last - run.first) as f64;
+    let largest = (1..DEVIATION_RAYS)
+        .filter_map(|k| {
+            let f = k as f64 / DEVIATION_RAYS as f64;
+            let (origin, direction) = run_ray(rig, run, run.first as f64 + f * span);
+            let hit = bvh.first_hit(origin, direction, f64::INFINITY)?;
+            let closest = rig.mesh_bvh().closest_point(origin + hit.t * direction)?;
+            Some(closest.distance_squared.sqrt())
+        })
+        .fold(0.0, f64::max);
+    largest / ray_width(rig, run)
+}
+
+/// Whether the mesh `output` (with its BVH and vertex index) joins its surface at the two
+/// end samples of `run` within the slab of the run's row: `None` when it passes no nearer
+/// than [`END_REACH_RAYS`] to an end's sample.
 fn joined_across(
     rig: &Rig,
     bvh: &TriangleBvh,
     around: &VertexTriangles,
     output: &TriMesh,
     run: &Run,
-) -> Option<Option<f64>> {
-    let y = grid_coordinate(run.side, run.row as f64);
-    let ray = |x: f64| rig.ray(run.camera, grid_coordinate(run.side, x), y);
-    let (origin, d_first) = ray(run.first as f64);
-    let (_, d_last) = ray(run.last as f64);
-    // One ray of the grid at the depth of the farther end.
-    let depth = (run.ends[0] - origin)
-        .length()
-        .max((run.ends[1] - origin).length());
-    let ray_width =
-        depth * (d_last - d_first).length() / (d_first.length() * (run.last - run.first) as f64);
+) -> Option<bool> {
+    let (origin, d_first) = run_ray(rig, run, run.first as f64);
+    let (_, d_last) = run_ray(rig, run, run.last as f64);
+    let ray_width = ray_width(rig, run);
     // The output's surface at each end: its triangle nearest the end's sample, if near. (Not
     // the end ray's hit: past a rounded corner of the output that ray reaches what lies
     // behind, and two ends on the surface behind would read as joined.)
@@ -291,21 +308,11 @@ fn joined_across(
     };
     let (from, p_first) = held(run.ends[0])?;
     let (to, p_last) = held(run.ends[1])?;
-    let deviation = || {
-        let rays = (1..DEVIATION_RAYS).filter_map(|k| {
-            let f = k as f64 / DEVIATION_RAYS as f64;
-            let (origin, direction) = ray(run.first as f64 + f * (run.last - run.first) as f64);
-            let hit = bvh.first_hit(origin, direction, f64::INFINITY)?;
-            let closest = rig.mesh_bvh().closest_point(origin + hit.t * direction)?;
-            Some(closest.distance_squared.sqrt())
-        });
-        Some(rays.fold(0.0, f64::max) / ray_width)
-    };
     if from == to {
-        return Some(deviation());
+        return Some(true);
     }
     let Some(normal) = d_first.cross(d_last).try_normalize() else {
-        return Some(None);
+        return Some(false);
     };
     let half_slab = SLAB_RAYS * ray_width;
     let centre = 0.5 * (p_first + p_last);
@@ -328,7 +335,7 @@ fn joined_across(
         for &v in &output.triangles[t as usize] {
             for &next in around.triangles_at(v as usize) {
                 if next == to {
-                    return Some(deviation());
+                    return Some(true);
                 }
                 if inside(next) && seen.insert(next) {
                     stack.push(next);
@@ -336,7 +343,7 @@ fn joined_across(
             }
         }
     }
-    Some(None)
+    Some(false)
 }
 
 #[cfg(test)]

@@ -101,8 +101,8 @@ pub(crate) enum Return {
     /// A sample: the hit point, the unit normal of the triangle hit and the unit ray.
     Sample(DVec3, DVec3, DVec3),
     /// Surface the camera sees, not at a grazing angle, but hidden from the projector by
-    /// other surface: the shadow of a depth jump. The hit is `t` along the ray.
-    Shadow(f64),
+    /// other surface: the shadow of a depth jump.
+    Shadow,
     /// No surface, surface seen at a grazing angle, or surface the projector cannot light
     /// for its own angle.
     Nothing,
@@ -223,7 +223,7 @@ impl Rig {
             .map(|projector| self.lit(projector, p, n, unit))
         {
             None | Some(Some(true)) => Return::Sample(p, n, unit),
-            Some(Some(false)) => Return::Shadow(hit.t * d.length()),
+            Some(Some(false)) => Return::Shadow,
             Some(None) => Return::Nothing,
         }
     }

@@ -46,8 +46,8 @@ struct Args {
     /// with a projector: the shadows of a raw range scan).
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
-    /// Ground-truth mesh as NAME=PATH, or `sphere`, `torus` or `plates` (plates before a wall) for an analytic shape
-    /// (repeatable); default `bunny=fixtures/real/bunny00.off`.
+    /// Ground-truth mesh as NAME=PATH, or `sphere`, `torus` or `plates` (plates before a
+    /// wall) for an analytic shape (repeatable); default `bunny=fixtures/real/bunny00.off`.
     #[arg(long = "mesh")]
     meshes: Vec<String>,
     /// The sphcover binary (default: the release build in the cargo target directory).

@@ -516,7 +516,11 @@ fn diffuse_functions(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     // unless the parameters set the gate themselves.
     let one_view_gap = ONE_VIEW_LAYER_GAP * ctx.stats.eps;
     let params = DiffusionParams {
-        layer_gap: (ctx.params.diffusion.layer_gap).or(ctx.scan.one_view.then_some(one_view_gap)),
+        layer_gap: ctx
+            .params
+            .diffusion
+            .layer_gap
+            .or(ctx.scan.one_view.then_some(one_view_gap)),
         ..ctx.params.diffusion
     };
     ctx.stats.diffusion = Some(diffuse(cover, &pairs, &terms, &at_centres, &params)?);
