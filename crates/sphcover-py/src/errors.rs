@@ -9,7 +9,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use sphcover_core::io::IoError;
-use sphcover_recon::{OptionError, ReconError};
+use sphcover_recon::{OptionError, ReconError, cover_over_budget_message};
 use sphcover_skeleton::SkeletonError;
 use sphcover_tetra::TetraError;
 
@@ -58,6 +58,9 @@ pub fn option_error(e: OptionError) -> PyErr {
 
 /// A reconstruction's error, split as `sphcover recon` splits it.
 pub fn recon_error(e: ReconError) -> PyErr {
+    if let Some(message) = cover_over_budget_message(&e, "max_memory", "tiles", "eps") {
+        return bad_input(message);
+    }
     if e.is_bad_input() {
         bad_input(e.to_string())
     } else {

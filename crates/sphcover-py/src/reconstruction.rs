@@ -168,6 +168,8 @@ pub fn reconstruct<'py>(
         }
         None => None,
     };
+    // Checked again once the cover's graph is built, when its true size is known.
+    params.memory_budget = budget;
     let run_params = params.clone();
     let recon = run(py, progress, threads, move |context| {
         let progress = |s| context.stage(s);

@@ -77,8 +77,10 @@ pub use graphcut_reconstruction::{
     reconstruct_graphcut,
 };
 pub use maxflow::{FlowEdge, FlowGraph, MaxFlowError, MaxFlowInfo};
-pub use memory_budget::{BudgetError, BudgetFit, fit_memory_budget};
-pub use memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel};
+pub use memory_budget::{BudgetError, BudgetFit, cover_over_budget_message, fit_memory_budget};
+pub use memory_model::{
+    COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL, ReconMemoryModel, TYPICAL_GRAPH_ENTRIES,
+};
 pub use mesh_smoothing::{SmoothingError, VertexRings, smooth_two_step};
 pub use normals::{EstimatedNormals, NormalError, NormalParams, NormalStats, estimate_normals};
 pub use options::{

@@ -9,7 +9,7 @@ use sphcover_core::io::format_byte_size;
 use thiserror::Error;
 
 use crate::memory_model::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL};
-use crate::pipeline::{Method, ReconParams, default_depth};
+use crate::pipeline::{Method, ReconError, ReconParams, default_depth};
 
 /// What a budget decided for a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -106,6 +106,34 @@ impl BudgetError {
     }
 }
 
+/// The message of [`ReconError::OverMemoryBudget`] (the check once the cover is built) with
+/// the front end's options for the budget, the tiles and ε spelled `budget_option`,
+/// `tiles_option` and `eps_option`; `None` for any other error.
+pub fn cover_over_budget_message(
+    error: &ReconError,
+    budget_option: &str,
+    tiles_option: &str,
+    eps_option: &str,
+) -> Option<String> {
+    let ReconError::OverMemoryBudget {
+        supports,
+        graph_entries,
+        estimate,
+        budget,
+    } = *error
+    else {
+        return None;
+    };
+    Some(format!(
+        "{budget_option} {}: the cover has {supports} supports and its sphere intersection graph {graph_entries} entries, \
+         so the reconstruction needs about {} (the budget was checked before the run for a cover of usual size; \
+         thin walls and sharp edges everywhere refine a cover to the sampling); \
+         build it in tiles ({tiles_option} 2 or more holds one tile's cover at a time), give a larger {eps_option}, or raise the budget",
+        format_byte_size(budget),
+        format_byte_size(estimate),
+    ))
+}
+
 /// Checks the predicted peak of reconstructing `cloud` with `params` against `budget` bytes.
 /// Within it, the run goes ahead as asked. Over it, a coarser depth that fits replaces the
 /// default one; when `params.depth` was given, or even the coarsest depth does not fit, the
@@ -189,6 +217,59 @@ mod tests {
             "{text}"
         );
         assert!(err.to_string().contains("lower depth"), "{err}");
+    }
+
+    #[test]
+    fn the_budget_is_checked_again_with_the_graphs_true_size() {
+        use crate::pipeline::reconstruct;
+        let n = 1500;
+        let directions = sphcover_core::synthetic::fibonacci_sphere(n);
+        let mut sphere = PointCloud::from_positions(directions.clone());
+        sphere.normals = Some(directions);
+        let free = reconstruct(&sphere, &ReconParams::default(), &|_| {}).unwrap();
+        let s = &free.stats;
+        let entries = (s.graph_mean_degree * s.supports as f64).round() as u64;
+        let estimate = RECON_MEMORY_MODEL.peak_bytes_with_graph(n, s.depth, entries);
+
+        // One byte short of the estimate stops the run with what it measured.
+        let short = ReconParams {
+            memory_budget: Some(estimate - 1),
+            ..ReconParams::default()
+        };
+        let err = reconstruct(&sphere, &short, &|_| {}).unwrap_err();
+        let ReconError::OverMemoryBudget {
+            supports,
+            graph_entries,
+            estimate: estimated,
+            budget,
+        } = err
+        else {
+            panic!("{err}");
+        };
+        assert_eq!(
+            (supports, graph_entries, estimated, budget),
+            (s.supports, entries, estimate, estimate - 1)
+        );
+        assert!(err.is_bad_input());
+        let text = cover_over_budget_message(&err, "--max-memory", "--tiles", "--eps").unwrap();
+        assert!(
+            text.starts_with("--max-memory ")
+                && text.contains("--tiles 2")
+                && text.contains("--eps"),
+            "{text}"
+        );
+        assert_eq!(
+            cover_over_budget_message(&ReconError::Flat, "--max-memory", "--tiles", "--eps"),
+            None
+        );
+
+        // The estimate itself fits, and the budget changes nothing in the result.
+        let exact = ReconParams {
+            memory_budget: Some(estimate),
+            ..ReconParams::default()
+        };
+        let within = reconstruct(&sphere, &exact, &|_| {}).unwrap();
+        assert_eq!(within.mesh, free.mesh);
     }
 
     #[test]

@@ -10,7 +10,8 @@ use sphcover_core::io::{self, CoverFileMeta, WriteOptions, format_byte_size};
 use sphcover_recon::{
     BudgetFit, Method, NoiseOption, ONE_VIEW_NEAR, ReconError, ReconOptions, ReconParams,
     ReconStats, ScanFile, SequentialStreamedTiles, Tiling, ToleranceNote, TrimOption, UNSEEN_NEAR,
-    UNSEEN_REACH, fit_memory_budget, reconstruct, reconstruct_streamed, reconstruct_tiled,
+    UNSEEN_REACH, cover_over_budget_message, fit_memory_budget, reconstruct, reconstruct_streamed,
+    reconstruct_tiled,
 };
 
 use crate::args::{ReconArgs, ReconMethodArg};
@@ -36,6 +37,8 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         Some(budget) => Some(fit_budget(&cloud, budget, &mut params, reporter)?),
         None => None,
     };
+    // Checked again once the cover's graph is built, when its true size is known.
+    params.memory_budget = args.max_memory;
 
     let bar = reporter.stage_bar("reconstructing");
     let progress = |stage| show_stage(&bar, stage);
@@ -159,6 +162,9 @@ pub fn scratch_directory(args: &ReconArgs) -> std::path::PathBuf {
 /// A reconstruction's error for people: bad input (exit 2) named by the input file.
 fn recon_error(args: &ReconArgs, e: ReconError) -> anyhow::Error {
     let input = args.input.display();
+    if let Some(message) = cover_over_budget_message(&e, "--max-memory", "--tiles", "--eps") {
+        return anyhow::Error::from(BadInput(format!("{input}: {message}")));
+    }
     if e.is_bad_input() {
         let hint = if matches!(e, ReconError::Flat) {
             " (without --trim off)"

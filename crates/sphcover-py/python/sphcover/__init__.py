@@ -258,7 +258,9 @@ def reconstruct(
     for a progress bar; ``max_memory`` (bytes, or a size such as ``"4G"``) the budget of the
     run's predicted peak memory: over it, a coarser default depth that fits is used (with a
     ``UserWarning``), and a given ``depth`` that does not fit, or no depth at all, raises
-    :class:`BadInputError` before any work (``stats["memory"]`` records the decision).
+    :class:`BadInputError` before any work (``stats["memory"]`` records the decision); the
+    budget is checked again once the cover's graph is built, and a cover that does not fit
+    raises :class:`BadInputError` with its size and the remedies.
 
     ``tiles`` (``N`` for N×N×N, or ``(nx, ny, nz)``) builds the cover and its function tile
     by tile, each from the samples of its box and a ``halo`` (relative to the longest

@@ -116,6 +116,12 @@ pub struct ReconParams {
     /// Move the vertices onto quadrics fitted to the samples near them (see
     /// [`refine_vertices`](crate::refine_vertices)); `None` keeps the function's zero set.
     pub refine: Option<VertexRefinementParams>,
+    /// Once the sphere intersection graph is built, stop with
+    /// [`ReconError::OverMemoryBudget`] when the predicted peak of the whole run
+    /// ([`crate::ReconMemoryModel::peak_bytes_with_graph`]) exceeds this many bytes: a cover
+    /// refined to its sampling (thin walls, sharp edges everywhere) can need several times
+    /// what the points and the depth predict. `None` checks nothing; tiles are not checked.
+    pub memory_budget: Option<u64>,
 }
 
 impl Default for ReconParams {
@@ -138,6 +144,7 @@ impl Default for ReconParams {
             noise: None,
             drop_isolated: true,
             refine: Some(VertexRefinementParams::default()),
+            memory_budget: None,
         }
     }
 }
@@ -327,6 +334,22 @@ pub enum ReconError {
     /// The tile files of a streamed reconstruction could not be written or read back.
     #[error("tile files: {0}")]
     Scratch(String),
+    /// The cover needs more memory than [`ReconParams::memory_budget`] allows.
+    #[error(
+        "the cover has {supports} supports and its sphere intersection graph {graph_entries} entries, so the reconstruction needs about {}, over the budget of {}",
+        sphcover_core::io::format_byte_size(*.estimate),
+        sphcover_core::io::format_byte_size(*.budget)
+    )]
+    OverMemoryBudget {
+        /// Supports of the cover.
+        supports: usize,
+        /// Directed entries of its sphere intersection graph.
+        graph_entries: u64,
+        /// The predicted peak, in bytes.
+        estimate: u64,
+        /// The budget, in bytes.
+        budget: u64,
+    },
     /// The caller asked the pipeline to stop ([`reconstruct_until`]).
     #[error(transparent)]
     Stopped(#[from] Stopped),
@@ -347,6 +370,7 @@ impl ReconError {
                 | ReconError::Empty(_)
                 | ReconError::Read(_)
                 | ReconError::Cover(SurfaceCoverError::NoUsablePoints { .. })
+                | ReconError::OverMemoryBudget { .. }
         )
     }
 }

@@ -26,6 +26,7 @@ use crate::confidence::{
 use crate::diffusion::{DiffusionParams, FittingTerms, diffuse};
 use crate::graph_cut::graph_cut_sig_alongside;
 use crate::graphcut_reconstruction::reconstruct_graphcut;
+use crate::memory_model::RECON_MEMORY_MODEL;
 use crate::normals::estimate_normals;
 use crate::polygonise::{GridStep, PolygoniseParams, UnseenTrim, polygonise_blending};
 use crate::scan_statistics::{ScanStatistics, scan_statistics};
@@ -333,7 +334,24 @@ fn build_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let cover = ctx.cover();
     let graph =
         SphereIntersectionGraph::build(cover.centres(), cover.radii(), ctx.params.graph_shrink)?;
+    let supports = cover.len();
     ctx.stats.graph_mean_degree = graph.mean_degree();
+    if let Some(budget) = ctx.params.memory_budget {
+        let graph_entries = graph.neighbour_array().len() as u64;
+        let estimate = RECON_MEMORY_MODEL.peak_bytes_with_graph(
+            ctx.points.len(),
+            ctx.stats.depth,
+            graph_entries,
+        );
+        if estimate > budget {
+            return Err(ReconError::OverMemoryBudget {
+                supports,
+                graph_entries,
+                estimate,
+                budget,
+            });
+        }
+    }
     ctx.graph = Some(graph);
     Ok(())
 }

@@ -489,8 +489,10 @@ pub(super) fn tile_function_and_samples(
     if in_cover < super::stages::MIN_POINTS.max(params.scan.k + 1) {
         return Ok((None, input));
     }
+    // A tile's cover is a part of the whole, and the budget's check is for the whole.
     let params = ReconParams {
         depth: Some(input.depth),
+        memory_budget: None,
         ..params.clone()
     };
     let nothing = sphcover_core::PointCloud::default();
