@@ -7,8 +7,8 @@
 
 use rayon::prelude::*;
 
-use super::TriMesh;
 use super::unused_vertices::remove_unused_vertices;
+use super::{TriMesh, triangle_area};
 use crate::mesh_topology::MeshTopology;
 
 /// Why components could not be filtered. The mesh is left unchanged.
@@ -58,37 +58,31 @@ pub fn remove_small_components(
     topo: &MeshTopology,
     min_fraction: f64,
 ) -> Result<SmallComponentsStats, SmallComponentsError> {
+    remove_small_components_except(mesh, topo, min_fraction, &[])
+}
+
+/// [`remove_small_components`], except that the components `c` with `keep[c]` stay whatever
+/// their area (`keep` may be shorter than the number of components: the others are not
+/// excepted). A caller that knows more than the area of a piece (the samples it holds)
+/// decides with [`component_areas`] which small ones to keep.
+pub fn remove_small_components_except(
+    mesh: &mut TriMesh,
+    topo: &MeshTopology,
+    min_fraction: f64,
+    keep: &[bool],
+) -> Result<SmallComponentsStats, SmallComponentsError> {
     if !(0.0..=1.0).contains(&min_fraction) {
         return Err(SmallComponentsError::InvalidFraction {
             value: min_fraction,
         });
     }
-    if topo.triangle_component.len() != mesh.triangles.len() {
-        return Err(SmallComponentsError::TopologyMismatch {
-            expected: mesh.triangles.len(),
-            found: topo.triangle_component.len(),
-        });
-    }
-    let triangle_areas: Vec<f64> = mesh
-        .triangles
-        .par_iter()
-        .zip(&topo.triangle_component)
-        .map(|(t, &c)| {
-            if c == u32::MAX {
-                return 0.0;
-            }
-            let [a, b, c] = t.map(|v| mesh.vertices[v as usize]);
-            0.5 * (b - a).cross(c - a).length()
-        })
-        .collect();
-    let mut areas = vec![0.0; topo.components];
-    for (&c, &area) in topo.triangle_component.iter().zip(&triangle_areas) {
-        if c != u32::MAX {
-            areas[c as usize] += area;
-        }
-    }
+    let areas = component_areas(mesh, topo)?;
     let largest = areas.iter().copied().fold(0.0, f64::max);
-    let keep_component: Vec<bool> = areas.iter().map(|&a| a >= min_fraction * largest).collect();
+    let keep_component: Vec<bool> = areas
+        .iter()
+        .enumerate()
+        .map(|(c, &a)| a >= min_fraction * largest || keep.get(c).copied().unwrap_or(false))
+        .collect();
     let before = mesh.triangles.len();
     let mut component = topo.triangle_component.iter();
     mesh.triangles.retain(|_| {
@@ -103,6 +97,38 @@ pub fn remove_small_components(
         vertices_removed: remove_unused_vertices(mesh),
         largest_area: largest,
     })
+}
+
+/// The area of each component of `topo`, the mesh's topology, summed in triangle order.
+pub fn component_areas(
+    mesh: &TriMesh,
+    topo: &MeshTopology,
+) -> Result<Vec<f64>, SmallComponentsError> {
+    if topo.triangle_component.len() != mesh.triangles.len() {
+        return Err(SmallComponentsError::TopologyMismatch {
+            expected: mesh.triangles.len(),
+            found: topo.triangle_component.len(),
+        });
+    }
+    let triangle_areas: Vec<f64> = mesh
+        .triangles
+        .par_iter()
+        .zip(&topo.triangle_component)
+        .map(|(t, &c)| {
+            if c == u32::MAX {
+                0.0
+            } else {
+                triangle_area(mesh, t)
+            }
+        })
+        .collect();
+    let mut areas = vec![0.0; topo.components];
+    for (&c, &area) in topo.triangle_component.iter().zip(&triangle_areas) {
+        if c != u32::MAX {
+            areas[c as usize] += area;
+        }
+    }
+    Ok(areas)
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //!
 //! The method is described on [`reconstruct()`].
 
+mod components;
 mod spill;
 mod spread;
 mod stages;

@@ -15,6 +15,9 @@ use sphcover_core::{
 use sphcover_ops::{OpsError, PairGeometry};
 use std::borrow::Cow;
 
+use super::components::{
+    drop_small_components, drop_unsupported_sheets, object_component, sample_votes,
+};
 use super::tiled::{TileRunner, TiledFunctions, Tiling};
 use super::{
     DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_LAYER_GAP, ONE_VIEW_NEAR, ONE_VIEW_REACH, ReconError,
@@ -657,24 +660,6 @@ pub(super) fn polygonisation_params_at(
     }
 }
 
-/// Drops the components far smaller than the largest (`params.min_component_fraction`);
-/// returns how many, and the topology of what is left.
-pub(super) fn drop_small_components(
-    mesh: &mut TriMesh,
-    params: &ReconParams,
-) -> Result<(usize, MeshTopology), ReconError> {
-    let topology = MeshTopology::of(mesh);
-    let removal =
-        sphcover_core::remove_small_components(mesh, &topology, params.min_component_fraction)?;
-    let changed = removal.triangles_removed > 0 || removal.vertices_removed > 0;
-    let topology = if changed {
-        MeshTopology::of(mesh)
-    } else {
-        topology
-    };
-    Ok((removal.components_removed, topology))
-}
-
 /// The surface confidence at the vertices, and components far smaller than the largest
 /// dropped.
 fn clean(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
@@ -692,7 +677,9 @@ fn clean(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
                 .collect(),
         );
     }
-    let (small, topology) = drop_small_components(&mut ctx.mesh, ctx.params)?;
+    let (small, topology) = drop_small_components(&mut ctx.mesh, ctx.params, |mesh, topology| {
+        sample_votes(mesh, topology, &ctx.points, &ctx.scan.isolated)
+    })?;
     let sheets =
         drop_unsupported_sheets(&mut ctx.mesh, &topology, &ctx.points, &ctx.scan.isolated)?;
     ctx.stats.dropped_components = small + sheets;
@@ -786,218 +773,4 @@ pub(super) fn record_topology(
     stats.open_components = topology.open_component.iter().filter(|&&o| o).count();
     stats.object_component_open = object.is_some_and(|c| topology.open_component[c]);
     stats.euler_characteristic = topology.euler_characteristic();
-}
-
-/// An open component that fewer than this share of the samples lie nearest to, and whose
-/// samples are sparser than [`SHEET_DENSITY`] of the object's, is surface made up around
-/// stray samples: on a 30K-point bunny with 1% uniform outliers, a sheet of 3% of the
-/// bunny's area had 0.1% of the samples nearest (a thirtieth of the bunny's density). Small
-/// parts of a scene are sampled as densely as the rest and stay.
-const SHEET_SUPPORT: f64 = 0.01;
-
-/// See [`SHEET_SUPPORT`].
-const SHEET_DENSITY: f64 = 0.1;
-
-/// Removes the open components of `mesh` that few samples lie nearest to for their area
-/// (see [`SHEET_SUPPORT`] and [`sample_votes`]); returns how many went.
-fn drop_unsupported_sheets(
-    mesh: &mut TriMesh,
-    topology: &MeshTopology,
-    points: &[DVec3],
-    isolated: &[bool],
-) -> Result<usize, ReconError> {
-    if !may_hold_sheets(topology) {
-        return Ok(0);
-    }
-    let votes = sample_votes(mesh, topology, points, isolated)?;
-    let dropped = drop_sheets_by_votes(mesh, topology, &votes);
-    Ok(dropped.iter().filter(|&&d| d).count())
-}
-
-/// Whether `topology` has open components among others, which may be sheets around stray
-/// samples (and the object among them needs the samples' votes to be told).
-pub(super) fn may_hold_sheets(topology: &MeshTopology) -> bool {
-    topology.components > 1 && topology.open_component.contains(&true)
-}
-
-/// [`drop_unsupported_sheets`] given the samples' votes for each component; says which
-/// components went.
-pub(super) fn drop_sheets_by_votes(
-    mesh: &mut TriMesh,
-    topology: &MeshTopology,
-    votes: &[usize],
-) -> Vec<bool> {
-    let mut areas = vec![0.0; topology.components];
-    for (t, &c) in mesh.triangles.iter().zip(&topology.triangle_component) {
-        if c != u32::MAX {
-            areas[c as usize] += sphcover_core::triangle_area(mesh, t);
-        }
-    }
-    let density = |c: usize| votes[c] as f64 / areas[c].max(f64::MIN_POSITIVE);
-    let total: usize = votes.iter().sum();
-    let object = most_voted(votes).unwrap_or(0);
-    let drop: Vec<bool> = (0..topology.components)
-        .map(|c| {
-            topology.open_component[c]
-                && (votes[c] as f64) < SHEET_SUPPORT * total as f64
-                && density(c) < SHEET_DENSITY * density(object)
-        })
-        .collect();
-    let dropped = drop.iter().filter(|&&d| d).count();
-    if dropped > 0 {
-        let mut component = topology.triangle_component.iter();
-        mesh.triangles.retain(|_| {
-            component
-                .next()
-                .is_some_and(|&c| c == u32::MAX || !drop[c as usize])
-        });
-        sphcover_core::remove_unused_vertices(mesh);
-    }
-    drop
-}
-
-/// The component of `mesh` that the most samples lie nearest to (see [`sample_votes`]);
-/// the first such on ties. `None` for a mesh without components.
-fn object_component(
-    mesh: &TriMesh,
-    topology: &MeshTopology,
-    points: &[DVec3],
-    isolated: &[bool],
-) -> Result<Option<usize>, ReconError> {
-    let votes = sample_votes(mesh, topology, points, isolated)?;
-    Ok(most_voted(&votes))
-}
-
-/// The component the most samples voted for; the first such on ties.
-pub(super) fn most_voted(votes: &[usize]) -> Option<usize> {
-    (0..votes.len()).rev().max_by_key(|&c| votes[c])
-}
-
-/// For each component of `mesh`, how many samples (every 4th, isolated ones left out) have
-/// their nearest vertex on it.
-fn sample_votes(
-    mesh: &TriMesh,
-    topology: &MeshTopology,
-    points: &[DVec3],
-    isolated: &[bool],
-) -> Result<Vec<usize>, ReconError> {
-    let (positions, components) = vertex_components(mesh, topology);
-    let voters: Vec<usize> = (0..points.len())
-        .step_by(4)
-        .filter(|&s| !isolated.get(s).copied().unwrap_or(false))
-        .collect();
-    component_votes(
-        &positions,
-        &components,
-        topology.components,
-        points,
-        &voters,
-    )
-}
-
-/// The vertices of `mesh` that some triangle uses, and the component of each.
-pub(super) fn vertex_components(mesh: &TriMesh, topology: &MeshTopology) -> (Vec<DVec3>, Vec<u32>) {
-    let mut vertex_component = vec![u32::MAX; mesh.vertices.len()];
-    for (t, &c) in mesh.triangles.iter().zip(&topology.triangle_component) {
-        for &v in t {
-            vertex_component[v as usize] = c;
-        }
-    }
-    (0..mesh.vertices.len())
-        .filter(|&v| vertex_component[v] != u32::MAX)
-        .map(|v| (mesh.vertices[v], vertex_component[v]))
-        .unzip()
-}
-
-/// For each of `count` components, how many of the samples `voters` (indices into `points`)
-/// have their nearest vertex among `positions` on it (`components` gives each vertex's).
-pub(super) fn component_votes(
-    positions: &[DVec3],
-    components: &[u32],
-    count: usize,
-    points: &[DVec3],
-    voters: &[usize],
-) -> Result<Vec<usize>, ReconError> {
-    let empty = vec![0usize; count];
-    if positions.is_empty() {
-        return Ok(empty);
-    }
-    let index = PointIndex::new(positions)?;
-    Ok(voters
-        .par_iter()
-        .fold(
-            || (empty.clone(), Vec::new()),
-            |(mut votes, mut near), &s| {
-                index.nearest_k(points[s], 1, &mut near);
-                if let Some(&v) = near.first() {
-                    votes[components[v as usize] as usize] += 1;
-                }
-                (votes, near)
-            },
-        )
-        .map(|(votes, _)| votes)
-        .reduce(
-            || empty.clone(),
-            |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect(),
-        ))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use sphcover_evaluation::ground_truth_meshes::icosphere;
-
-    /// A flat square grid of `n × n` vertices spanning `size` at `origin` (an open sheet).
-    fn square(origin: DVec3, size: f64, n: u32) -> TriMesh {
-        let vertices = (0..n * n)
-            .map(|k| {
-                origin + size * DVec3::new((k % n) as f64, (k / n) as f64, 0.0) / (n - 1) as f64
-            })
-            .collect();
-        let triangles = (0..n - 1)
-            .flat_map(|j| (0..n - 1).map(move |i| (i, j)))
-            .flat_map(|(i, j)| {
-                let v = j * n + i;
-                [[v, v + 1, v + n + 1], [v, v + n + 1, v + n]]
-            })
-            .collect();
-        TriMesh::new(vertices, triangles)
-    }
-
-    #[test]
-    fn sheets_around_stray_samples_go_and_small_sampled_parts_stay() {
-        // A closed sphere sampled at its vertices; a large open sheet with 5 stray samples
-        // (its samples a thirtieth as dense); a small open plate sampled as densely as the
-        // sphere.
-        let sphere = icosphere(DVec3::ZERO, 0.3, 4);
-        let sheet = square(DVec3::new(0.5, -0.3, 0.0), 0.3, 20);
-        let plate = square(DVec3::new(-0.6, -0.6, 0.0), 0.02, 4);
-        let mut mesh = sphere.clone();
-        let mut points = sphere.vertices.clone();
-        for part in [&sheet, &plate] {
-            let base = mesh.vertices.len() as u32;
-            mesh.vertices.extend_from_slice(&part.vertices);
-            mesh.triangles
-                .extend(part.triangles.iter().map(|t| t.map(|v| v + base)));
-        }
-        points.extend((0..5).map(|k| DVec3::new(0.55 + 0.05 * f64::from(k), -0.2, 0.0)));
-        points.extend(&plate.vertices);
-        // Every 4th sample votes: repeat each so that every one is counted.
-        let points: Vec<DVec3> = points.iter().flat_map(|&p| [p; 4]).collect();
-        let topology = MeshTopology::of(&mesh);
-        assert_eq!(topology.components, 3);
-        let isolated = vec![false; points.len()];
-        let dropped = drop_unsupported_sheets(&mut mesh, &topology, &points, &isolated).unwrap();
-        assert_eq!(dropped, 1);
-        let after = MeshTopology::of(&mesh);
-        assert_eq!(after.components, 2);
-        assert_eq!(
-            mesh.triangles.len(),
-            sphere.triangles.len() + plate.triangles.len()
-        );
-        assert!(
-            mesh.vertices.iter().all(|v| v.x < 0.45),
-            "the sheet is gone"
-        );
-    }
 }

@@ -5,11 +5,12 @@ use rayon::prelude::*;
 use sphcover_core::{Aabb, DVec3, MeshTopology, PointIndex, vertex_normals};
 
 use super::Streamed;
-use crate::pipeline::spill::TileLabels;
-use crate::pipeline::stages::{
+use crate::pipeline::components::{
     component_votes, drop_sheets_by_votes, drop_small_components, may_hold_sheets, most_voted,
-    polygonisation_params_at, record_topology, vertex_components,
+    vertex_components,
 };
+use crate::pipeline::spill::TileLabels;
+use crate::pipeline::stages::{polygonisation_params_at, record_topology};
 use crate::pipeline::tiled::{polygonise_pieces, tile_of, tiles_holding};
 use crate::pipeline::{ReconError, Trim};
 use crate::polygonise::{trim_and_resolve, trimming_points};
@@ -133,7 +134,25 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
     if ctx.mesh.values.as_ref().map(Vec::len) != Some(ctx.mesh.vertices.len()) {
         ctx.mesh.values = None;
     }
-    let (small, topology) = drop_small_components(&mut ctx.mesh, ctx.params)?;
+    let mut mesh = std::mem::take(&mut ctx.mesh);
+    let small = drop_small_components(&mut mesh, ctx.params, |mesh, topology| {
+        let (positions, components) = vertex_components(mesh, topology);
+        let near_vertices = vertices_near_tiles(ctx, &positions);
+        let mut votes = vec![0usize; topology.components];
+        for (t, near) in near_vertices.iter().enumerate() {
+            if near.is_empty() {
+                continue;
+            }
+            let (samples, own) = ctx.tile_samples(t)?;
+            if let Some(labels) = ctx.files().directory().read_labels(t)? {
+                let tile = TileVoters::new(&samples.points, &own, &labels);
+                tile.add_votes(near, &positions, &components, &mut votes)?;
+            }
+        }
+        Ok(votes)
+    });
+    ctx.mesh = mesh;
+    let (small, topology) = small?;
     let voting = may_hold_sheets(&topology);
     let (positions, components) = if voting {
         vertex_components(&ctx.mesh, &topology)
@@ -149,12 +168,7 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
     };
     let tiles = ctx.tiling.count();
     let owned = owned_by_tile(&ctx.splits, tiles, &ctx.mesh.vertices);
-    let mut near_vertices = vec![Vec::new(); tiles];
-    for (v, &p) in positions.iter().enumerate() {
-        tiles_holding(&ctx.splits, ctx.halo(), p, |t| {
-            near_vertices[t].push(v as u32)
-        });
-    }
+    let near_vertices = vertices_near_tiles(ctx, &positions);
     let mut votes = vec![0usize; topology.components];
     let mut moves = vec![Outcome::Unfitted; ctx.mesh.vertices.len()];
     for t in 0..tiles {
@@ -166,25 +180,12 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
             continue;
         };
         if !near_vertices[t].is_empty() {
-            let voters: Vec<usize> = (0..own.len())
-                .filter(|&s| own[s])
-                .step_by(4)
-                .filter(|&s| !labels.isolated[s])
-                .collect();
-            let (tile_positions, tile_components): (Vec<DVec3>, Vec<u32>) = near_vertices[t]
-                .iter()
-                .map(|&v| (positions[v as usize], components[v as usize]))
-                .unzip();
-            let tile_votes = component_votes(
-                &tile_positions,
-                &tile_components,
-                topology.components,
-                &samples.points,
-                &voters,
+            TileVoters::new(&samples.points, &own, &labels).add_votes(
+                &near_vertices[t],
+                &positions,
+                &components,
+                &mut votes,
             )?;
-            for (all, v) in votes.iter_mut().zip(tile_votes) {
-                *all += v;
-            }
         }
         if let Some(refine) = &refine
             && !owned[t].is_empty()
@@ -224,7 +225,7 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
             .position(|&tc| tc as usize == c)
     });
     let dropped = if voting {
-        drop_sheets_by_votes(&mut ctx.mesh, &topology, &votes)
+        drop_sheets_by_votes(&mut ctx.mesh, &topology, &votes)?
     } else {
         Vec::new()
     };
@@ -242,6 +243,59 @@ pub(super) fn clean_and_refine(ctx: &mut Streamed<'_>) -> Result<(), ReconError>
         ));
     }
     Ok(())
+}
+
+/// The vertices at `positions` that lie in each tile's box and halo.
+fn vertices_near_tiles(ctx: &Streamed<'_>, positions: &[DVec3]) -> Vec<Vec<u32>> {
+    let mut near = vec![Vec::new(); ctx.tiling.count()];
+    for (v, &p) in positions.iter().enumerate() {
+        tiles_holding(&ctx.splits, ctx.halo(), p, |t| near[t].push(v as u32));
+    }
+    near
+}
+
+/// The samples of one tile that vote for the components they lie nearest to: every 4th of
+/// the tile's own, isolated ones left out.
+struct TileVoters<'a> {
+    points: &'a [DVec3],
+    voters: Vec<usize>,
+}
+
+impl<'a> TileVoters<'a> {
+    fn new(points: &'a [DVec3], own: &[bool], labels: &TileLabels) -> TileVoters<'a> {
+        let voters = (0..own.len())
+            .filter(|&s| own[s])
+            .step_by(4)
+            .filter(|&s| !labels.isolated[s])
+            .collect();
+        TileVoters { points, voters }
+    }
+
+    /// Adds to `votes` the votes for the components of the vertices `near` (indices into
+    /// `positions` and `components`).
+    fn add_votes(
+        &self,
+        near: &[u32],
+        positions: &[DVec3],
+        components: &[u32],
+        votes: &mut [usize],
+    ) -> Result<(), ReconError> {
+        let (tile_positions, tile_components): (Vec<DVec3>, Vec<u32>) = near
+            .iter()
+            .map(|&v| (positions[v as usize], components[v as usize]))
+            .unzip();
+        let tile_votes = component_votes(
+            &tile_positions,
+            &tile_components,
+            votes.len(),
+            self.points,
+            &self.voters,
+        )?;
+        for (all, v) in votes.iter_mut().zip(tile_votes) {
+            *all += v;
+        }
+        Ok(())
+    }
 }
 
 /// The surface in input coordinates, and its topology.
