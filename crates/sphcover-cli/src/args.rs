@@ -192,11 +192,11 @@ pub struct ReconArgs {
     pub report: Option<PathBuf>,
     /// Memory budget (e.g. 2G, 500M): before reconstructing, predict the peak from the
     /// point count and depth; over budget, use the finest coarser depth that fits (without
-    /// --depth), or refuse with the estimate (exit 2). Checked again once the cover's graph
-    /// is built (a cover refined to the sampling, as thin walls and sharp edges make it, can
-    /// need several times the first estimate): over budget, refuse with the cover's size and
-    /// the remedies. Reading the points is held to it too (default: 60% of the machine's
-    /// memory).
+    /// --depth), or refuse with the estimate (exit 2). Once the cover's graph is built the
+    /// peak is predicted again (a cover refined to the sampling, as thin walls and sharp edges
+    /// make it, can need several times the first estimate), against this budget or, without
+    /// it, the default limit: over it, the run stops with the cover's size and the remedies.
+    /// Reading the points is held to it too (default: 60% of the machine's memory).
     #[arg(long, value_name = "SIZE", value_parser = sphcover_core::io::parse_byte_size)]
     pub max_memory: Option<u64>,
     #[command(flatten)]

@@ -60,6 +60,11 @@ impl MemoryLimit {
         }
     }
 
+    /// The limit in bytes; `None` when the machine's memory is unknown and no flag set it.
+    pub fn bytes(&self) -> Option<u64> {
+        self.bytes
+    }
+
     /// `options` with this limit.
     pub fn apply(&self, options: ReadOptions) -> ReadOptions {
         ReadOptions {

@@ -1,14 +1,20 @@
 //! `sphcover recon --max-memory`: the predicted peak is checked before the reconstruction; a
 //! budget too small for any depth is refused up front (exit 2, the estimate in the message,
-//! nothing written), one that a coarser grid fits gets that grid and says so.
+//! nothing written), one that a coarser grid fits gets that grid and says so. Once the cover's
+//! graph is built the check is made again with its size, against the default limit too.
 
 mod support;
 
 use std::path::PathBuf;
 use std::time::Duration;
 
+use sphcover_core::random::XorShift64;
+use sphcover_core::{DVec3, io};
 use sphcover_recon::{COARSEST_BUDGET_DEPTH, RECON_MEMORY_MODEL};
-use support::{fibonacci_sphere, files_in, recon_with_report, sphcover, text, write_points_ply};
+use support::{
+    fibonacci_sphere, files_in, fixture, recon_with_report, sphcover, sphcover_under_ulimit, text,
+    write_points_ply,
+};
 
 const LIMIT: Duration = Duration::from_secs(120);
 /// Points of the test scan; its default depth is 6 (the coarsest default).
@@ -137,7 +143,7 @@ fn the_graph_cut_method_is_outside_the_model() {
 #[test]
 fn skeleton_refuses_a_budget_below_its_estimate_and_runs_within_one_above() {
     let dir = tempfile::tempdir().unwrap();
-    let input = support::fixture("phantoms/t_junction_ct_n000.nii.gz");
+    let input = fixture("phantoms/t_junction_ct_n000.nii.gz");
     let out = dir.path().join("sheet.ply");
     let args = |budget: &'static str| {
         vec![
@@ -163,4 +169,68 @@ fn skeleton_refuses_a_budget_below_its_estimate_and_runs_within_one_above() {
     let run = sphcover(&accepted, LIMIT);
     assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
     assert!(out.exists());
+}
+
+/// `count` samples spread uniformly by area over the closed, outward-wound mesh `path`, with
+/// the normals of their triangles.
+fn surface_samples(path: &std::path::Path, count: usize) -> (Vec<DVec3>, Vec<DVec3>) {
+    let mesh = io::read_mesh(path, &io::ReadOptions::default()).unwrap();
+    let corners = |t: &[u32; 3]| t.map(|v| mesh.vertices[v as usize]);
+    let mut cumulative = Vec::with_capacity(mesh.triangles.len());
+    let mut total = 0.0;
+    for t in &mesh.triangles {
+        let [a, b, c] = corners(t);
+        total += 0.5 * (b - a).cross(c - a).length();
+        cumulative.push(total);
+    }
+    let mut rng = XorShift64::new(7);
+    (0..count)
+        .map(|_| {
+            let pick = rng.uniform() * total;
+            let t = cumulative
+                .partition_point(|&c| c < pick)
+                .min(cumulative.len() - 1);
+            let [a, b, c] = corners(&mesh.triangles[t]);
+            let (mut u, mut v) = (rng.uniform(), rng.uniform());
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            (
+                a + u * (b - a) + v * (c - a),
+                (b - a).cross(c - a).normalize(),
+            )
+        })
+        .unzip()
+}
+
+#[test]
+fn a_cover_refined_to_its_sampling_stops_at_the_memory_limit_with_the_remedies() {
+    // 100K samples of the thin-walled housing: its cover has about three times the usual
+    // graph (the model predicts some 430 MiB). Under a 586 MiB address space the default
+    // limit is 60% of it, 352 MiB, and the run stops once the graph is built.
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("housing.ply");
+    let (points, normals) = surface_samples(&fixture("thin_walled_housing.ply"), 100_000);
+    write_points_ply(&scan, &points, Some(&normals));
+    let out = dir.path().join("mesh.ply");
+    let args = [
+        "recon",
+        scan.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--threads",
+        "2",
+    ];
+    let run = sphcover_under_ulimit(600_000, &args, LIMIT);
+    let stderr = text(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("memory limit 351.6 MiB: the cover has")
+            && stderr.contains("--tiles 2 or more")
+            && stderr.contains("--eps")
+            && stderr.contains("address-space limit (ulimit -v); --max-memory sets it"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    assert_eq!(files_in(dir.path()), ["housing.ply"]);
 }

@@ -126,9 +126,9 @@ pub fn cover_over_budget_message(
     };
     Some(format!(
         "{budget_option} {}: the cover has {supports} supports and its sphere intersection graph {graph_entries} entries, \
-         so the reconstruction needs about {} (the budget was checked before the run for a cover of usual size; \
-         thin walls and sharp edges everywhere refine a cover to the sampling); \
-         build it in tiles ({tiles_option} 2 or more holds one tile's cover at a time), give a larger {eps_option}, or raise the budget",
+         so the reconstruction needs about {} (thin walls and sharp edges everywhere refine a cover to its sampling, \
+         far beyond the usual size); \
+         build it in tiles ({tiles_option} 2 or more holds one tile's cover at a time), give a larger {eps_option}, or raise the limit",
         format_byte_size(budget),
         format_byte_size(estimate),
     ))

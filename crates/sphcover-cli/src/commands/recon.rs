@@ -37,8 +37,10 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         Some(budget) => Some(fit_budget(&cloud, budget, &mut params, reporter)?),
         None => None,
     };
-    // Checked again once the cover's graph is built, when its true size is known.
-    params.memory_budget = args.max_memory;
+    // Checked again once the cover's graph is built, when its true size is known; without
+    // --max-memory against the default limit, so that a cover far larger than usual stops
+    // with the remedies instead of being killed when the machine runs out of memory.
+    params.memory_budget = limit.bytes();
 
     let bar = reporter.stage_bar("reconstructing");
     let progress = |stage| show_stage(&bar, stage);
@@ -53,7 +55,7 @@ pub fn run(args: &ReconArgs, reporter: &Reporter) -> anyhow::Result<()> {
         None => reconstruct(&cloud, &params, &progress),
     };
     bar.finish_and_clear();
-    let recon = result.map_err(|e| recon_error(args, e))?;
+    let recon = result.map_err(|e| recon_error(args, Some(&limit), e))?;
     describe(&params, &recon.stats, reporter);
 
     let stage = reporter.stage("write");
@@ -134,7 +136,7 @@ fn run_streamed(args: &ReconArgs, params: &ReconParams, reporter: &Reporter) -> 
         &stop,
     );
     bar.finish_and_clear();
-    let recon = result.map_err(|e| recon_error(args, e))?;
+    let recon = result.map_err(|e| recon_error(args, None, e))?;
     describe(params, &recon.stats, reporter);
     let stage = reporter.stage("write");
     let options = WriteOptions {
@@ -159,11 +161,21 @@ pub fn scratch_directory(args: &ReconArgs) -> std::path::PathBuf {
     }
 }
 
-/// A reconstruction's error for people: bad input (exit 2) named by the input file.
-fn recon_error(args: &ReconArgs, e: ReconError) -> anyhow::Error {
+/// A reconstruction's error for people: bad input (exit 2) named by the input file. A cover
+/// over the memory `limit` says where the limit came from.
+fn recon_error(args: &ReconArgs, limit: Option<&MemoryLimit>, e: ReconError) -> anyhow::Error {
     let input = args.input.display();
-    if let Some(message) = cover_over_budget_message(&e, "--max-memory", "--tiles", "--eps") {
-        return anyhow::Error::from(BadInput(format!("{input}: {message}")));
+    let budget = if args.max_memory.is_some() {
+        "--max-memory"
+    } else {
+        "memory limit"
+    };
+    if let Some(message) = cover_over_budget_message(&e, budget, "--tiles", "--eps") {
+        let origin = match limit {
+            Some(limit) if args.max_memory.is_none() => format!(" (the limit: {})", limit.origin()),
+            _ => String::new(),
+        };
+        return anyhow::Error::from(BadInput(format!("{input}: {message}{origin}")));
     }
     if e.is_bad_input() {
         let hint = if matches!(e, ReconError::Flat) {
