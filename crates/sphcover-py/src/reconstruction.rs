@@ -555,6 +555,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &ReconStats) -> PyResult<Bound<'py, PyDic
     d.set_item("supports", s.supports)?;
     d.set_item("supports_over_eps", s.cover.supports_over_eps)?;
     d.set_item("graph_mean_degree", s.graph_mean_degree)?;
+    d.set_item("predicted_peak_bytes", s.predicted_peak_bytes)?;
     d.set_item("inconsistent_supports", s.inconsistent_supports)?;
     d.set_item("confirmed_supports", s.confirmed_supports)?;
     d.set_item("unseen_area_fraction", s.unseen_area_fraction)?;

@@ -230,6 +230,7 @@ mod tests {
         let s = &free.stats;
         let entries = (s.graph_mean_degree * s.supports as f64).round() as u64;
         let estimate = RECON_MEMORY_MODEL.peak_bytes_with_graph(n, s.depth, entries);
+        assert_eq!(s.predicted_peak_bytes, Some(estimate));
 
         // One byte short of the estimate stops the run with what it measured.
         let short = ReconParams {

@@ -396,8 +396,15 @@ fn details(s: &ReconStats, reporter: &Reporter) {
         s.eps
     ));
     reporter.detail(&format!(
-        "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}",
-        s.supports, s.cover.supports_over_eps, s.cover.max_error, s.graph_mean_degree
+        "  cover: {} supports ({} over ε, largest error {:.2e}); graph mean degree {:.1}{}",
+        s.supports,
+        s.cover.supports_over_eps,
+        s.cover.max_error,
+        s.graph_mean_degree,
+        s.predicted_peak_bytes.map_or(String::new(), |b| format!(
+            "; predicted peak {}",
+            format_byte_size(b)
+        ))
     ));
     for t in &s.tiles {
         reporter.detail(&format!(
@@ -471,6 +478,7 @@ fn report_json(
         "supports": s.supports,
         "supports_over_eps": s.cover.supports_over_eps,
         "graph_mean_degree": s.graph_mean_degree,
+        "predicted_peak_bytes": s.predicted_peak_bytes,
         "inconsistent_supports": s.inconsistent_supports,
         "confirmed_supports": s.confirmed_supports,
         "unseen_area_fraction": s.unseen_area_fraction,

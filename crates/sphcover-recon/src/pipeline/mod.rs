@@ -476,6 +476,9 @@ pub struct ReconStats {
     pub supports: usize,
     /// Mean degree of the sphere intersection graph.
     pub graph_mean_degree: f64,
+    /// The whole run's peak memory as [`crate::RECON_MEMORY_MODEL`] predicts it once the
+    /// sphere intersection graph is built (`None` where no graph of the whole cover is).
+    pub predicted_peak_bytes: Option<u64>,
     /// The graph cut's statistics (integrated method).
     pub cut: Option<GraphCutStats>,
     /// Supports whose label disagreed with the sign of `f` (zeroed unless confirmed).

@@ -339,21 +339,19 @@ fn build_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
         SphereIntersectionGraph::build(cover.centres(), cover.radii(), ctx.params.graph_shrink)?;
     let supports = cover.len();
     ctx.stats.graph_mean_degree = graph.mean_degree();
-    if let Some(budget) = ctx.params.memory_budget {
-        let graph_entries = graph.neighbour_array().len() as u64;
-        let estimate = RECON_MEMORY_MODEL.peak_bytes_with_graph(
-            ctx.points.len(),
-            ctx.stats.depth,
+    let graph_entries = graph.neighbour_array().len() as u64;
+    let estimate =
+        RECON_MEMORY_MODEL.peak_bytes_with_graph(ctx.points.len(), ctx.stats.depth, graph_entries);
+    ctx.stats.predicted_peak_bytes = Some(estimate);
+    if let Some(budget) = ctx.params.memory_budget
+        && estimate > budget
+    {
+        return Err(ReconError::OverMemoryBudget {
+            supports,
             graph_entries,
-        );
-        if estimate > budget {
-            return Err(ReconError::OverMemoryBudget {
-                supports,
-                graph_entries,
-                estimate,
-                budget,
-            });
-        }
+            estimate,
+            budget,
+        });
     }
     ctx.graph = Some(graph);
     Ok(())
