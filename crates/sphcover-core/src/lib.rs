@@ -81,7 +81,7 @@ pub use kernel::{GAUSSIAN_KAPPA, Kernel};
 pub use local_function::{LinearFunction, LocalFunction, LocalFunctions, QuadraticFunction};
 pub use mesh::{
     SmallComponentsError, SmallComponentsStats, TriMesh, VertexTriangles, component_areas,
-    remove_small_components, remove_small_components_except, remove_unused_vertices, triangle_area,
+    remove_components, remove_small_components, remove_unused_vertices, triangle_area,
     vertex_normals,
 };
 pub use mesh_topology::MeshTopology;

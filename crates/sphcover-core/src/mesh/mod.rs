@@ -8,8 +8,8 @@ mod unused_vertices;
 pub use adjacency::VertexTriangles;
 pub(crate) use adjacency::bucketed;
 pub use small_components::{
-    SmallComponentsError, SmallComponentsStats, component_areas, remove_small_components,
-    remove_small_components_except,
+    SmallComponentsError, SmallComponentsStats, component_areas, remove_components,
+    remove_small_components,
 };
 pub use unused_vertices::remove_unused_vertices;
 

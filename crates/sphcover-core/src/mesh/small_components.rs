@@ -58,19 +58,6 @@ pub fn remove_small_components(
     topo: &MeshTopology,
     min_fraction: f64,
 ) -> Result<SmallComponentsStats, SmallComponentsError> {
-    remove_small_components_except(mesh, topo, min_fraction, &[])
-}
-
-/// [`remove_small_components`], except that the components `c` with `keep[c]` stay whatever
-/// their area (`keep` may be shorter than the number of components: the others are not
-/// excepted). A caller that knows more than the area of a piece (the samples it holds)
-/// decides with [`component_areas`] which small ones to keep.
-pub fn remove_small_components_except(
-    mesh: &mut TriMesh,
-    topo: &MeshTopology,
-    min_fraction: f64,
-    keep: &[bool],
-) -> Result<SmallComponentsStats, SmallComponentsError> {
     if !(0.0..=1.0).contains(&min_fraction) {
         return Err(SmallComponentsError::InvalidFraction {
             value: min_fraction,
@@ -78,25 +65,48 @@ pub fn remove_small_components_except(
     }
     let areas = component_areas(mesh, topo)?;
     let largest = areas.iter().copied().fold(0.0, f64::max);
-    let keep_component: Vec<bool> = areas
-        .iter()
-        .enumerate()
-        .map(|(c, &a)| a >= min_fraction * largest || keep.get(c).copied().unwrap_or(false))
-        .collect();
+    let keep: Vec<bool> = areas.iter().map(|&a| a >= min_fraction * largest).collect();
+    let (triangles_removed, vertices_removed) = remove_components(mesh, topo, &keep)?;
+    Ok(SmallComponentsStats {
+        components_before: topo.components,
+        components_removed: keep.iter().filter(|&&k| !k).count(),
+        triangles_removed,
+        vertices_removed,
+        largest_area: largest,
+    })
+}
+
+/// Removes the triangles of every component `c` of `topo` (the mesh's topology) without
+/// `keep[c]` (a component past the end of `keep` is removed), and the invalid triangles,
+/// which belong to no component; then the vertices no triangle uses. Returns how many
+/// triangles and vertices went. For a caller that decides by more than the area of a piece
+/// (the samples it holds), with [`component_areas`].
+pub fn remove_components(
+    mesh: &mut TriMesh,
+    topo: &MeshTopology,
+    keep: &[bool],
+) -> Result<(usize, usize), SmallComponentsError> {
+    check_topology(mesh, topo)?;
     let before = mesh.triangles.len();
     let mut component = topo.triangle_component.iter();
     mesh.triangles.retain(|_| {
         component
             .next()
-            .is_some_and(|&c| c != u32::MAX && keep_component[c as usize])
+            .is_some_and(|&c| keep.get(c as usize).copied().unwrap_or(false))
     });
-    Ok(SmallComponentsStats {
-        components_before: topo.components,
-        components_removed: keep_component.iter().filter(|&&k| !k).count(),
-        triangles_removed: before - mesh.triangles.len(),
-        vertices_removed: remove_unused_vertices(mesh),
-        largest_area: largest,
-    })
+    let triangles_removed = before - mesh.triangles.len();
+    Ok((triangles_removed, remove_unused_vertices(mesh)))
+}
+
+/// Refuses a topology that is not of `mesh` (another number of triangles).
+fn check_topology(mesh: &TriMesh, topo: &MeshTopology) -> Result<(), SmallComponentsError> {
+    if topo.triangle_component.len() != mesh.triangles.len() {
+        return Err(SmallComponentsError::TopologyMismatch {
+            expected: mesh.triangles.len(),
+            found: topo.triangle_component.len(),
+        });
+    }
+    Ok(())
 }
 
 /// The area of each component of `topo`, the mesh's topology, summed in triangle order.
@@ -104,12 +114,7 @@ pub fn component_areas(
     mesh: &TriMesh,
     topo: &MeshTopology,
 ) -> Result<Vec<f64>, SmallComponentsError> {
-    if topo.triangle_component.len() != mesh.triangles.len() {
-        return Err(SmallComponentsError::TopologyMismatch {
-            expected: mesh.triangles.len(),
-            found: topo.triangle_component.len(),
-        });
-    }
+    check_topology(mesh, topo)?;
     let triangle_areas: Vec<f64> = mesh
         .triangles
         .par_iter()
@@ -208,6 +213,28 @@ mod tests {
         let stats = drop_small(&mut mesh, 0.0).unwrap();
         assert_eq!(stats.triangles_removed, 1);
         assert_eq!(mesh, original);
+    }
+
+    #[test]
+    fn the_components_not_kept_go_whatever_their_area() {
+        let mut mesh = TriMesh::default();
+        add_tetrahedron(&mut mesh, DVec3::ZERO, 1.0);
+        add_tetrahedron(&mut mesh, DVec3::splat(5.0), 0.1);
+        add_tetrahedron(&mut mesh, DVec3::splat(-5.0), 0.5);
+        mesh.triangles.push([0, 99, 1]);
+        let topo = MeshTopology::of(&mesh);
+        let areas = component_areas(&mesh, &topo).unwrap();
+        assert!(areas[1] < areas[2] && areas[2] < areas[0], "{areas:?}");
+        // The small second piece is kept, the largest goes, the third has no entry.
+        assert_eq!(
+            remove_components(&mut mesh, &topo, &[false, true]),
+            Ok((9, 8))
+        );
+        mesh.check().unwrap();
+        assert_eq!(mesh.vertices.len(), 4);
+        assert!(mesh.vertices.iter().all(|v| v.x >= 5.0));
+        let other = MeshTopology::of(&TriMesh::default());
+        assert!(remove_components(&mut mesh, &other, &[]).is_err());
     }
 
     proptest! {

@@ -3,7 +3,8 @@
 
 use rayon::prelude::*;
 use sphcover_core::{
-    DVec3, MeshTopology, PointIndex, TriMesh, component_areas, remove_small_components_except,
+    DVec3, MeshTopology, PointIndex, SmallComponentsError, TriMesh, component_areas,
+    remove_components,
 };
 
 use super::{ReconError, ReconParams};
@@ -27,12 +28,16 @@ pub(super) fn drop_small_components(
     params: &ReconParams,
     votes: impl FnOnce(&TriMesh, &MeshTopology) -> Result<Vec<usize>, ReconError>,
 ) -> Result<(usize, MeshTopology), ReconError> {
-    let topology = MeshTopology::of(mesh);
     let fraction = params.min_component_fraction;
+    if !(0.0..=1.0).contains(&fraction) {
+        return Err(SmallComponentsError::InvalidFraction { value: fraction }.into());
+    }
+    let topology = MeshTopology::of(mesh);
     let areas = component_areas(mesh, &topology)?;
     let largest = areas.iter().copied().fold(0.0, f64::max);
-    let small_open = |c: usize| areas[c] < fraction * largest && topology.open_component[c];
-    let keep = if (0..topology.components).any(small_open) {
+    let small = |c: usize| areas[c] < fraction * largest;
+    let small_open = |c: usize| small(c) && topology.open_component[c];
+    let supported = if (0..topology.components).any(small_open) {
         let votes = votes(mesh, &topology)?;
         let object = most_voted(&votes).unwrap_or(0);
         let object_density = vote_density(&votes, &areas, object);
@@ -44,16 +49,18 @@ pub(super) fn drop_small_components(
             })
             .collect()
     } else {
-        Vec::new()
+        vec![false; topology.components]
     };
-    let removal = remove_small_components_except(mesh, &topology, fraction, &keep)?;
-    let changed = removal.triangles_removed > 0 || removal.vertices_removed > 0;
-    let topology = if changed {
+    let keep: Vec<bool> = (0..topology.components)
+        .map(|c| !small(c) || supported[c])
+        .collect();
+    let (triangles, vertices) = remove_components(mesh, &topology, &keep)?;
+    let topology = if triangles > 0 || vertices > 0 {
         MeshTopology::of(mesh)
     } else {
         topology
     };
-    Ok((removal.components_removed, topology))
+    Ok((keep.iter().filter(|&&k| !k).count(), topology))
 }
 
 /// Votes per unit area of component `c`.
@@ -111,15 +118,9 @@ pub(super) fn drop_sheets_by_votes(
                 && density(c) < SHEET_DENSITY * density(object)
         })
         .collect();
-    let dropped = drop.iter().filter(|&&d| d).count();
-    if dropped > 0 {
-        let mut component = topology.triangle_component.iter();
-        mesh.triangles.retain(|_| {
-            component
-                .next()
-                .is_some_and(|&c| c == u32::MAX || !drop[c as usize])
-        });
-        sphcover_core::remove_unused_vertices(mesh);
+    if drop.contains(&true) {
+        let keep: Vec<bool> = drop.iter().map(|&d| !d).collect();
+        remove_components(mesh, topology, &keep)?;
     }
     Ok(drop)
 }
