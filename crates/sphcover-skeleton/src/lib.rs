@@ -36,7 +36,8 @@
 //!                           window, see `Material`; threshold, noise, tolerance ε)
 //!        ─► object mask (drop noise specks above the threshold)
 //!        ─► cover (core: quadratic local fits, automatic r_min / r_max)
-//!        ─► tetrahedral mesh (tetra: dual complex with radius shrink σ_t, edges, rings)
+//!        ─► tetrahedral mesh (tetra: the tetrahedra whose balls overlap pairwise, radius
+//!                            shrink σ_t; edges, rings)
 //!        ─► derivatives (∇f, ∇²f with support expansion σ, one implicit heat step over
 //!                        the supports' sphere intersection graph)
 //!        ─► ridge points (eq. 6.1, 6.4, 6.5; eigenvectors oriented over the mesh)
@@ -48,7 +49,8 @@
 //! ```
 //!
 //! Departures from the thesis, each measured on the phantoms and documented where it is
-//! made: σ_t = 1 instead of 0.75 ([`SkeletonParams::tet_shrink`]), a consistent eigenvector
+//! made: σ_t = 1 instead of 0.75 ([`SkeletonParams::tet_shrink`]), the tetrahedra whose balls
+//! overlap pairwise rather than the dual complex ([`TetComplex`]), a consistent eigenvector
 //! sign over the mesh ([`orient_eigenvectors`]), eq. 6.5 relaxed where `f` is concave
 //! ([`ridge_points()`]), and the repairs ([`SheetRepairs`]), which the thesis left as future work. The
 //! derivative smoothing the thesis names but never formulates (§6.2.3: a linear cover and
@@ -101,7 +103,8 @@ pub use nms_baseline::{NmsParams, NmsStats, nms_skeleton};
 pub use object_mask::{ObjectMaskStats, drop_small_object_components};
 pub use patches::ridge_patches;
 pub use pipeline::{
-    SkeletonParams, SkeletonStats, extract_skeleton, extract_skeleton_until, stage_names,
+    SkeletonParams, SkeletonStats, TetComplex, extract_skeleton, extract_skeleton_until,
+    stage_names,
 };
 pub use repair::SheetRepairs;
 pub use repair::cleaning::{CleaningParams, CleaningStats, clean_sheet};

@@ -84,6 +84,18 @@ pub fn dual_complex(
     radii: &[f64],
     params: &DualComplexParams,
 ) -> Result<DualComplex, TetraError> {
+    Ok(dual_complex_of(&cover_triangulation(
+        centres, radii, params,
+    )?))
+}
+
+/// The regular triangulation of the cover `(centres, radii)` with the radius shrink and seed
+/// of `params`, after checking them.
+pub(crate) fn cover_triangulation(
+    centres: &[DVec3],
+    radii: &[f64],
+    params: &DualComplexParams,
+) -> Result<RegularTriangulation, TetraError> {
     if !(params.shrink.is_finite() && params.shrink > 0.0) {
         return Err(TetraError::InvalidShrink(params.shrink));
     }
@@ -99,7 +111,7 @@ pub fn dual_complex(
     let points: Vec<Point> = centres.iter().map(|c| c.to_array()).collect();
     // From the radii rather than from weights: the weights are formed after the scaling into
     // the exact range, so radii whose squares under- or overflow in these units still work.
-    let tri = RegularTriangulation::from_spheres(
+    RegularTriangulation::from_spheres(
         &points,
         radii,
         params.shrink,
@@ -107,8 +119,7 @@ pub fn dual_complex(
             seed: params.seed,
             ..Default::default()
         },
-    )?;
-    Ok(dual_complex_of(&tri))
+    )
 }
 
 /// The dual complex of an existing triangulation: its finite tetrahedra whose orthocentre has
@@ -118,6 +129,19 @@ pub fn dual_complex(
 /// orthocentre polynomial is exact (module `regular::domain`); in the caller's units it could
 /// underflow for tiny inputs.
 pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
+    complex_of(tri, |cell| {
+        let p = cell.map(|v| tri.point(v));
+        let w = cell.map(|v| tri.scaled_weight(v));
+        orthocentre_power_sign(p, w) <= 0
+    })
+}
+
+/// The finite tetrahedra of `tri` that `kept` accepts (given their vertices), in slot order,
+/// with their adjacency within the complex.
+pub(crate) fn complex_of(
+    tri: &RegularTriangulation,
+    kept: impl Fn([u32; 4]) -> bool + Sync,
+) -> DualComplex {
     let slots = tri.num_slots();
 
     // Decide each slot independently (deterministic whatever the thread count), 64 slots to
@@ -127,9 +151,7 @@ pub fn dual_complex_of(tri: &RegularTriangulation) -> DualComplex {
         if cell[0] >= INFINITE_VERTEX - 1 || cell.contains(&INFINITE_VERTEX) {
             return false;
         }
-        let p = cell.map(|v| tri.point(v));
-        let w = cell.map(|v| tri.scaled_weight(v));
-        orthocentre_power_sign(p, w) <= 0
+        kept(cell)
     };
     let keep: Vec<u64> = (0..slots.div_ceil(64) as u32)
         .into_par_iter()

@@ -49,7 +49,8 @@
 //!   tetrahedron one 32-byte block of its 4 vertices and 4 neighbours, a free list; large
 //!   rounds of the insertion order inserted in parallel, region by region.
 //! * [`dual_complex()`]: the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
-//!   `σ_t` of thesis §3.5.2.
+//!   `σ_t` of thesis §3.5.2; [`overlap_complex()`]: the tetrahedra whose balls overlap
+//!   pairwise, a superset that stays full across thin slabs of supports.
 //! * [`TetMesh`]: plain arrays and CSR offsets, built vertex by vertex in parallel.
 //! * [`marching_tetrahedra`]: marching tetrahedra on a [`TetMesh`].
 //!
@@ -68,6 +69,7 @@ mod error;
 mod expansion;
 mod marching;
 mod mesh_file;
+mod overlap_complex;
 pub mod predicates;
 mod regular;
 mod spatial_sort;
@@ -77,6 +79,7 @@ pub use dual_complex::{DualComplex, DualComplexParams, dual_complex, dual_comple
 pub use error::TetraError;
 pub use marching::{IsoSurface, marching_tetrahedra, marching_tetrahedra_scalar};
 pub use mesh_file::{TetMeshFormat, write_tet_mesh};
+pub use overlap_complex::{overlap_complex, overlap_complex_of};
 pub use regular::{
     INFINITE_VERTEX, NO_TET, RegularTriangulation, TriangulationParams, VertexStatus,
 };

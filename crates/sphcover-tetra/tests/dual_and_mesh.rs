@@ -1,4 +1,4 @@
-//! The dual complex against its brute-force definition, Euler characteristics of known
+//! The dual and overlap complexes against their brute-force definitions, Euler characteristics of known
 //! unions, `TetMesh` edge rings, and marching tetrahedra.
 mod common;
 use common::*;
@@ -8,6 +8,7 @@ use sphcover_tetra::NO_TET;
 use sphcover_tetra::predicates::{orient3d, orthocentre, orthocentre_power_sign};
 use sphcover_tetra::{
     DualComplexParams, TetMesh, dual_complex, marching_tetrahedra, marching_tetrahedra_scalar,
+    overlap_complex,
 };
 
 fn no_shrink() -> DualComplexParams {
@@ -21,6 +22,13 @@ fn no_shrink() -> DualComplexParams {
 /// and no other sphere has smaller power there. Returns the tetrahedra and the 4-subsets
 /// too close to a tie to decide in floating point.
 fn brute_force(c: &[DVec3], r: &[f64]) -> (Vec<[u32; 4]>, Vec<[u32; 4]>) {
+    brute_force_cells(c, r, true)
+}
+
+/// The tetrahedra of the regular triangulation (no other sphere has smaller power at the
+/// orthocentre), only those whose orthocentre has power ≤ 0 when `dual`; and the 4-subsets
+/// too close to a tie to decide in floating point.
+fn brute_force_cells(c: &[DVec3], r: &[f64], dual: bool) -> (Vec<[u32; 4]>, Vec<[u32; 4]>) {
     let n = c.len();
     let p: Vec<[f64; 3]> = c.iter().map(|x| x.to_array()).collect();
     let w: Vec<f64> = r.iter().map(|x| x * x).collect();
@@ -43,7 +51,7 @@ fn brute_force(c: &[DVec3], r: &[f64]) -> (Vec<[u32; 4]>, Vec<[u32; 4]>) {
                     if o < 0 {
                         ws.swap(0, 1);
                     }
-                    if orthocentre_power_sign(pts, ws) > 0 {
+                    if dual && orthocentre_power_sign(pts, ws) > 0 {
                         continue;
                     }
                     let (x, pw) = orthocentre(pts, ws).unwrap();
@@ -91,6 +99,48 @@ proptest! {
         }
         for t in &ours {
             prop_assert!(sure.contains(t) || unsure.contains(t), "extra {:?}", t);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// The overlap complex is the triangulation's tetrahedra whose balls overlap pairwise,
+    /// and holds the dual complex.
+    #[test]
+    fn overlap_complex_equals_brute_force(n in 5usize..40, seed in 0u64..10_000) {
+        let (c, r) = random_cover(n, seed);
+        let (overlap, dual) = match (overlap_complex(&c, &r, &no_shrink()), dual_complex(&c, &r, &no_shrink())) {
+            (Ok(o), Ok(d)) => (canonical(&o.tets), canonical(&d.tets)),
+            (Err(e), _) | (_, Err(e)) => return Err(TestCaseError::fail(format!("{e}"))),
+        };
+        for t in &dual {
+            prop_assert!(overlap.binary_search(t).is_ok(), "dual tetrahedron {:?} missing", t);
+        }
+        // Pairwise overlap with a margin either side; ties are left undecided.
+        let overlap_margin = |t: &[u32; 4]| -> Option<bool> {
+            let mut all = true;
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    let (i, j) = (t[a] as usize, t[b] as usize);
+                    let gap = c[i].distance(c[j]) - (r[i] + r[j]);
+                    if gap.abs() < 1e-9 * (r[i] + r[j]) {
+                        return None;
+                    }
+                    all &= gap < 0.0;
+                }
+            }
+            Some(all)
+        };
+        let (cells, unsure) = brute_force_cells(&c, &r, false);
+        for t in &cells {
+            if overlap_margin(t) == Some(true) {
+                prop_assert!(overlap.binary_search(t).is_ok(), "missing {:?}", t);
+            }
+        }
+        for t in &overlap {
+            prop_assert!(unsure.contains(t) || (cells.contains(t) && overlap_margin(t) != Some(false)), "extra {:?}", t);
         }
     }
 }

@@ -3,9 +3,9 @@
 //! [`crate::repair`], over one [`SheetContext`].
 
 use sphcover_core::{Cover, DVec3, MeshTopology, PuEvaluator, Stage, TriMesh};
-use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex};
+use sphcover_tetra::{DualComplexParams, TetMesh, TetraError, dual_complex, overlap_complex};
 
-use super::SkeletonParams;
+use super::{SkeletonParams, TetComplex};
 use crate::derivative_smoothing::smoothed_vertex_derivatives;
 use crate::error::SkeletonError;
 use crate::patches::ridge_patches;
@@ -52,6 +52,8 @@ pub(crate) struct SheetContext<'c> {
     pub r_max: f64,
     /// The length unit of the voxel-based parameters (world units).
     pub voxel: f64,
+    /// The tetrahedral mesh's complex (resolved: never `Auto`).
+    pub complex: TetComplex,
     /// The voxels of the part, for a volume.
     pub voxels: Option<VoxelPart<'c>>,
     pub mesh: Option<TetMesh>,
@@ -76,6 +78,7 @@ impl<'c> SheetContext<'c> {
         level: f64,
         r_max: f64,
         voxel: f64,
+        complex: TetComplex,
         voxels: Option<VoxelPart<'c>>,
     ) -> SheetContext<'c> {
         SheetContext {
@@ -84,6 +87,7 @@ impl<'c> SheetContext<'c> {
             level,
             r_max,
             voxel,
+            complex,
             voxels,
             mesh: None,
             derivatives: Vec::new(),
@@ -175,7 +179,11 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
 /// ordered edge rings.
 fn tetrahedral_mesh(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     let cover = ctx.cover;
-    let complex = dual_complex(
+    let complex_of = match ctx.complex {
+        TetComplex::Overlap => overlap_complex,
+        TetComplex::Dual | TetComplex::Auto => dual_complex,
+    };
+    let complex = complex_of(
         cover.centres(),
         cover.radii(),
         &DualComplexParams {
