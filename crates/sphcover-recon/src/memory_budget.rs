@@ -125,13 +125,22 @@ pub fn cover_over_budget_message(
         return None;
     };
     Some(format!(
-        "{budget_option} {}: the cover has {supports} supports and its sphere intersection graph {graph_entries} entries, \
-         so the reconstruction needs about {} (thin walls and sharp edges everywhere refine a cover to its sampling, \
+        "{budget_option} {}: {} (thin walls and sharp edges everywhere refine a cover to its sampling, \
          far beyond the usual size); \
          build it in tiles ({tiles_option} 2 or more holds one tile's cover at a time), give a larger {eps_option}, or raise the limit",
         format_byte_size(budget),
-        format_byte_size(estimate),
+        cover_needs(supports, graph_entries, estimate),
     ))
+}
+
+/// What a cover of `supports` supports and `graph_entries` graph entries needs: the clause
+/// that [`ReconError::OverMemoryBudget`] and [`cover_over_budget_message`] share.
+pub(crate) fn cover_needs(supports: usize, graph_entries: u64, estimate: u64) -> String {
+    format!(
+        "the cover has {supports} supports and its sphere intersection graph {graph_entries} entries, \
+         so the reconstruction needs about {}",
+        format_byte_size(estimate)
+    )
 }
 
 /// Checks the predicted peak of reconstructing `cloud` with `params` against `budget` bytes.

@@ -337,8 +337,8 @@ pub enum ReconError {
     Scratch(String),
     /// The cover needs more memory than [`ReconParams::memory_budget`] allows.
     #[error(
-        "the cover has {supports} supports and its sphere intersection graph {graph_entries} entries, so the reconstruction needs about {}, over the budget of {}",
-        sphcover_core::io::format_byte_size(*.estimate),
+        "{}, over the budget of {}",
+        crate::memory_budget::cover_needs(*.supports, *.graph_entries, *.estimate),
         sphcover_core::io::format_byte_size(*.budget)
     )]
     OverMemoryBudget {
