@@ -82,6 +82,10 @@ pub enum TetraError {
     /// The radius shrink factor is not in `(0, ∞)`.
     #[error("radius shrink factor {0} is not a positive finite number")]
     InvalidShrink(f64),
+    /// The growth of [`overlap_complex_admitting`](crate::overlap_complex_admitting) is not
+    /// in `[1, ∞)`.
+    #[error("ball growth factor {0} is not a finite number of at least 1")]
+    InvalidGrowth(f64),
     /// Per-vertex arrays given to a mesh routine have the wrong length.
     #[error("expected {expected} per-vertex values, got {got}")]
     VertexArrayLength {

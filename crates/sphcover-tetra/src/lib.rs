@@ -50,7 +50,9 @@
 //!   rounds of the insertion order inserted in parallel, region by region.
 //! * [`dual_complex()`]: the tetrahedra whose orthocentre has power ≤ 0, with the radius shrink
 //!   `σ_t` of thesis §3.5.2; [`overlap_complex()`]: the tetrahedra whose balls overlap
-//!   pairwise, a superset that stays full across thin slabs of supports.
+//!   pairwise, a superset that stays full across thin slabs of supports;
+//!   [`overlap_complex_admitting()`]: with it, the tetrahedra a caller admits among those
+//!   whose grown balls overlap pairwise.
 //! * [`TetMesh`]: plain arrays and CSR offsets, built vertex by vertex in parallel.
 //! * [`marching_tetrahedra`]: marching tetrahedra on a [`TetMesh`].
 //!
@@ -79,7 +81,7 @@ pub use dual_complex::{DualComplex, DualComplexParams, dual_complex, dual_comple
 pub use error::TetraError;
 pub use marching::{IsoSurface, marching_tetrahedra, marching_tetrahedra_scalar};
 pub use mesh_file::{TetMeshFormat, write_tet_mesh};
-pub use overlap_complex::{overlap_complex, overlap_complex_of};
+pub use overlap_complex::{overlap_complex, overlap_complex_admitting, overlap_complex_of};
 pub use regular::{
     INFINITE_VERTEX, NO_TET, RegularTriangulation, TriangulationParams, VertexStatus,
 };

@@ -60,17 +60,71 @@ pub fn overlap_complex(
 /// The overlap complex of an existing triangulation: its finite tetrahedra whose balls
 /// (radius² = the triangulation's weights) overlap pairwise (see [`overlap_complex()`]).
 pub fn overlap_complex_of(tri: &RegularTriangulation) -> DualComplex {
-    complex_of(tri, |cell| {
-        (0..4).all(|a| {
-            (a + 1..4).all(|b| {
-                let (u, v) = (cell[a], cell[b]);
-                balls_overlap(
-                    tri.point(u),
-                    tri.point(v),
-                    tri.scaled_weight(u),
-                    tri.scaled_weight(v),
-                )
-            })
+    complex_of(tri, |cell| overlap_pairwise(tri, cell, 1.0))
+}
+
+/// [`overlap_complex()`] and, besides, the tetrahedra whose balls grown by the factor
+/// `growth` (radii `growth · σ_t r`) overlap pairwise and that `admit` accepts; `admit` is
+/// given the tetrahedron's four input indices and is asked only about those tetrahedra.
+///
+/// A caller that knows where its sheet may lie can so add the flat tetrahedra of a slab
+/// thinner than its balls reach across without adding the large ones elsewhere. A growth
+/// that is a power of two keeps the test exact (the grown weights `growth² · (σ_t r)²` are
+/// then exact); any other growth rounds each grown weight once. Errors: those of
+/// [`dual_complex()`](crate::dual_complex()), and [`TetraError::InvalidGrowth`] for a
+/// growth below 1 or not finite.
+///
+/// ```
+/// use sphcover_core::DVec3;
+/// use sphcover_tetra::{DualComplexParams, overlap_complex, overlap_complex_admitting};
+///
+/// // Radius 0.4 at the corners of a regular tetrahedron of edge 1: no two balls overlap,
+/// // while the balls grown twice (radius 0.8) overlap pairwise.
+/// let centres = [
+///     DVec3::new(0.0, 0.0, 0.0),
+///     DVec3::new(1.0, 0.0, 0.0),
+///     DVec3::new(0.5, 3f64.sqrt() / 2.0, 0.0),
+///     DVec3::new(0.5, 3f64.sqrt() / 6.0, (2.0f64 / 3.0).sqrt()),
+/// ];
+/// let radii = [0.4; 4];
+/// let params = DualComplexParams { shrink: 1.0, ..Default::default() };
+/// assert!(overlap_complex(&centres, &radii, &params)?.tets.is_empty());
+/// let admitted = overlap_complex_admitting(&centres, &radii, &params, 2.0, |_| true)?;
+/// assert_eq!(admitted.tets.len(), 1);
+/// let refused = overlap_complex_admitting(&centres, &radii, &params, 2.0, |_| false)?;
+/// assert!(refused.tets.is_empty());
+/// # Ok::<(), sphcover_tetra::TetraError>(())
+/// ```
+pub fn overlap_complex_admitting(
+    centres: &[DVec3],
+    radii: &[f64],
+    params: &DualComplexParams,
+    growth: f64,
+    admit: impl Fn([u32; 4]) -> bool + Sync,
+) -> Result<DualComplex, TetraError> {
+    if !(growth.is_finite() && growth >= 1.0) {
+        return Err(TetraError::InvalidGrowth(growth));
+    }
+    let tri = cover_triangulation(centres, radii, params)?;
+    let grown = growth * growth;
+    Ok(complex_of(&tri, |cell| {
+        overlap_pairwise(&tri, cell, 1.0)
+            || (grown > 1.0 && overlap_pairwise(&tri, cell, grown) && admit(cell))
+    }))
+}
+
+/// Whether the balls of `cell`'s four vertices, their weights times `weight_factor`, overlap
+/// pairwise.
+fn overlap_pairwise(tri: &RegularTriangulation, cell: [u32; 4], weight_factor: f64) -> bool {
+    (0..4).all(|a| {
+        (a + 1..4).all(|b| {
+            let (u, v) = (cell[a], cell[b]);
+            balls_overlap(
+                tri.point(u),
+                tri.point(v),
+                weight_factor * tri.scaled_weight(u),
+                weight_factor * tri.scaled_weight(v),
+            )
         })
     })
 }
@@ -115,6 +169,19 @@ mod tests {
     fn overlap_oracle(p: [i64; 3], q: [i64; 3], rp: i64, rq: i64) -> bool {
         let d2: i128 = (0..3).map(|k| ((p[k] - q[k]) as i128).pow(2)).sum();
         d2 < ((rp + rq) as i128).pow(2)
+    }
+
+    #[test]
+    fn a_growth_below_one_or_not_finite_is_refused() {
+        let centres = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        let params = DualComplexParams::default();
+        for growth in [0.5, f64::NAN, f64::INFINITY] {
+            let got = overlap_complex_admitting(&centres, &[1.0; 4], &params, growth, |_| true);
+            assert!(
+                matches!(got, Err(TetraError::InvalidGrowth(g)) if g.to_bits() == growth.to_bits()),
+                "{growth}"
+            );
+        }
     }
 
     proptest! {

@@ -8,7 +8,7 @@ use sphcover_tetra::NO_TET;
 use sphcover_tetra::predicates::{orient3d, orthocentre, orthocentre_power_sign};
 use sphcover_tetra::{
     DualComplexParams, TetMesh, dual_complex, marching_tetrahedra, marching_tetrahedra_scalar,
-    overlap_complex,
+    overlap_complex, overlap_complex_admitting,
 };
 
 fn no_shrink() -> DualComplexParams {
@@ -118,31 +118,69 @@ proptest! {
         for t in &dual {
             prop_assert!(overlap.binary_search(t).is_ok(), "dual tetrahedron {:?} missing", t);
         }
-        // Pairwise overlap with a margin either side; ties are left undecided.
-        let overlap_margin = |t: &[u32; 4]| -> Option<bool> {
-            let mut all = true;
-            for a in 0..4 {
-                for b in a + 1..4 {
-                    let (i, j) = (t[a] as usize, t[b] as usize);
-                    let gap = c[i].distance(c[j]) - (r[i] + r[j]);
-                    if gap.abs() < 1e-9 * (r[i] + r[j]) {
-                        return None;
-                    }
-                    all &= gap < 0.0;
-                }
-            }
-            Some(all)
-        };
         let (cells, unsure) = brute_force_cells(&c, &r, false);
         for t in &cells {
-            if overlap_margin(t) == Some(true) {
+            if overlap_margin(&c, &r, t, 1.0) == Some(true) {
                 prop_assert!(overlap.binary_search(t).is_ok(), "missing {:?}", t);
             }
         }
         for t in &overlap {
-            prop_assert!(unsure.contains(t) || (cells.contains(t) && overlap_margin(t) != Some(false)), "extra {:?}", t);
+            prop_assert!(unsure.contains(t) || (cells.contains(t) && overlap_margin(&c, &r, t, 1.0) != Some(false)), "extra {:?}", t);
         }
     }
+
+    /// The admitting overlap complex is the overlap complex and the triangulation's other
+    /// tetrahedra whose balls, grown twice, overlap pairwise and that the predicate admits.
+    #[test]
+    fn admitting_overlap_complex_equals_brute_force(
+        n in 5usize..40,
+        seed in 0u64..10_000,
+        parity in 0u32..2,
+    ) {
+        let (c, r) = random_cover(n, seed);
+        // A property of the sorted cell, whatever order the triangulation lists it in.
+        let admitted = |t: [u32; 4]| {
+            let mut s = t;
+            s.sort_unstable();
+            (s[0] + 2 * s[1] + 3 * s[2] + s[3]) % 2 == parity
+        };
+        let ours = match overlap_complex_admitting(&c, &r, &no_shrink(), 2.0, admitted) {
+            Ok(o) => canonical(&o.tets),
+            Err(e) => return Err(TestCaseError::fail(format!("{e}"))),
+        };
+        let (cells, unsure) = brute_force_cells(&c, &r, false);
+        for t in &cells {
+            let expected = match (overlap_margin(&c, &r, t, 1.0), overlap_margin(&c, &r, t, 2.0)) {
+                (Some(true), _) => Some(true),
+                (Some(false), Some(grown)) => Some(grown && admitted(*t)),
+                _ => None,
+            };
+            if let Some(expected) = expected {
+                prop_assert_eq!(ours.binary_search(t).is_ok(), expected, "{:?}", t);
+            }
+        }
+        for t in &ours {
+            prop_assert!(cells.contains(t) || unsure.contains(t), "extra {:?}", t);
+        }
+    }
+}
+
+/// Whether the balls of `t`, radii times `growth`, overlap pairwise, with a margin either
+/// side; `None` near a tie.
+fn overlap_margin(c: &[DVec3], r: &[f64], t: &[u32; 4], growth: f64) -> Option<bool> {
+    let mut all = true;
+    for a in 0..4 {
+        for b in a + 1..4 {
+            let (i, j) = (t[a] as usize, t[b] as usize);
+            let reach = growth * (r[i] + r[j]);
+            let gap = c[i].distance(c[j]) - reach;
+            if gap.abs() < 1e-9 * reach {
+                return None;
+            }
+            all &= gap < 0.0;
+        }
+    }
+    Some(all)
 }
 
 /// Balls of radius `r` at `centres`.
