@@ -160,7 +160,12 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
             "max_hole_perimeter_voxels" => r.cleaning.max_hole_perimeter_voxels = v,
             "min_relative_strength" => p.ridge.min_relative_strength = v,
             "dual_complex" if v != 0.0 => p.tet_complex = sphcover_skeleton::TetComplex::Dual,
-            "dual_complex" => p.tet_complex = sphcover_skeleton::TetComplex::Auto,
+            "overlap_complex" if v != 0.0 => {
+                p.tet_complex = sphcover_skeleton::TetComplex::Overlap;
+            }
+            "dual_complex" | "overlap_complex" => {
+                p.tet_complex = sphcover_skeleton::TetComplex::Auto;
+            }
             "max_eigen_ratio" => p.ridge.max_eigen_ratio = v,
             "off" => {
                 // `off=N` switches off the N-th optional repair, in the order of the table
