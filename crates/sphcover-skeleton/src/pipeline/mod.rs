@@ -328,6 +328,7 @@ pub(crate) fn sheet_from_cover(
         grid.map(|volume| VoxelPart {
             volume,
             threshold: intensity.threshold,
+            background: intensity.background_level,
             noise: intensity.noise_std,
         }),
     );

@@ -42,11 +42,13 @@ pub struct PerforationParams {
     /// thin part and takes its material for a hole).
     pub column_half_length_voxels: f64,
     /// A vertex is over air when its column's mean value is below the threshold plus this
-    /// fraction of the way to the part's level (the median column of its piece of sheet).
+    /// fraction of the way to the part's level (the median column of its piece of sheet),
+    /// and below the midpoint of the background and the part's level plus this fraction of
+    /// the way from there to the level (the same point when the threshold is the midpoint).
     pub air_fraction: f64,
-    /// A vertex is over little material when its column's mean is below the threshold plus
-    /// this fraction of the way to the part's level; such vertices joined through edges form
-    /// the region cut around a vertex over air.
+    /// A vertex is over little material when its column's mean is below both points of
+    /// [`PerforationParams::air_fraction`] taken with this fraction; such vertices joined
+    /// through edges form the region cut around a vertex over air.
     pub little_material_fraction: f64,
 }
 
@@ -76,6 +78,9 @@ pub struct VoxelPart<'a> {
     pub volume: &'a Volume,
     /// The part is where the values exceed this.
     pub threshold: f64,
+    /// The level of what surrounds the part: the median of the values at or below the
+    /// threshold (of the material window on a CT).
+    pub background: f64,
     /// Standard deviation of the volume's noise.
     pub noise: f64,
 }
@@ -222,11 +227,18 @@ pub fn cut_perforations(
     // noise (at 30% of the contrast a quarter of the way to the part's level is within 2.4
     // deviations of it, and a cut opened the T-junction's web).
     let column_noise = NOISE_DEVIATIONS * part.noise / COLUMN_INDEPENDENT_VOXELS.sqrt();
+    // The second bound matters where the threshold lies near the part's level: on the head
+    // CT the holder arc (+500 HU, its columns' median 337 HU) stands above a bone threshold
+    // of 223 HU over a background of 33 HU, and columns of 229–280 HU across the arc, where
+    // it runs along the grid's planes, passed for air under the first bound alone: the
+    // repair cut a strip of holes across it.
     let below = |fraction: f64, noisy: bool| -> Vec<bool> {
         (0..n)
             .map(|v| {
                 let top = piece_level[piece[v] as usize].max(part.threshold);
-                let mut limit = part.threshold + fraction * (top - part.threshold);
+                let mid = 0.5 * (part.background.min(part.threshold) + top);
+                let mut limit = (part.threshold + fraction * (top - part.threshold))
+                    .min(mid + fraction * (top - mid));
                 if noisy {
                     limit = limit.min(top - column_noise);
                 }
@@ -356,12 +368,66 @@ mod tests {
             .any(|p| (p.x - 12.0).hypot(p.y - 12.0) < 0.9)
     }
 
+    /// A part whose level lies just above the threshold (a head holder of 500 HU over a bone
+    /// threshold): a band of its slab reads 0.76 against 1 elsewhere, above the threshold 0.7
+    /// and under a quarter of the way from it to the level, over a background of 0. That
+    /// band is material, not a hole; a hole through the same slab is one.
+    #[test]
+    fn material_just_above_the_threshold_is_not_a_hole() {
+        let params = PerforationParams::default();
+        let band = |hole: f64| {
+            let mut values = Vec::new();
+            for k in 0..12 {
+                for j in 0..24 {
+                    for i in 0..24 {
+                        let in_slab = (4.5..7.5).contains(&f64::from(k));
+                        let in_hole = (f64::from(i) - 12.0).hypot(f64::from(j) - 12.0) <= hole;
+                        let level = if (10..=14).contains(&i) { 0.76 } else { 1.0 };
+                        values.push(if in_slab && !in_hole { level } else { 0.0 });
+                    }
+                }
+            }
+            Volume::axis_aligned(
+                [24, 24, 12],
+                VoxelValues::F32(values),
+                DVec3::ONE,
+                DVec3::ZERO,
+            )
+            .unwrap()
+        };
+        let part = |volume, background| VoxelPart {
+            volume,
+            threshold: 0.7,
+            background,
+            noise: 0.0,
+        };
+        let solid = band(-1.0);
+        let mut whole = sheet();
+        assert_eq!(
+            cut_perforations(&mut whole, &part(&solid, 0.0), &params, 1.0),
+            0
+        );
+        assert_eq!(whole, sheet());
+        // Measured from the threshold alone (a background at the threshold), the band passes
+        // for air.
+        let mut cut = sheet();
+        assert!(cut_perforations(&mut cut, &part(&solid, 0.7), &params, 1.0) > 0);
+        let holed = band(1.2);
+        let mut mesh = sheet();
+        assert_eq!(
+            cut_perforations(&mut mesh, &part(&holed, 0.0), &params, 1.0),
+            1
+        );
+        assert!(!over_the_hole(&mesh));
+    }
+
     #[test]
     fn a_hole_through_the_part_is_cut_and_nothing_else() {
         let params = PerforationParams::default();
         let part = |volume| VoxelPart {
             volume,
             threshold: 0.5,
+            background: 0.0,
             noise: 0.0,
         };
         let holed = plate(1.2);
@@ -401,6 +467,7 @@ mod tests {
             let part = VoxelPart {
                 volume: &volume,
                 threshold: 0.5,
+                background: 0.0,
                 noise: 0.0,
             };
             // The rim at x = 2.2 reads 0.8 of the part; the next vertex, at 2.45, 0.55: air.
@@ -430,7 +497,7 @@ mod tests {
                 }
             }
             let volume = Volume::axis_aligned(dims, VoxelValues::F64(values), size, origin).unwrap();
-            let part = VoxelPart { volume: &volume, threshold: 0.0, noise: 0.0 };
+            let part = VoxelPart { volume: &volume, threshold: 0.0, background: 0.0, noise: 0.0 };
             let x = origin + size * DVec3::new(p.0, p.1, p.2);
             let value = part.value(&volume.affine().inverse(), x).unwrap();
             prop_assert!((value - (g.dot(x) + offset)).abs() < 1e-9);
