@@ -310,13 +310,28 @@ mod tests {
 
     /// [`plate`] with the hole about `(x, 12)`.
     fn plate_with_hole_at(x: f64, hole: f64) -> Volume {
+        slab(|i, j| {
+            if (i - x).hypot(j - 12.0) > hole {
+                1.0
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// A 24 × 24 × 12 volume of unit voxels: `value(i, j)` in the slab 4.5 < z < 7.5, 0
+    /// elsewhere.
+    fn slab(value: impl Fn(f64, f64) -> f32) -> Volume {
         let mut values = Vec::new();
         for k in 0..12 {
             for j in 0..24 {
                 for i in 0..24 {
                     let in_slab = (4.5..7.5).contains(&f64::from(k));
-                    let r = (f64::from(i) - x).hypot(f64::from(j) - 12.0);
-                    values.push(if in_slab && r > hole { 1.0 } else { 0.0 });
+                    values.push(if in_slab {
+                        value(f64::from(i), f64::from(j))
+                    } else {
+                        0.0
+                    });
                 }
             }
         }
@@ -376,24 +391,15 @@ mod tests {
     fn material_just_above_the_threshold_is_not_a_hole() {
         let params = PerforationParams::default();
         let band = |hole: f64| {
-            let mut values = Vec::new();
-            for k in 0..12 {
-                for j in 0..24 {
-                    for i in 0..24 {
-                        let in_slab = (4.5..7.5).contains(&f64::from(k));
-                        let in_hole = (f64::from(i) - 12.0).hypot(f64::from(j) - 12.0) <= hole;
-                        let level = if (10..=14).contains(&i) { 0.76 } else { 1.0 };
-                        values.push(if in_slab && !in_hole { level } else { 0.0 });
-                    }
+            slab(|i, j| {
+                if (i - 12.0).hypot(j - 12.0) <= hole {
+                    0.0
+                } else if (10.0..=14.0).contains(&i) {
+                    0.76
+                } else {
+                    1.0
                 }
-            }
-            Volume::axis_aligned(
-                [24, 24, 12],
-                VoxelValues::F32(values),
-                DVec3::ONE,
-                DVec3::ZERO,
-            )
-            .unwrap()
+            })
         };
         let part = |volume, background| VoxelPart {
             volume,
