@@ -281,7 +281,7 @@ fn patches(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
 }
 
 /// Welding, pinches, small holes over material and fragments; the first repair also builds
-/// the function the repairs probe.
+/// the function the repairs probe, unless the tetrahedral mesh did.
 fn cleaning(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     build_function(ctx)?;
     let part = part(&ctx.function, ctx.level, ctx.r_max);
