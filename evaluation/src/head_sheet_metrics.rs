@@ -44,6 +44,12 @@ pub struct HeadSheetMetrics {
     pub holder_covered: f64,
     /// The holder's sheet shares no component with the vault's.
     pub holder_separate: bool,
+    /// Perimeters (mm) of the holes of the holder's sheet (the boundary loops of the
+    /// components its mid-surface lies on, but each component's longest, its outline),
+    /// largest first. The holder is one continuous plate: any hole is a defect, which
+    /// [`HeadSheetMetrics::holder_covered`] does not see when it is narrower than
+    /// 2 · [`ON_BONE`] voxels.
+    pub holder_holes: Vec<f64>,
     /// Components of the whole sheet.
     pub components: usize,
     /// Fraction of triangles that share no edge with another (confetti).
@@ -166,9 +172,20 @@ pub fn score_head_sheet(sheet: &TriMesh, ct: &HeadCt) -> HeadSheetMetrics {
         .max_by(|&a, &b| vault_area[a].total_cmp(&vault_area[b]))
         .unwrap_or(0) as u32;
 
-    let vault_holes = vault_holes(sheet, ct, &near_vault, &component, vault_component, |x| {
-        nearest(&other_index, &other_bone, x) <= COVERED * voxel
-    });
+    let base = ct.skull_base_z + COVERED * ct.pixel;
+    let mut vault_holes: Vec<f64> = boundary_loops(
+        sheet,
+        |t| near_vault[t] && component[t] == vault_component,
+        |a, b| {
+            a.z.min(b.z) < base
+                || nearest(&other_index, &other_bone, 0.5 * (a + b)) <= COVERED * voxel
+        },
+    )
+    .into_iter()
+    .filter(|l| !l.rim)
+    .map(|l| l.perimeter)
+    .collect();
+    vault_holes.sort_by(|a, b| b.total_cmp(a));
 
     let holder: Vec<(f64, u32)> = ct
         .holder_mid_surface
@@ -189,6 +206,7 @@ pub fn score_head_sheet(sheet: &TriMesh, ct: &HeadCt) -> HeadSheetMetrics {
         && holder_hits
             .iter()
             .all(|&c| vault_area[c as usize] <= 0.01 * total_vault_area);
+    let holder_holes = holder_holes(sheet, &component, &holder_hits);
 
     let mut edge_use: HashMap<(u32, u32), u32> = HashMap::new();
     for t in &sheet.triangles {
@@ -209,6 +227,7 @@ pub fn score_head_sheet(sheet: &TriMesh, ct: &HeadCt) -> HeadSheetMetrics {
         vault_holes,
         holder_covered,
         holder_separate,
+        holder_holes,
         components: MeshTopology::of(sheet).components,
         isolated_triangles: isolated as f64 / sheet.triangles.len().max(1) as f64,
     }
@@ -245,48 +264,76 @@ fn thin_vault_voxels(ct: &HeadCt) -> Vec<DVec3> {
     })
 }
 
-/// Perimeters of the holes in the vault's sheet: the boundary of the vault component's
-/// triangles near the vault, split into connected chains of boundary edges; a chain is the
-/// vault's own rim (not a hole) when it comes within three voxels of the skull base or of
-/// other bone (`near_other`).
-fn vault_holes(
+/// A boundary loop of part of a sheet.
+struct BoundaryLoop {
+    /// Length (world units).
+    perimeter: f64,
+    /// Some edge of the loop passes the caller's rim test.
+    rim: bool,
+    /// A triangle along the loop.
+    triangle: usize,
+}
+
+/// The boundary loops (edges used once, joined at shared vertices) of the triangles of
+/// `sheet` that `keep` admits (by index), each with whether `rim` holds on one of its edges
+/// (given the edge's ends).
+fn boundary_loops(
     sheet: &TriMesh,
-    ct: &HeadCt,
-    near_vault: &[bool],
-    component: &[u32],
-    vault_component: u32,
-    near_other: impl Fn(DVec3) -> bool + Sync,
-) -> Vec<f64> {
-    let mut edge_use: HashMap<(u32, u32), u32> = HashMap::new();
-    for (t, (&near, &c)) in sheet.triangles.iter().zip(near_vault.iter().zip(component)) {
-        if near && c == vault_component {
-            for k in 0..3 {
-                *edge_use.entry(edge(t[k], t[(k + 1) % 3])).or_default() += 1;
-            }
+    keep: impl Fn(usize) -> bool,
+    rim: impl Fn(DVec3, DVec3) -> bool,
+) -> Vec<BoundaryLoop> {
+    let mut edge_use: HashMap<(u32, u32), (u32, usize)> = HashMap::new();
+    for (i, t) in sheet.triangles.iter().enumerate().filter(|&(i, _)| keep(i)) {
+        for k in 0..3 {
+            edge_use
+                .entry(edge(t[k], t[(k + 1) % 3]))
+                .or_insert((0, i))
+                .0 += 1;
         }
     }
-    let boundary: Vec<(u32, u32)> = edge_use
+    let mut boundary: Vec<((u32, u32), usize)> = edge_use
         .into_iter()
-        .filter(|&(_, n)| n == 1)
-        .map(|(e, _)| e)
+        .filter(|&(_, (n, _))| n == 1)
+        .map(|(e, (_, t))| (e, t))
         .collect();
+    boundary.sort_unstable();
     let mut chains = DisjointSets::new(sheet.vertices.len());
-    for &(a, b) in &boundary {
+    for &((a, b), _) in &boundary {
         chains.union(a, b);
     }
-    let base = ct.skull_base_z + COVERED * ct.pixel;
-    let mut perimeter: HashMap<u32, (f64, bool)> = HashMap::new();
-    for &(a, b) in &boundary {
+    let mut loops: HashMap<u32, BoundaryLoop> = HashMap::new();
+    for &((a, b), t) in &boundary {
         let (pa, pb) = (sheet.vertices[a as usize], sheet.vertices[b as usize]);
-        let rim = pa.z.min(pb.z) < base || near_other(0.5 * (pa + pb));
-        let entry = perimeter.entry(chains.find(a)).or_insert((0.0, false));
-        entry.0 += pa.distance(pb);
-        entry.1 |= rim;
+        let entry = loops.entry(chains.find(a)).or_insert(BoundaryLoop {
+            perimeter: 0.0,
+            rim: false,
+            triangle: t,
+        });
+        entry.perimeter += pa.distance(pb);
+        entry.rim |= rim(pa, pb);
     }
-    let mut holes: Vec<f64> = perimeter
+    let mut loops: Vec<BoundaryLoop> = loops.into_values().collect();
+    loops.sort_by_key(|l| l.triangle);
+    loops
+}
+
+/// Perimeters of the holes of the components `hits` (the holder's), largest first: every
+/// boundary loop of those components but each one's longest.
+fn holder_holes(sheet: &TriMesh, component: &[u32], hits: &[u32]) -> Vec<f64> {
+    let holder: std::collections::BTreeSet<u32> = hits.iter().copied().collect();
+    let mut by_component: HashMap<u32, Vec<f64>> = HashMap::new();
+    for l in boundary_loops(sheet, |t| holder.contains(&component[t]), |_, _| false) {
+        by_component
+            .entry(component[l.triangle])
+            .or_default()
+            .push(l.perimeter);
+    }
+    let mut holes: Vec<f64> = by_component
         .into_values()
-        .filter(|&(_, rim)| !rim)
-        .map(|(length, _)| length)
+        .flat_map(|mut loops| {
+            loops.sort_by(|a, b| b.total_cmp(a));
+            loops.into_iter().skip(1)
+        })
         .collect();
     holes.sort_by(|a, b| b.total_cmp(a));
     holes
@@ -353,6 +400,51 @@ mod tests {
         assert_eq!(holed.vault_holes.len(), 1, "{holed:?}");
         // 10 quads of about 0.93 mm by 4 rows of about 1.6 mm.
         assert!((holed.largest_hole() - 31.0).abs() < 4.0, "{holed:?}");
+    }
+
+    /// The holder's true mid-surface (its samples are a grid, row by row) appended to
+    /// `mesh`, with a patch of 6 × 6 quads left out at its middle when `hole` is set.
+    fn with_holder(ct: &HeadCt, mut mesh: TriMesh, hole: bool) -> TriMesh {
+        let samples = &ct.holder_mid_surface;
+        let cols = samples.iter().take_while(|p| p.z == samples[0].z).count();
+        let rows = samples.len() / cols;
+        let first = mesh.vertices.len() as u32;
+        mesh.vertices.extend_from_slice(samples);
+        let (mid_row, mid_col) = (rows / 2, cols / 2);
+        for i in 0..rows - 1 {
+            for j in 0..cols - 1 {
+                if hole
+                    && (mid_row..mid_row + 6).contains(&i)
+                    && (mid_col..mid_col + 6).contains(&j)
+                {
+                    continue;
+                }
+                let a = first + (i * cols + j) as u32;
+                let (b, c, d) = (a + 1, a + cols as u32, a + cols as u32 + 1);
+                mesh.triangles.extend([[a, b, d], [a, d, c]]);
+            }
+        }
+        mesh
+    }
+
+    #[test]
+    fn a_hole_in_the_holder_is_counted_and_its_outline_is_not() {
+        let ct = head_ct_phantom(&HeadCtParams::small());
+        let whole = score_head_sheet(&with_holder(&ct, mid_surface(&ct, false), false), &ct);
+        assert!(whole.holder_covered > 0.99, "{whole:?}");
+        assert!(whole.holder_separate);
+        assert!(whole.holder_holes.is_empty(), "{:?}", whole.holder_holes);
+        assert!(whole.vault_holes.is_empty(), "{:?}", whole.vault_holes);
+        let holed = score_head_sheet(&with_holder(&ct, mid_surface(&ct, false), true), &ct);
+        // 6 × 6 quads of about half a millimetre: a loop of about 12 mm. Too narrow for the
+        // coverage to see.
+        assert_eq!(holed.holder_holes.len(), 1, "{:?}", holed.holder_holes);
+        assert!(
+            (holed.holder_holes[0] - 12.0).abs() < 1.5,
+            "{:?}",
+            holed.holder_holes
+        );
+        assert!(holed.holder_covered > 0.99, "{holed:?}");
     }
 
     #[test]

@@ -30,7 +30,7 @@ use sphcover_evaluation::head_sheet_metrics::{
 };
 
 /// Columns of the table.
-const COLUMNS: usize = 14;
+const COLUMNS: usize = 15;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -116,6 +116,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "holes > 20 mm (largest)",
         "holder covered",
         "holder apart",
+        "holder holes (largest)",
         "comp.",
         "status",
     ]);
@@ -178,7 +179,8 @@ fn run(args: Args) -> anyhow::Result<()> {
              voxel): on bone = share of the output within {ON_BONE} voxels of bone or holder; vault \
              covered = share of the vault's bone voxels (bone ≤ {THIN_VAULT} voxels thick) within \
              {COVERED} voxels of the output; holes = boundary loops of the vault's sheet away from \
-             the skull base and other bone.\n\n{rendered}",
+             the skull base and other bone; holder holes = boundary loops of the holder's sheet \
+             but its outline.\n\n{rendered}",
             command_line()
         );
         std::fs::write(out, text).with_context(|| format!("writing {}", out.display()))?;
@@ -221,6 +223,11 @@ fn score_output(output: &std::path::Path, ct: &HeadCt, cells: &mut Vec<String>) 
         format!("{big_holes} ({:.0} mm)", m.largest_hole()),
         format!("{:.3}", m.holder_covered),
         if m.holder_separate { "yes" } else { "no" }.to_string(),
+        format!(
+            "{} ({:.0} mm)",
+            m.holder_holes.len(),
+            m.holder_holes.first().copied().unwrap_or(0.0)
+        ),
         m.components.to_string(),
     ]);
     format!(
