@@ -236,9 +236,11 @@ pub fn cut_perforations(
         (0..n)
             .map(|v| {
                 let top = piece_level[piece[v] as usize].max(part.threshold);
+                // Both bounds are `from + fraction · (top − from)`, which grows with `from`:
+                // the lower one counts from the lower of the two starting points.
                 let mid = 0.5 * (part.background.min(part.threshold) + top);
-                let mut limit = (part.threshold + fraction * (top - part.threshold))
-                    .min(mid + fraction * (top - mid));
+                let from = part.threshold.min(mid);
+                let mut limit = from + fraction * (top - from);
                 if noisy {
                     limit = limit.min(top - column_noise);
                 }
