@@ -312,9 +312,7 @@ fn boundary_loops(
         entry.perimeter += pa.distance(pb);
         entry.rim |= rim(pa, pb);
     }
-    let mut loops: Vec<BoundaryLoop> = loops.into_values().collect();
-    loops.sort_by_key(|l| l.triangle);
-    loops
+    loops.into_values().collect()
 }
 
 /// Perimeters of the holes of the components `hits` (the holder's), largest first: every
