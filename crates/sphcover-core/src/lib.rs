@@ -86,7 +86,8 @@ pub use mesh::{
 };
 pub use mesh_topology::MeshTopology;
 pub use opposite_faces::{
-    COHERENT_RESULTANT, OPPOSED_COSINE, face_to_fit, faces_away, may_hold_opposite_faces,
+    COHERENT_RESULTANT, FACE_COSINE, Face, FaceSelection, OPPOSED_COSINE, face_to_fit, faces_away,
+    may_hold_opposite_faces,
 };
 pub use parameter_error::{LengthMismatch, ParameterError};
 pub use partition_of_unity::{PuEvaluator, SupportLists, ValueGradient, ValueGradientHessian};

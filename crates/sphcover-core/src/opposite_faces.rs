@@ -10,13 +10,21 @@
 //! output had genus 63 instead of 11.
 //!
 //! As MPU does for thin structures (Ohtake et al. 2003), such a support fits only the face of
-//! the sample nearest its centre: the samples whose normal is not turned away from that
-//! sample's normal by more than 120° ([`faces_away`]), unless the samples turned away weigh
-//! more ([`face_to_fit`]). The test applies only where the normals disagree at all
-//! ([`may_hold_opposite_faces`]), so a smooth or merely curved patch is fitted as before, and
-//! a crease or a corner (normals 90° apart) keeps all its samples. The bound and the choice
-//! between the two faces were measured on scans with noise, outliers and holes
-//! (`docs/algorithms.md`, *Surface reconstruction*).
+//! the sample nearest its centre, unless the samples turned away from that sample's normal by
+//! more than 120° ([`faces_away`]) weigh more ([`face_to_fit`]). The test applies only where
+//! the normals disagree at all ([`may_hold_opposite_faces`]), so a smooth or merely curved
+//! patch is fitted as before, and a crease or a corner (normals 90° apart, none turned away)
+//! keeps all its samples.
+//!
+//! Which samples make the face ([`Face::holds`]): with [`FaceSelection::Narrow`], those within
+//! 60° of its normal ([`FACE_COSINE`]) where the ball does hold samples turned away. Within
+//! 120°, the face would keep the faces at right angles to it: a ball in the gap beside a rib
+//! fits the rib's side and its top together, a plane tilted by 45° whose inside reaches across
+//! the gap below the top (on the housing's 1.3 mm gaps the tops of neighbouring ribs grew
+//! towards each other and met). [`FaceSelection::Wide`] keeps the 120° bound everywhere; the
+//! reconstruction uses it where the noise sets the tolerance, where the narrow cone raised
+//! the Chamfer distance of a noisy scan by 3% (`docs/algorithms.md`, *Surface
+//! reconstruction*, has the figures).
 
 use glam::DVec3;
 
@@ -26,6 +34,43 @@ pub const COHERENT_RESULTANT: f64 = 0.9;
 
 /// `cos` of the smallest angle between two normals of opposite faces (120°).
 pub const OPPOSED_COSINE: f64 = -0.5;
+
+/// Where a support's ball holds samples facing away from its face, the samples whose normal
+/// is within `acos(FACE_COSINE)` = 60° of the face's make the face
+/// ([`FaceSelection::Narrow`]).
+pub const FACE_COSINE: f64 = 0.5;
+
+/// Which samples make the face a support fits ([`face_to_fit`], [`Face::holds`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FaceSelection {
+    /// Where the ball holds samples facing away from the face, those within 60° of its
+    /// normal; elsewhere those not facing away (all of them).
+    #[default]
+    Narrow,
+    /// Those not facing away from the face (within 120° of its normal).
+    Wide,
+}
+
+/// The face a support fits: its normal, and which samples belong to it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Face {
+    normal: DVec3,
+    /// A sample belongs when the cosine of its angle to `normal` is not below this.
+    cosine: f64,
+}
+
+impl Face {
+    /// The normal of the sample that chose the face.
+    pub fn normal(&self) -> DVec3 {
+        self.normal
+    }
+
+    /// Whether a sample with `normal` (of any length) belongs to the face. A zero or
+    /// non-finite normal faces nowhere and belongs.
+    pub fn holds(&self, normal: DVec3) -> bool {
+        !turned_beyond(self.normal, normal, self.cosine)
+    }
+}
 
 /// Whether a support whose samples' normals (unit, or of any length in `normal_sum` as long
 /// as `weight` sums the same weights times their lengths) sum to `normal_sum` with total
@@ -55,45 +100,61 @@ pub fn may_hold_opposite_faces(weight: f64, normal_sum: DVec3) -> bool {
 /// assert!(!faces_away(DVec3::Z, DVec3::X));
 /// ```
 pub fn faces_away(reference: DVec3, normal: DVec3) -> bool {
-    reference.dot(normal) < OPPOSED_COSINE * (reference.length() * normal.length())
+    turned_beyond(reference, normal, OPPOSED_COSINE)
 }
 
-/// The normal whose face a support should fit ([`faces_away`] picks its samples), or `None`
-/// when its samples' normals agree ([`may_hold_opposite_faces`] of `weight` and
-/// `normal_sum`, their sums).
+/// Whether the angle between `reference` and `normal` has a cosine below `cosine` (false
+/// when either is zero or not finite).
+fn turned_beyond(reference: DVec3, normal: DVec3, cosine: f64) -> bool {
+    reference.dot(normal) < cosine * (reference.length() * normal.length())
+}
+
+/// The face a support should fit, or `None` when its samples' normals agree
+/// ([`may_hold_opposite_faces`] of `weight` and `normal_sum`, their sums).
 ///
 /// `samples` calls its argument with the normal, squared distance from the centre and
 /// weight of every sample of the support, in a fixed order (it is called twice). The face is
 /// the nearest sample's, unless the samples facing away from that one weigh more: then it is
 /// the face of the nearest of those. So a stray sample nearest the centre (an outlier whose
 /// normal says nothing) does not choose the face, while across a thin wall the nearer face,
-/// which the kernel weighs more, does.
+/// which the kernel weighs more, does. `selection` says which samples belong to the face
+/// ([`Face::holds`]).
 ///
 /// ```
-/// use sphcover_core::{DVec3, face_to_fit};
+/// use sphcover_core::{DVec3, FaceSelection, face_to_fit};
 ///
-/// // Two faces of a wall, the upper (normal +z) nearer the centre, and one stray sample
-/// // nearer still with a normal that faces down.
+/// // Two faces of a wall, the upper (normal +z) nearer the centre, one stray sample nearer
+/// // still with a normal that faces down, and the wall's end face (normal +x).
 /// let samples = [
 ///     (DVec3::Z, 0.04, 1.0), (DVec3::Z, 0.05, 1.0), (DVec3::Z, 0.06, 1.0),
 ///     (-DVec3::Z, 0.09, 0.8), (-DVec3::Z, 0.10, 0.8),
 ///     (-DVec3::Z, 0.01, 0.3),
+///     (DVec3::X, 0.08, 0.5),
 /// ];
 /// let (weight, normal_sum) = samples
 ///     .iter()
 ///     .fold((0.0, DVec3::ZERO), |(w, n), s| (w + s.2, n + s.2 * s.0));
-/// let face = face_to_fit(weight, normal_sum, |visit| {
-///     for &(n, d2, w) in &samples {
-///         visit(n, d2, w);
-///     }
-/// });
-/// assert_eq!(face, Some(DVec3::Z));
+/// let face = |selection| {
+///     face_to_fit(weight, normal_sum, selection, |visit| {
+///         for &(n, d2, w) in &samples {
+///             visit(n, d2, w);
+///         }
+///     })
+///     .unwrap()
+/// };
+/// let narrow = face(FaceSelection::Narrow);
+/// assert_eq!(narrow.normal(), DVec3::Z);
+/// assert!(narrow.holds(DVec3::Z) && !narrow.holds(-DVec3::Z) && !narrow.holds(DVec3::X));
+/// // The wide selection keeps the end face, at right angles to the chosen one.
+/// let wide = face(FaceSelection::Wide);
+/// assert!(wide.holds(DVec3::Z) && !wide.holds(-DVec3::Z) && wide.holds(DVec3::X));
 /// ```
 pub fn face_to_fit(
     weight: f64,
     normal_sum: DVec3,
+    selection: FaceSelection,
     samples: impl Fn(&mut dyn FnMut(DVec3, f64, f64)),
-) -> Option<DVec3> {
+) -> Option<Face> {
     if !may_hold_opposite_faces(weight, normal_sum) {
         return None;
     }
@@ -111,10 +172,16 @@ pub fn face_to_fit(
         nearest.map(|(_, n)| (n, weight))
     };
     let (first, total) = nearest_where(&|_| true)?;
-    match nearest_where(&|n| faces_away(first, n)) {
-        Some((other, away)) if away > total - away => Some(other),
-        _ => Some(first),
-    }
+    let away = nearest_where(&|n| faces_away(first, n));
+    let cosine = match (selection, away) {
+        (FaceSelection::Narrow, Some(_)) => FACE_COSINE,
+        _ => OPPOSED_COSINE,
+    };
+    let normal = match away {
+        Some((other, away)) if away > total - away => other,
+        _ => first,
+    };
+    Some(Face { normal, cosine })
 }
 
 #[cfg(test)]
@@ -171,15 +238,73 @@ mod tests {
     }
 
     /// Samples as `(normal, squared distance, weight)`.
-    fn face_of(samples: &[(DVec3, f64, f64)]) -> Option<DVec3> {
+    fn face_with(samples: &[(DVec3, f64, f64)], selection: FaceSelection) -> Option<Face> {
         let (w, n) = samples
             .iter()
             .fold((0.0, DVec3::ZERO), |(w, n), s| (w + s.2, n + s.2 * s.0));
-        face_to_fit(w, n, |visit| {
+        face_to_fit(w, n, selection, |visit| {
             for &(n, d2, w) in samples {
                 visit(n, d2, w);
             }
         })
+    }
+
+    fn face_of(samples: &[(DVec3, f64, f64)]) -> Option<DVec3> {
+        face_with(samples, FaceSelection::Narrow).map(|f| f.normal())
+    }
+
+    /// The angle between two directions, in degrees.
+    fn degrees(a: DVec3, b: DVec3) -> f64 {
+        (a.dot(b) / (a.length() * b.length()))
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
+    }
+
+    proptest! {
+        /// Where the ball holds samples facing away from the face, the narrow selection
+        /// keeps exactly the normals within 60° of the face's, the wide one those within
+        /// 120°. Where it holds none (a crease: faces at right angles), both keep the same.
+        #[test]
+        fn the_face_holds_the_normals_within_its_cone(
+            near in proptest::collection::vec((0.0f64..1.0, 0.01f64..1.0), 1..8),
+            away in proptest::collection::vec((0.0f64..1.0, 0.01f64..1.0), 1..8),
+            opposite in proptest::bool::ANY,
+            t in 0.0..std::f64::consts::PI, p in 0.0..std::f64::consts::TAU,
+            length in 0.01f64..10.0,
+        ) {
+            // The second face is opposite (−z) or at right angles (+x) to the first.
+            let second = if opposite { -DVec3::Z } else { DVec3::X };
+            let samples: Vec<(DVec3, f64, f64)> = near
+                .iter()
+                .map(|&(d2, w)| (DVec3::Z, d2, w))
+                .chain(away.iter().map(|&(d2, w)| (second, d2, w)))
+                .collect();
+            let probe = length * direction(t, p);
+            match (face_with(&samples, FaceSelection::Narrow), face_with(&samples, FaceSelection::Wide)) {
+                (Some(narrow), Some(wide)) => {
+                    prop_assert_eq!(narrow.normal(), wide.normal());
+                    let angle = degrees(wide.normal(), probe);
+                    if (angle - 120.0).abs() > 1e-6 {
+                        prop_assert_eq!(wide.holds(probe), angle < 120.0);
+                    }
+                    if !opposite {
+                        prop_assert_eq!(narrow.holds(probe), wide.holds(probe));
+                    } else if (angle - 60.0).abs() > 1e-6 {
+                        prop_assert_eq!(narrow.holds(probe), angle < 60.0);
+                    }
+                    prop_assert!(narrow.holds(DVec3::ZERO) && wide.holds(DVec3::ZERO));
+                }
+                (narrow, wide) => {
+                    prop_assert!(narrow.is_none() && wide.is_none());
+                    // Only samples that agree have no face to choose.
+                    let (w, n) = samples
+                        .iter()
+                        .fold((0.0, DVec3::ZERO), |(w, n), s| (w + s.2, n + s.2 * s.0));
+                    prop_assert!(!may_hold_opposite_faces(w, n));
+                }
+            }
+        }
     }
 
     proptest! {

@@ -5,8 +5,8 @@
 
 use rayon::prelude::*;
 use sphcover_core::{
-    Cover, CoverError, DVec3, LengthMismatch, LocalFunctions, ParameterError, PointIndex,
-    SupportLists, SupportSamples, face_to_fit, faces_away,
+    Cover, CoverError, DVec3, Face, FaceSelection, LengthMismatch, LocalFunctions, ParameterError,
+    PointIndex, SupportLists, SupportSamples, face_to_fit,
 };
 use sphcover_ops::{CgError, CgParams, CgScratch, PairGeometry, SymmetricOperator};
 use std::time::{Duration, Instant};
@@ -147,7 +147,7 @@ impl FittingTerms {
     /// non-finite normal contribute to `W` and `P` but not to `N`. A support that holds two
     /// opposite faces of a thin part sums over the face of its nearest sample only (as the
     /// cover's fit does; see [`sphcover_core::may_hold_opposite_faces`]), else the fitting
-    /// terms pull its plane between the faces.
+    /// terms pull its plane between the faces; `faces` says which samples make a face.
     pub fn gather(
         cover: &Cover,
         index: &PointIndex,
@@ -155,6 +155,7 @@ impl FittingTerms {
         points: &[DVec3],
         normals: &[DVec3],
         confidence: &[f64],
+        faces: FaceSelection,
     ) -> Result<FittingTerms, DiffusionError> {
         for (array, found) in [("normals", normals.len()), ("confidence", confidence.len())] {
             if found != points.len() {
@@ -189,12 +190,12 @@ impl FittingTerms {
             .zip(cover.radii().par_iter())
             .enumerate()
             .map(|(i, (&c, &r))| {
-                // The sums over the samples of the face `reference` picks, or over all.
-                let sums = |reference: Option<DVec3>| {
+                // The sums over the samples of `face`, or over all.
+                let sums = |face: Option<Face>| {
                     let mut sum = FittingSums::default();
                     incidence.for_each_slot_within(cover, index, i, |s, _| {
                         let n = slot_normals[s];
-                        if reference.is_none_or(|face| !faces_away(face, n)) {
+                        if face.is_none_or(|face| face.holds(n)) {
                             let p = slot_points[s];
                             sum.add(p - c, n, kernel.weight(p, c, r), slot_confidence[s]);
                         }
@@ -202,14 +203,14 @@ impl FittingTerms {
                     sum
                 };
                 let all = sums(None);
-                let face = face_to_fit(all.weight, -all.normal, |visit| {
+                let face = face_to_fit(all.weight, -all.normal, faces, |visit| {
                     incidence.for_each_slot_within(cover, index, i, |s, d2| {
                         let w = kernel.weight(slot_points[s], c, r) * slot_confidence[s];
                         visit(slot_normals[s], d2, w);
                     });
                 });
                 match face {
-                    Some(reference) => sums(Some(reference)),
+                    Some(face) => sums(Some(face)),
                     None => all,
                 }
             })

@@ -255,8 +255,10 @@ fn thin_walls_keep_their_surface_through_the_graph_cut() {
     );
     assert!(p99 < 0.3, "99th percentile distance {p99:.3} mm");
     // The part's genus is 11. Fitting both faces of the 0.7 mm fins at once made the blend
-    // thin them until they broke: genus 60 and more.
-    assert!((11..=13).contains(&genus), "genus {genus}");
+    // thin them until they broke: genus 60 and more. Fitting a rib's side with its top (the
+    // samples within 120° of the face's normal instead of 60°) tilted planes across the gaps
+    // between ribs and joined neighbouring tops.
+    assert_eq!(genus, 11);
 }
 
 #[test]

@@ -68,7 +68,7 @@ fn no_sample_means_zero_coherence() {
 mod thin_wall {
     use super::*;
     use sphcover_core::{
-        Cover, Kernel, LocalFunctions, PointIndex, SupportSamples, face_to_fit, faces_away,
+        Cover, FaceSelection, Kernel, LocalFunctions, PointIndex, SupportSamples, face_to_fit,
     };
 
     /// `(W, N, P, K)` of one support by brute force over every sample.
@@ -99,7 +99,7 @@ mod thin_wall {
             )
         };
         let all = sums(&|_| true);
-        let face = face_to_fit(all.0, all.1, |visit| {
+        let face = face_to_fit(all.0, all.1, FaceSelection::Narrow, |visit| {
             for &k in &inside {
                 let d2 = (points[k] - c).length_squared();
                 visit(
@@ -110,7 +110,7 @@ mod thin_wall {
             }
         });
         match face {
-            Some(reference) => sums(&|k| !faces_away(reference, normals[k])),
+            Some(face) => sums(&|k| face.holds(normals[k])),
             None => all,
         }
     }
@@ -142,7 +142,9 @@ mod thin_wall {
             let index = PointIndex::new(&points).unwrap();
             let incidence = SupportSamples::gather(&cover, &index);
             let terms =
-                FittingTerms::gather(&cover, &index, &incidence, &points, &normals, &confidence)
+                FittingTerms::gather(
+                    &cover, &index, &incidence, &points, &normals, &confidence, FaceSelection::Narrow,
+                )
                     .unwrap();
             for i in 0..n {
                 let (w, nsum, p, k) = brute_force(centres[i], radii[i], &points, &normals, &confidence);

@@ -17,7 +17,7 @@
 
 use crate::kernel::Kernel;
 use crate::local_function::LinearFunction;
-use crate::opposite_faces::{face_to_fit, faces_away};
+use crate::opposite_faces::{FaceSelection, face_to_fit};
 use crate::point_index::PointIndex;
 use glam::DVec3;
 use std::borrow::Cow;
@@ -35,6 +35,8 @@ pub(crate) struct Samples<'i> {
     pub normals: Vec<DVec3>,
     /// Confidences in slot order, when given.
     pub confidence: Option<Vec<f64>>,
+    /// Which samples make the face of a support across a thin part.
+    pub faces: FaceSelection,
 }
 
 /// The result of a fit.
@@ -124,7 +126,7 @@ impl Candidates {
         // Across a thin part, fit one face. The error below still counts the other, so a
         // ball across a thin wall is refined as before.
         let inv_r2 = 1.0 / r2;
-        let face = face_to_fit(sum_w, sum_n, |visit| {
+        let face = face_to_fit(sum_w, sum_n, samples.faces, |visit| {
             for j in (0..len).filter(|&j| dist2[j] < r2) {
                 let s = slots[j] as usize;
                 let confidence = samples.confidence.as_ref().map_or(1.0, |w| w[s]);
@@ -135,9 +137,8 @@ impl Candidates {
                 );
             }
         });
-        if let Some(reference) = face {
-            let sums =
-                self.weighted_sums(samples, r, kernel, |s| !faces_away(reference, normals[s]));
+        if let Some(face) = face {
+            let sums = self.weighted_sums(samples, r, kernel, |s| face.holds(normals[s]));
             // The face's samples have weight unless their kernel weights underflow; keep
             // the plain sums if they have none.
             if sums.0 > 0.0 && sums.2.length() > 0.0 {
@@ -300,6 +301,7 @@ pub(crate) mod tests {
             index: Cow::Owned(index),
             normals,
             confidence: None,
+            faces: FaceSelection::Narrow,
         }
     }
 
@@ -419,6 +421,62 @@ pub(crate) mod tests {
             prop_assert!(plane.beta > 0.0);
             prop_assert!((plane.beta - depth * thickness).abs() < 1e-9 * thickness);
             prop_assert!(fit.error >= thickness * (1.0 - 1e-9));
+        }
+    }
+
+    /// Two ribs across a gap, sampled on a grid of spacing `h`: rib A is `x ≤ 0, z ≤ 0` (its
+    /// side faces `+x`, its top `+z`), rib B's side faces `−x` at `x = gap`.
+    fn ribs_across_a_gap(gap: f64, h: f64) -> (Vec<DVec3>, Vec<DVec3>) {
+        let steps = |from: f64, to: f64| {
+            let n = ((to - from) / h).round() as i32;
+            (0..=n).map(move |i| from + f64::from(i) * h)
+        };
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for y in steps(-1.0, 1.0) {
+            for z in steps(-2.0, -h) {
+                points.extend([DVec3::new(0.0, y, z), DVec3::new(gap, y, z)]);
+                normals.extend([DVec3::X, -DVec3::X]);
+            }
+            for x in steps(-1.0, 0.0) {
+                points.push(DVec3::new(x, y, 0.0));
+                normals.push(DVec3::Z);
+            }
+        }
+        (points, normals)
+    }
+
+    proptest! {
+        /// A ball in the gap beside a rib's top holds the rib's side, its top (at right angles)
+        /// and the other rib's side (opposite). The narrow face fits the nearer side alone;
+        /// the wide one takes the top too, and its plane tilts towards the gap.
+        #[test]
+        fn a_ball_beside_a_rib_top_fits_the_rib_s_side(
+            gap in 1.0..1.6f64,
+            (x, z) in (0.15..0.3f64, -0.55..-0.35f64),
+            past in 0.3..0.5f64,
+        ) {
+            let (points, normals) = ribs_across_a_gap(gap, 0.05);
+            let centre = DVec3::new(x, 0.0, z);
+            // The ball reaches `past` beyond the other rib's side: enough of both other faces
+            // that the normals disagree (their resultant is under 0.8 of their weight).
+            let radius = gap - x + past;
+            let fit_with = |faces| {
+                let samples = Samples { faces, ..samples_of(&points, &normals) };
+                let mut cand = Candidates::default();
+                cand.gather(&samples, centre, radius);
+                cand.fit(&samples, radius, Kernel::QuadraticBSpline, f64::INFINITY).unwrap()
+            };
+            let narrow = fit_with(FaceSelection::Narrow);
+            prop_assert!((narrow.normal - DVec3::X).length() < 1e-9, "normal {}", narrow.normal);
+            // The plane is the side's, `x = 0`.
+            let on_side = DVec3::new(0.0, 0.0, z) - centre;
+            prop_assert!(narrow.linear().value(on_side).abs() < 1e-9);
+            let wide = fit_with(FaceSelection::Wide);
+            prop_assert!(wide.normal.z > 0.01, "normal {}", wide.normal);
+            // Mid-gap, a quarter of the gap below the top: air.
+            let air = DVec3::new(0.5 * gap, 0.0, -0.25 * gap) - centre;
+            prop_assert!(narrow.linear().value(air) < 0.0);
         }
     }
 

@@ -12,6 +12,7 @@ use crate::cover::{Cover, CoverError};
 use crate::geometry::Normalisation;
 use crate::kernel::Kernel;
 use crate::local_function::LocalFunctions;
+use crate::opposite_faces::FaceSelection;
 use crate::point_cloud::PointCloud;
 use crate::point_index::{PointIndex, PointIndexError};
 use fit::Samples;
@@ -56,6 +57,9 @@ pub struct SurfaceCoverParams {
     /// the radius reached its cap, a trial at most this factor above the radius found
     /// failed (`E > ε`).
     pub growth_tolerance: f64,
+    /// Which samples a support whose ball holds two faces of a thin part fits
+    /// ([`crate::face_to_fit`]).
+    pub faces: FaceSelection,
 }
 
 impl Default for SurfaceCoverParams {
@@ -71,6 +75,7 @@ impl Default for SurfaceCoverParams {
             box_margin: 0.05,
             max_growth: 8.0,
             growth_tolerance: 0.05,
+            faces: FaceSelection::Narrow,
         }
     }
 }
@@ -426,6 +431,7 @@ fn build(
             .collect(),
         confidence: kept_conf.map(|c| index.order().par_iter().map(|&i| c[i as usize]).collect()),
         index,
+        faces: params.faces,
     };
     drop(kept_points);
     drop(kept_normals);
