@@ -22,8 +22,8 @@
 //! fits the rib's side and its top together, a plane tilted by 45° whose inside reaches across
 //! the gap below the top (on the housing's 1.3 mm gaps the tops of neighbouring ribs grew
 //! towards each other and met). [`FaceSelection::Wide`] keeps the 120° bound everywhere; the
-//! reconstruction uses it where the noise sets the tolerance, where the narrow cone raised
-//! the Chamfer distance of a noisy scan by 3% (`docs/algorithms.md`, *Surface
+//! reconstruction uses it unless the scan is nearly free of noise: on a noisy building scan
+//! the narrow cone left more of the seen surface out (`docs/algorithms.md`, *Surface
 //! reconstruction*, has the figures).
 
 use glam::DVec3;
@@ -45,9 +45,9 @@ pub const FACE_COSINE: f64 = 0.5;
 pub enum FaceSelection {
     /// Where the ball holds samples facing away from the face, those within 60° of its
     /// normal; elsewhere those not facing away (all of them).
-    #[default]
     Narrow,
     /// Those not facing away from the face (within 120° of its normal).
+    #[default]
     Wide,
 }
 

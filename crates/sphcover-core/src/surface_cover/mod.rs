@@ -58,7 +58,8 @@ pub struct SurfaceCoverParams {
     /// failed (`E > ε`).
     pub growth_tolerance: f64,
     /// Which samples a support whose ball holds two faces of a thin part fits
-    /// ([`crate::face_to_fit`]).
+    /// ([`crate::face_to_fit`]). The wide face by default; the reconstruction takes the
+    /// narrow one on scans nearly free of noise.
     pub faces: FaceSelection,
 }
 
@@ -75,7 +76,7 @@ impl Default for SurfaceCoverParams {
             box_margin: 0.05,
             max_growth: 8.0,
             growth_tolerance: 0.05,
-            faces: FaceSelection::Narrow,
+            faces: FaceSelection::Wide,
         }
     }
 }
