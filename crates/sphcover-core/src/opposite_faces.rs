@@ -19,9 +19,9 @@
 //! Which samples make the face ([`Face::holds`]): with [`FaceSelection::Narrow`], those within
 //! 60° of its normal ([`FACE_COSINE`]) where the ball does hold samples turned away. Within
 //! 120°, the face would keep the faces at right angles to it: a ball in the gap beside a rib
-//! fits the rib's side and its top together, a plane tilted by 45° whose inside reaches across
-//! the gap below the top (on the housing's 1.3 mm gaps the tops of neighbouring ribs grew
-//! towards each other and met). [`FaceSelection::Wide`] keeps the 120° bound everywhere; the
+//! fits the rib's side and its top together, a plane tilted towards the gap whose inside
+//! reaches into the gap below the top (on the housing's 1.3 mm gaps the tops of neighbouring
+//! ribs grew towards each other and met). [`FaceSelection::Wide`] keeps the 120° bound everywhere; the
 //! reconstruction uses it unless the scan is nearly free of noise: on a noisy building scan
 //! the narrow cone left more of the seen surface out (`docs/algorithms.md`, *Surface
 //! reconstruction*, has the figures).
