@@ -381,6 +381,24 @@ impl ReconError {
 /// the noise's scale.
 pub const DEFAULT_NOISE_TOLERANCE: f64 = 4.0;
 
+impl ReconParams {
+    /// The least tolerance a scan asks for ([`ReconStats::noise_floor`]): the noise
+    /// tolerance factor times the noise given, or else `measured_noise`.
+    pub(crate) fn noise_floor(&self, measured_noise: f64) -> f64 {
+        self.noise_tolerance.unwrap_or(DEFAULT_NOISE_TOLERANCE)
+            * self.noise.unwrap_or(measured_noise)
+    }
+
+    /// The cover's tolerance for a scan whose noise floor is `noise_floor`: ε raised to the
+    /// floor, unless a given ε is to be used as given (`noise_tolerance` unset).
+    pub(crate) fn tolerance(&self, noise_floor: f64) -> f64 {
+        match self.noise_tolerance {
+            Some(_) => self.cover.eps.max(noise_floor),
+            None => self.cover.eps,
+        }
+    }
+}
+
 /// What a run did with the requested cover tolerance, worth telling the user once.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ToleranceNote {

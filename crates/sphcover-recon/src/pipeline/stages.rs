@@ -20,8 +20,8 @@ use super::components::{
 };
 use super::tiled::{TileRunner, TiledFunctions, Tiling};
 use super::{
-    DEFAULT_NOISE_TOLERANCE, Method, ONE_VIEW_LAYER_GAP, ONE_VIEW_NEAR, ONE_VIEW_REACH, ReconError,
-    ReconParams, ReconStats, Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
+    Method, ONE_VIEW_LAYER_GAP, ONE_VIEW_NEAR, ONE_VIEW_REACH, ReconError, ReconParams, ReconStats,
+    Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
 };
 use crate::confidence::{
     SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
@@ -275,13 +275,8 @@ fn measure_scan(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
             index = PointIndex::new(&ctx.points)?;
         }
     }
-    let noise = params.noise.unwrap_or(scan.noise);
-    let factor = params.noise_tolerance.unwrap_or(DEFAULT_NOISE_TOLERANCE);
-    ctx.stats.noise_floor = factor * noise;
-    ctx.stats.eps = match params.noise_tolerance {
-        Some(_) => params.cover.eps.max(ctx.stats.noise_floor),
-        None => params.cover.eps,
-    };
+    ctx.stats.noise_floor = params.noise_floor(scan.noise);
+    ctx.stats.eps = params.tolerance(ctx.stats.noise_floor);
     ctx.index = Some(index);
     ctx.scan = scan;
     Ok(())
@@ -309,10 +304,7 @@ const NARROW_FACE_NOISE: f64 = 0.25;
 /// tile decides from the whole scan's noise and tolerance, which it is given, so every tile
 /// decides alike.
 fn face_selection(ctx: &ReconContext<'_>) -> FaceSelection {
-    let params = ctx.params;
-    let noise = params.noise.unwrap_or(ctx.scan.noise);
-    let floor = params.noise_tolerance.unwrap_or(DEFAULT_NOISE_TOLERANCE) * noise;
-    if floor < NARROW_FACE_NOISE * ctx.stats.eps {
+    if ctx.params.noise_floor(ctx.scan.noise) < NARROW_FACE_NOISE * ctx.stats.eps {
         FaceSelection::Narrow
     } else {
         FaceSelection::Wide

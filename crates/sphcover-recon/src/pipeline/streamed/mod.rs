@@ -27,9 +27,7 @@ pub use tile::{
 use super::spill::{TileFiles, TileSamples};
 use super::stages::{MIN_POINTS, built};
 use super::tiled::{Tiling, split_planes, tiles_holding};
-use super::{
-    DEFAULT_NOISE_TOLERANCE, Method, ReconError, ReconParams, ReconStats, Trim, default_depth,
-};
+use super::{Method, ReconError, ReconParams, ReconStats, Trim, default_depth};
 use crate::normals::{NormalParams, estimate_normals};
 use crate::polygonise::PolygoniseParams;
 use crate::scan_statistics::{
@@ -474,16 +472,8 @@ fn measure_tiles(ctx: &mut Streamed<'_>) -> Result<(), ReconError> {
         isolated_count,
         one_view: one_view(&normals),
     };
-    let noise = ctx.params.noise.unwrap_or(noise);
-    let factor = ctx
-        .params
-        .noise_tolerance
-        .unwrap_or(DEFAULT_NOISE_TOLERANCE);
-    ctx.stats.noise_floor = factor * noise;
-    ctx.stats.eps = match ctx.params.noise_tolerance {
-        Some(_) => ctx.params.cover.eps.max(ctx.stats.noise_floor),
-        None => ctx.params.cover.eps,
-    };
+    ctx.stats.noise_floor = ctx.params.noise_floor(noise);
+    ctx.stats.eps = ctx.params.tolerance(ctx.stats.noise_floor);
     ctx.stats.depth = ctx
         .params
         .depth
