@@ -240,7 +240,7 @@ fn thin_walls_keep_their_surface_through_the_graph_cut() {
     let truth = sphcover_evaluation::thin_walled_part::thin_walled_housing()
         .solid
         .boundary_mesh();
-    let cloud = mesh_scan(&truth, 200_000, 7);
+    let cloud = mesh_scan(&truth, 200_000, 3);
     let rec = reconstruct(&cloud, &ReconParams::default(), &|_| {}).expect("reconstruction");
     assert!(rec.stats.watertight && rec.stats.components == 1);
     let mut d = vertex_distances(&rec.mesh, &truth);
@@ -257,7 +257,8 @@ fn thin_walls_keep_their_surface_through_the_graph_cut() {
     // The part's genus is 11. Fitting both faces of the 0.7 mm fins at once made the blend
     // thin them until they broke: genus 60 and more. Fitting a rib's side with its top (the
     // samples within 120° of the face's normal instead of 60°) tilted planes across the gaps
-    // between ribs and joined neighbouring tops.
+    // between ribs and joined neighbouring tops. On this scan the polygonisation also fills a
+    // tunnel one grid vertex wide through a wall (`PolygoniseParams::fill_pinholes`).
     assert_eq!(genus, 11);
 }
 

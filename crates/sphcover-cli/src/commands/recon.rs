@@ -434,11 +434,12 @@ fn details(s: &ReconStats, reporter: &Reporter) {
     }
     if let Some(p) = &s.polygonise {
         reporter.detail(&format!(
-            "  polygonise: depth {}, step {:.3e}, {} cells visited, {} evaluations; search {:.3} s (evaluations {:.3} s), extraction {:.3} s",
+            "  polygonise: depth {}, step {:.3e}, {} cells visited, {} evaluations, {} pinholes filled; search {:.3} s (evaluations {:.3} s), extraction {:.3} s",
             s.depth,
             p.step,
             p.cells_visited,
             p.grid_evaluations,
+            p.pinholes_filled,
             p.search_time.as_secs_f64(),
             p.evaluation_time.as_secs_f64(),
             p.extraction_time.as_secs_f64()

@@ -34,6 +34,10 @@ pub(super) struct Brick {
 }
 
 impl Brick {
+    pub(super) fn set_value(&mut self, l: usize, v: f64) {
+        self.values[l] = v;
+    }
+
     const EMPTY: Brick = Brick {
         values: [f64::NAN; BRICK_LEN],
         evaluated: 0,

@@ -9,6 +9,7 @@ mod extract;
 mod fans;
 mod field;
 mod grid;
+mod pinholes;
 mod search;
 mod trim;
 mod tubes;
@@ -56,6 +57,9 @@ pub struct PolygoniseParams {
     pub unseen: Option<UnseenTrim>,
     /// Attach per-vertex outward unit normals `−∇f / ‖∇f‖`.
     pub normals: bool,
+    /// Fill the tunnels through the inside that are one grid vertex wide (see
+    /// [`polygonise`], *Pinholes*).
+    pub fill_pinholes: bool,
     /// A seed whose Newton steps towards `f = 0` move it farther than this many grid steps,
     /// or end more than one step from `f = 0`, starts no search: it is off the surface.
     pub seed_reach: f64,
@@ -72,6 +76,7 @@ impl Default for PolygoniseParams {
             trim: None,
             unseen: None,
             normals: true,
+            fill_pinholes: true,
             seed_reach: 4.0,
             max_cells: 1 << 25,
         }
@@ -170,6 +175,9 @@ pub struct PolygoniseStats {
     pub trimmed_triangles: usize,
     /// Share of the surface's area that [`PolygoniseParams::unseen`] removed.
     pub unseen_area_fraction: f64,
+    /// Grid vertices set inside to fill a tunnel one vertex wide
+    /// ([`PolygoniseParams::fill_pinholes`]).
+    pub pinholes_filled: usize,
     /// Faces where both cells' polygons use both crossing segments (a tube through the
     /// face): each segment got a vertex of its own on the face.
     pub tube_faces: usize,
@@ -233,6 +241,17 @@ pub struct PolygoniseStats {
 /// segment's edges, so each of those edges is shared by two polygons. It is rare (no real
 /// scan measured has one) and leaves every other quad as it was.
 ///
+/// # Pinholes
+///
+/// A wall about one cell thick is held by a single layer of inside grid vertices; where `f`
+/// dips below zero at one vertex of that layer, the mesh would get a tunnel through the wall
+/// one cell wide, a handle finer than the grid can show. With
+/// [`PolygoniseParams::fill_pinholes`] such a vertex is set inside before extraction when,
+/// under the connectivity the extraction itself gives the two sides, filling it joins one
+/// ring of the inside around it and parts the outside around it into pieces that are joined
+/// to each other, around it, within a few dozen grid steps: it then closes a small handle,
+/// and never bridges a gap or seals off a cavity.
+///
 /// # Orientation and placement
 ///
 /// Triangles are wound counter-clockwise seen from outside (from `f < 0`). A vertex sits at
@@ -249,7 +268,7 @@ pub struct PolygoniseStats {
 ///
 /// One file per phase, in the order they run: `grid` (the grid and its keys), `search` (the
 /// cells visited from the seeds) over `bricks` (the values of `f`, evaluated in batches) and
-/// `cell` (one cube's sheets), `extract` (vertices and quads) with `tubes` (tube faces), then
+/// `cell` (one cube's sheets), `pinholes` (tunnels one vertex wide), `extract` (vertices and quads) with `tubes` (tube faces), then
 /// `trim` and `fans` on the finished mesh.
 pub fn polygonise(
     eval: &PuEvaluator<'_>,
@@ -378,6 +397,9 @@ pub(crate) fn polygonise_untrimmed(
     stats.evaluation_time = search.evaluation_time;
     stats.search_time = start.elapsed();
 
+    if params.fill_pinholes {
+        stats.pinholes_filled = pinholes::fill_pinholes(&mut search);
+    }
     let extraction_start = Instant::now();
     let mesh = extract(&search, &grid, params, &mut stats);
     stats.extraction_time = extraction_start.elapsed();

@@ -174,7 +174,7 @@ impl<'e, 'c> Search<'e, 'c> {
 
 /// The active-cell data of cell `c`, or `None` when it is not active or `f` is undefined at
 /// a corner.
-fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
+pub(super) fn classify(reader: &mut BrickReader<'_>, c: Index3) -> Option<ActiveCell> {
     let mut values = [0.0; 8];
     let mut inside_count = 0;
     for (k, value) in values.iter_mut().enumerate() {
