@@ -57,7 +57,7 @@ pub struct PolygoniseParams {
     pub unseen: Option<UnseenTrim>,
     /// Attach per-vertex outward unit normals `−∇f / ‖∇f‖`.
     pub normals: bool,
-    /// Fill the tunnels through the inside that are one grid vertex wide (see
+    /// Fill the tunnels through the inside that are one or two grid vertices wide (see
     /// [`polygonise`], *Pinholes*).
     pub fill_pinholes: bool,
     /// A seed whose Newton steps towards `f = 0` move it farther than this many grid steps,
@@ -175,8 +175,7 @@ pub struct PolygoniseStats {
     pub trimmed_triangles: usize,
     /// Share of the surface's area that [`PolygoniseParams::unseen`] removed.
     pub unseen_area_fraction: f64,
-    /// Grid vertices set inside to fill a tunnel one vertex wide
-    /// ([`PolygoniseParams::fill_pinholes`]).
+    /// Tunnels one or two grid vertices wide filled ([`PolygoniseParams::fill_pinholes`]).
     pub pinholes_filled: usize,
     /// Faces where both cells' polygons use both crossing segments (a tube through the
     /// face): each segment got a vertex of its own on the face.
@@ -244,13 +243,13 @@ pub struct PolygoniseStats {
 /// # Pinholes
 ///
 /// A wall about one cell thick is held by a single layer of inside grid vertices; where `f`
-/// dips below zero at one vertex of that layer, the mesh would get a tunnel through the wall
-/// one cell wide, a handle finer than the grid can show. With
-/// [`PolygoniseParams::fill_pinholes`] such a vertex is set inside before extraction when,
-/// under the connectivity the extraction itself gives the two sides, filling it joins one
-/// ring of the inside around it and parts the outside around it into pieces that are joined
-/// to each other, around it, within a few dozen grid steps: it then closes a small handle,
-/// and never bridges a gap or seals off a cavity.
+/// dips below zero at one vertex of that layer, or at two beside each other, the mesh would
+/// get a tunnel through the wall a cell or two wide, a handle finer than the grid can show.
+/// With [`PolygoniseParams::fill_pinholes`] such vertices are set inside before extraction
+/// when, under the connectivity the extraction itself gives the two sides, filling them
+/// joins one ring of the inside around them and parts the outside around them into pieces
+/// that are joined to each other, around them, within a few dozen grid steps: the fill
+/// then closes a small handle, and never bridges a gap or seals off a cavity.
 ///
 /// # Orientation and placement
 ///
@@ -268,8 +267,9 @@ pub struct PolygoniseStats {
 ///
 /// One file per phase, in the order they run: `grid` (the grid and its keys), `search` (the
 /// cells visited from the seeds) over `bricks` (the values of `f`, evaluated in batches) and
-/// `cell` (one cube's sheets), `pinholes` (tunnels one vertex wide), `extract` (vertices and quads) with `tubes` (tube faces), then
-/// `trim` and `fans` on the finished mesh.
+/// `cell` (one cube's sheets), `pinholes` (tunnels one or two vertices wide), `extract`
+/// (vertices and quads) with `tubes` (tube faces), then `trim` and `fans` on the finished
+/// mesh.
 pub fn polygonise(
     eval: &PuEvaluator<'_>,
     seeds: &[DVec3],
