@@ -487,6 +487,11 @@ mod tests {
         }
     }
 
+    /// World point `p` relative to the world's centre.
+    fn local(p: Index3) -> Index3 {
+        p.map(|c| c - C)
+    }
+
     /// `p` with its axes turned so that its axis `normal` becomes axis 2; three turns make
     /// the identity.
     fn turned(p: Index3, normal: usize) -> Index3 {
@@ -536,7 +541,7 @@ mod tests {
             let w = width as i64;
             let in_hole = move |x: i64, y: i64| (hx..hx + w).contains(&x) && y == hy;
             let plate = move |p: Index3| {
-                let q = [p[0] - C, p[1] - C, p[2] - C];
+                let q = local(p);
                 q[0].abs() <= half && q[1].abs() <= half && (0..thickness).contains(&q[2])
                     && !in_hole(q[0], q[1])
             };
@@ -563,7 +568,7 @@ mod tests {
             pit_width in 1i64..3,
         ) {
             let slot = move |p: Index3| {
-                let q = [p[0] - C, p[1] - C, p[2] - C];
+                let q = local(p);
                 q[0].abs() <= half && q[1].abs() <= half && q[2].abs() <= 1
                     && (q[2] != 0 || q[0] == -half)
             };
@@ -573,7 +578,7 @@ mod tests {
             }
 
             let pit = move |p: Index3| {
-                let q = [p[0] - C, p[1] - C, p[2] - C];
+                let q = local(p);
                 let in_block = q.iter().all(|c| c.abs() <= 4);
                 in_block && !((0..pit_width).contains(&q[0]) && q[1] == 0 && q[2] > 4 - depth)
             };
@@ -590,13 +595,13 @@ mod tests {
     fn a_tunnel_through_a_wide_plate_is_left() {
         let half = LOOP_STEPS as i64;
         let mut known = world(|p| {
-            let q = [p[0] - C, p[1] - C, p[2] - C];
+            let q = local(p);
             q[0].abs() <= half && q[1].abs() <= half && q[2] == 0 && q[..2] != [0, 0]
         });
         assert_eq!(pinhole_at(&mut known, [C, C, C], 1), None);
         // The same tunnel near the plate's edge is filled.
         let mut known = world(|p| {
-            let q = [p[0] - C, p[1] - C, p[2] - C];
+            let q = local(p);
             q[0].abs() <= half && q[1].abs() <= half && q[2] == 0 && q[..2] != [half - 3, 0]
         });
         assert!(pinhole_at(&mut known, [C + half - 3, C, C], 1).is_some());
