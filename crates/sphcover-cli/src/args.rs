@@ -156,6 +156,10 @@ pub struct ReconArgs {
     /// fitted to the samples near them (the thesis's surface; less accurate on clean scans).
     #[arg(long)]
     pub no_refine: bool,
+    /// Keep the tunnels one or two grid cells wide that thin walls can get at the grid's
+    /// scale, instead of filling them (see docs/algorithms.md, Surface reconstruction).
+    #[arg(long)]
+    pub keep_pinholes: bool,
     /// Seed of the random choices (cover expansion order).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

@@ -662,3 +662,32 @@ fn bad_tilings_are_refused_before_any_work() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn keep_pinholes_turns_the_pinhole_fill_off() {
+    // CGAL's second hippo scan has one tunnel a grid vertex wide (filled by default; the
+    // region is trimmed away afterwards as unseen, so both outputs are the same here).
+    let scan = fixture("real/hippo2.ply");
+    let dir = tempfile::tempdir().unwrap();
+    let filled = |extra: &[&str]| {
+        let out = dir.path().join("out.ply");
+        let mut args = vec![
+            "-v",
+            "recon",
+            scan.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let result = sphcover(&args);
+        assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+        let stderr = text(&result.stderr);
+        stderr
+            .lines()
+            .find(|l| l.contains("polygonise:"))
+            .unwrap_or_else(|| panic!("no polygonise line in {stderr}"))
+            .to_owned()
+    };
+    assert!(filled(&[]).contains(", 1 pinholes filled;"));
+    assert!(filled(&["--keep-pinholes"]).contains(", 0 pinholes filled;"));
+}

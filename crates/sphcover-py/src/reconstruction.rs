@@ -118,6 +118,7 @@ pub fn reconstruct<'py>(
         normal_neighbours,
         refine,
         seed,
+        ..ReconOptions::default()
     };
     let mut params = options.params().map_err(option_error)?;
     let tiling = tiles.map(|tiles| Tiling {

@@ -67,6 +67,9 @@ pub struct ReconOptions {
     pub normal_neighbours: usize,
     /// Move the vertices onto quadrics fitted to the samples near them.
     pub refine: bool,
+    /// Fill the tunnels one or two grid vertices wide through thin walls
+    /// ([`ReconParams::fill_pinholes`]).
+    pub fill_pinholes: bool,
     /// Seed of the random choices (cover expansion order).
     pub seed: u64,
 }
@@ -84,6 +87,7 @@ impl Default for ReconOptions {
             position_fit: None,
             normal_neighbours: ReconParams::default().normals.k,
             refine: true,
+            fill_pinholes: true,
             seed: 0,
         }
     }
@@ -180,6 +184,7 @@ impl ReconOptions {
         if !self.refine {
             params.refine = None;
         }
+        params.fill_pinholes = self.fill_pinholes;
         for (name, value, slot) in [
             (
                 "normal_fit",
@@ -252,6 +257,7 @@ mod tests {
             trim: TrimOption::Auto,
             depth: Some(5),
             refine: false,
+            fill_pinholes: false,
             seed: 3,
             ..ReconOptions::default()
         }
@@ -262,5 +268,7 @@ mod tests {
         assert_eq!(params.trim, Trim::SampleSpacings(3.0));
         assert_eq!((params.depth, params.cover.seed), (Some(5), 3));
         assert!(params.refine.is_none());
+        assert!(!params.fill_pinholes);
+        assert!(ReconOptions::default().params().unwrap().fill_pinholes);
     }
 }

@@ -368,6 +368,7 @@ fn params(args: &ReconArgs) -> anyhow::Result<ReconParams> {
         position_fit: args.position_fit,
         normal_neighbours: args.normal_neighbours,
         refine: !args.no_refine,
+        fill_pinholes: !args.keep_pinholes,
         seed: args.seed,
     };
     options.params().map_err(|e| {

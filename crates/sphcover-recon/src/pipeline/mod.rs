@@ -117,6 +117,9 @@ pub struct ReconParams {
     /// Move the vertices onto quadrics fitted to the samples near them (see
     /// [`refine_vertices`](crate::refine_vertices)); `None` keeps the function's zero set.
     pub refine: Option<VertexRefinementParams>,
+    /// Fill the tunnels one or two grid vertices wide that the polygonisation would run
+    /// through thin walls ([`PolygoniseParams::fill_pinholes`](crate::PolygoniseParams)).
+    pub fill_pinholes: bool,
     /// Once the sphere intersection graph is built, stop with
     /// [`ReconError::OverMemoryBudget`] when the predicted peak of the whole run
     /// ([`crate::ReconMemoryModel::peak_bytes_with_graph`]) exceeds this many bytes: a cover
@@ -145,6 +148,7 @@ impl Default for ReconParams {
             noise: None,
             drop_isolated: true,
             refine: Some(VertexRefinementParams::default()),
+            fill_pinholes: true,
             memory_budget: None,
         }
     }

@@ -673,6 +673,7 @@ pub(super) fn polygonisation_params_at(
                 (UNSEEN_REACH * seeds_diagonal).max(3.0 * spacing)
             },
         }),
+        fill_pinholes: params.fill_pinholes,
         ..PolygoniseParams::default()
     }
 }
