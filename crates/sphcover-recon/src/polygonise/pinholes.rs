@@ -152,25 +152,25 @@ impl Block {
     /// (`u8::MAX` elsewhere).
     fn pieces(&self, side: bool) -> Vec<u8> {
         let mut label = vec![u8::MAX; self.values.len()];
-        for h in &self.holes {
-            if let Some(i) = self.index(*h) {
-                label[i] = u8::MAX - 1;
-            }
-        }
         let mut next = 0u8;
         let (mut stack, mut around) = (Vec::new(), Vec::new());
         let mut value = |p: Index3| self.value(p);
         for start in 0..self.values.len() {
-            if label[start] != u8::MAX || inside(self.values[start]) != side {
+            let u = self.vertex(start);
+            if label[start] != u8::MAX
+                || self.holes.contains(&u)
+                || inside(self.values[start]) != side
+            {
                 continue;
             }
             label[start] = next;
-            stack.push(self.vertex(start));
+            stack.push(u);
             while let Some(u) = stack.pop() {
                 joined(&mut value, u, side, &mut around);
                 for &w in &around {
                     if let Some(i) = self.index(w)
                         && label[i] == u8::MAX
+                        && !self.holes.contains(&w)
                     {
                         label[i] = next;
                         stack.push(w);
@@ -178,11 +178,6 @@ impl Block {
                 }
             }
             next += 1;
-        }
-        for h in &self.holes {
-            if let Some(i) = self.index(*h) {
-                label[i] = u8::MAX;
-            }
         }
         label
     }
@@ -247,9 +242,9 @@ impl Block {
     }
 
     fn set_holes(&mut self, values: &[f64]) {
-        for (k, &h) in self.holes.clone().iter().enumerate() {
+        for (&h, &value) in self.holes.iter().zip(values) {
             if let Some(i) = self.index(h) {
-                self.values[i] = values[k];
+                self.values[i] = value;
             }
         }
     }
