@@ -110,7 +110,7 @@ pub use repair::SheetRepairs;
 pub use repair::cleaning::{CleaningParams, CleaningStats, clean_sheet};
 pub use repair::flaps::{FlapParams, collapse_misaligned_flaps, triangle_alignment};
 pub use repair::junction_holes::{SheetHoleParams, fill_holes_within_sheets};
-pub use repair::junction_planes::{JunctionPlaneParams, snap_to_junction_planes};
+pub use repair::junction_planes::{JunctionPlaneParams, JunctionSnap, snap_to_junction_planes};
 pub use repair::material_holes::{MAX_WEB_ON_SHEET, MaterialHoleParams, fill_material_holes};
 pub use repair::medial_correction::{
     CentringParams, JunctionFoldParams, centre_between_faces, fold_junction_vertices,

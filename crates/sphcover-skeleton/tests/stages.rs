@@ -83,9 +83,10 @@ fn each_repair_switches_off_alone() {
         (
             stats.rim_triangles,
             stats.centred_vertices,
-            stats.junction_snapped_vertices
+            stats.junction_snapped_vertices,
+            stats.junction_corner_vertices
         ),
-        (0, 0, 0)
+        (0, 0, 0, 0)
     );
     assert!(stage_names(&bare).ends_with(&["patches", "cleaning", "topology"]));
 

@@ -203,6 +203,9 @@ pub struct SkeletonStats {
     pub junction_folded_vertices: usize,
     /// Vertices of junction bands projected onto a sheet's plane.
     pub junction_snapped_vertices: usize,
+    /// Vertices inserted where two sheets' planes meet, splitting the edges from one to the
+    /// other.
+    pub junction_corner_vertices: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
     /// Triangles of the output.
@@ -362,6 +365,7 @@ pub(crate) fn sheet_from_cover(
         flap_triangles: repairs.flap_triangles,
         junction_folded_vertices: repairs.junction_folded_vertices,
         junction_snapped_vertices: repairs.junction_snapped_vertices,
+        junction_corner_vertices: repairs.junction_corner_vertices,
         centred_vertices: repairs.centred_vertices,
         triangles: ctx.sheet.triangles.len(),
         vertices: ctx.sheet.vertices.len(),

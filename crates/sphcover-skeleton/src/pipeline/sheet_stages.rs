@@ -43,6 +43,7 @@ pub(crate) struct RepairCounts {
     pub centred_vertices: usize,
     pub junction_folded_vertices: usize,
     pub junction_snapped_vertices: usize,
+    pub junction_corner_vertices: usize,
 }
 
 /// What the stages after the cover share.
@@ -388,11 +389,12 @@ fn junction_fold(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     Ok(())
 }
 
-/// Junction bands snapped onto the sheets' planes.
+/// Junction bands snapped onto the sheets' planes, and their edges across a corner split.
 fn junction_planes(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     if let Some(params) = &ctx.params.repairs.junction_planes {
-        ctx.repairs.junction_snapped_vertices =
-            snap_to_junction_planes(&mut ctx.sheet, params, ctx.voxel);
+        let snap = snap_to_junction_planes(&mut ctx.sheet, params, ctx.voxel);
+        ctx.repairs.junction_snapped_vertices = snap.moved;
+        ctx.repairs.junction_corner_vertices = snap.corner_vertices;
     }
     Ok(())
 }
