@@ -329,10 +329,9 @@ pub fn snap_to_junction_planes(
 /// the plane and its unit normal) whose normals make an angle with cosine at most
 /// `distinct_cos` (up to sign), at the point of the planes' common line nearest the edge's
 /// midpoint, at most `max_shift` from either end (see [`snap_to_junction_planes`] for
-/// when). The triangles on a split edge are
-/// split with it, keeping their orientation; new vertices are appended, with the normalised
-/// sum of the ends' normals, the mean of their values and the first end's colour. Returns
-/// the number of vertices added.
+/// when). The triangles on a split edge are split with it, keeping their orientation; new
+/// vertices are appended, with the normalised sum of the ends' normals, the mean of their
+/// values and the lower-indexed end's colour. Returns the number of vertices added.
 fn split_corner_edges(
     mesh: &mut TriMesh,
     snapped: &[Option<(DVec3, DVec3)>],
