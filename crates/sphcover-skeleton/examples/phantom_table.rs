@@ -8,7 +8,9 @@
 //! `PARAMS=name=value,...` overrides numeric fields of the default parameters (see
 //! `overridden`), for measuring alternatives with the same command; `SLICES=k` renders the
 //! phantom on slices `k` times thicker along z (each the mean of `k` slices, as a scanner
-//! acquires thick slices), which the pipeline resamples beyond 1.75:1.
+//! acquires thick slices), which the pipeline resamples beyond 1.75:1; `SEED=n` draws the
+//! noise with seed `n` (1 by default, the seed the parameters were chosen on; others are
+//! held out).
 use sphcover_core::io::{self, PlyEncoding, WriteOptions};
 use sphcover_evaluation::sheet_metrics::{SheetMetrics, score_mesh, score_points};
 use sphcover_evaluation::thin_phantoms::{PhantomParams, ThinShape, thick_slices, thin_phantom};
@@ -37,6 +39,10 @@ fn main() {
         .collect();
     let noises = if noises.is_empty() { vec![0.1] } else { noises };
     let params = overridden(SkeletonParams::default());
+    let seed: u64 = std::env::var("SEED")
+        .ok()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(1);
     let slices: usize = std::env::var("SLICES")
         .ok()
         .and_then(|k| k.parse().ok())
@@ -57,7 +63,7 @@ fn main() {
                 shape,
                 &PhantomParams {
                     noise,
-                    seed: 1,
+                    seed,
                     ..PhantomParams::default()
                 },
             );
