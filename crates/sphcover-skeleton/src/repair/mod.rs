@@ -45,7 +45,7 @@ use tunnels::TunnelParams;
 /// | flaps | [`collapse_misaligned_flaps`](crate::collapse_misaligned_flaps) | collapse fins standing across the sheet |
 /// | centring | [`centre_between_faces`](crate::centre_between_faces) | re-centre vertices between the part's two faces |
 /// | junction fold | [`fold_junction_vertices`](crate::fold_junction_vertices) | fold junction fillets onto the plates (needs centring) |
-/// | junction planes | [`snap_to_junction_planes`](crate::snap_to_junction_planes) | snap the band where sheets meet onto their planes |
+/// | junction planes | [`snap_to_junction_planes`](crate::snap_to_junction_planes) | snap the band where sheets meet onto their planes, and split its edges across their corner |
 /// | smoothing | [`smooth_across`](crate::smooth_across) | smooth across the sheet (off by default) |
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
