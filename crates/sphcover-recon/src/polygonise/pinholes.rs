@@ -362,16 +362,20 @@ fn inside_face_neighbours(reader: &mut BrickReader<'_>, v: Index3, cell: &Active
 }
 
 /// The pinhole at `v` in the searched grid ([`pinhole_at`]), when the cells around every
-/// vertex it fills are active.
+/// vertex it fills are active (checked at `v` before the costlier test).
 fn searched_pinhole(
     reader: &mut BrickReader<'_>,
     grid: &Grid,
     v: Index3,
     width: usize,
 ) -> Option<(Vec<Index3>, Vec<f64>)> {
+    if !cells_around_active(reader, v) {
+        return None;
+    }
     let (holes, fills) = pinhole_at(&mut searched_values(reader, grid), v, width)?;
     holes
         .iter()
+        .filter(|&&h| h != v)
         .all(|&h| cells_around_active(reader, h))
         .then_some((holes, fills))
 }
@@ -416,7 +420,6 @@ fn fill_pinholes_of_width(search: &mut Search, width: usize) -> usize {
             |reader, &(key, cell)| {
                 let v = unpack(key);
                 let candidate = inside_face_neighbours(reader, v, &cell) >= 2
-                    && cells_around_active(reader, v)
                     && searched_pinhole(reader, grid, v, width).is_some();
                 candidate.then_some(key)
             },
