@@ -19,7 +19,7 @@ use crate::repair::junction_planes::snap_to_junction_planes;
 use crate::repair::material_holes::fill_material_holes;
 use crate::repair::medial_correction::{centre_between_faces, fold_junction_vertices};
 use crate::repair::part_surface::PartSurface;
-use crate::repair::perforations::{VoxelPart, cut_perforations};
+use crate::repair::perforations::{VoxelPart, cut_perforations, over_little_material};
 use crate::repair::rim_trimming::trim_rims;
 use crate::repair::sheet_smoothing::smooth_across;
 use crate::repair::tunnels::close_material_tunnels;
@@ -305,7 +305,13 @@ fn rim_trimming(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
         return Ok(());
     };
     let part = part(&ctx.function, ctx.level, ctx.r_max);
-    let (trimmed, removed) = trim_rims(&ctx.sheet, &part, params, ctx.voxel);
+    // With the voxels at hand the trimming keeps the sheet's topology but where they show
+    // little material (`trim_rims`).
+    let little = match (&ctx.voxels, &ctx.params.repairs.perforations) {
+        (Some(voxels), Some(params)) => over_little_material(&ctx.sheet, voxels, params, ctx.voxel),
+        _ => None,
+    };
+    let (trimmed, removed) = trim_rims(&ctx.sheet, &part, params, ctx.voxel, little.as_deref());
     ctx.repairs.rim_triangles = removed;
     ctx.sheet = trimmed;
     Ok(())

@@ -2,10 +2,10 @@
 //!
 //! The method is described on [`collapse_misaligned_flaps()`].
 
-use std::collections::HashMap;
-
 use glam::DVec3;
-use sphcover_core::{TriMesh, VertexTriangles};
+use sphcover_core::TriMesh;
+
+use super::collapse::FreeEdgeCollapse;
 
 /// `|n · ē|` of each triangle: `n` its normal, `ē` the mean across direction of its corners
 /// (signs aligned to the first corner's); 1 without normals.
@@ -57,72 +57,25 @@ impl Default for FlapParams {
 /// off the true sheet, 7 voxels from its boundary), whose triangles' normals are nearly
 /// perpendicular to the across direction `e` of their corners. A fin has a free edge on
 /// top; it is eaten from there by elementary collapses (a triangle through its only free
-/// edge, or a tip with the edges and corners only it uses), which keep the sheet's topology (components, Euler characteristic) whatever is
-/// removed. Only triangles lying across the ridge by less than a bound are collapsed, so the
-/// collapse stops where the fin meets the sheet.
+/// edge, or a tip with the edges and corners only it uses: `super::collapse`), which keep
+/// the sheet's topology (components, Euler characteristic) whatever is removed. Only
+/// triangles lying across the ridge by less than a bound are collapsed, so the collapse
+/// stops where the fin meets the sheet.
 pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usize {
-    let min_alignment = params.min_alignment;
     let alignment = triangle_alignment(mesh);
-    let mut edge_index: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut triangle_edges: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
-    for tri in &mesh.triangles {
-        triangle_edges.push([0, 1, 2].map(|k| {
-            let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            let next = edge_index.len() as u32;
-            *edge_index.entry((a.min(b), a.max(b))).or_insert(next)
-        }));
-    }
-    let mut alive_count = vec![0u32; edge_index.len()];
-    for ids in &triangle_edges {
-        for &e in ids {
-            alive_count[e as usize] += 1;
-        }
-    }
-    let vertex_triangles = VertexTriangles::of(mesh);
-    let mut vertex_count: Vec<u32> = (0..mesh.vertices.len())
-        .map(|v| vertex_triangles.triangles_at(v).len() as u32)
-        .collect();
-    let mut removed = vec![false; mesh.triangles.len()];
-    // Candidates in index order, revisited when a neighbour goes (deterministic).
+    let mut collapse = FreeEdgeCollapse::new(mesh);
+    // Candidates in index order, a neighbour of a removed triangle next (deterministic).
     let mut queue: Vec<u32> = (0..mesh.triangles.len() as u32).rev().collect();
     let mut count = 0;
     while let Some(t) = queue.pop() {
-        let ti = t as usize;
-        if removed[ti] || alignment[ti] >= min_alignment {
+        let t = t as usize;
+        if alignment[t] >= params.min_alignment || !collapse.try_remove(t) {
             continue;
         }
-        let edges = triangle_edges[ti];
-        // Removing the triangle with the edges and corners only it uses changes χ by
-        // `free edges − freed corners − 1`: a collapse when that is 0 (one free edge; two
-        // with their shared corner freed; three with two corners freed, a tip hanging on one
-        // corner). An isolated triangle (three corners freed) is a component and stays.
-        let free = edges
-            .iter()
-            .filter(|&&e| alive_count[e as usize] == 1)
-            .count();
-        let freed = mesh.triangles[ti]
-            .iter()
-            .filter(|&&v| vertex_count[v as usize] == 1)
-            .count();
-        let collapsible = free >= 1 && free == freed + 1;
-        if !collapsible {
-            continue;
-        }
-        removed[ti] = true;
         count += 1;
-        for &e in &edges {
-            alive_count[e as usize] -= 1;
-        }
-        // Every triangle sharing a corner may have become collapsible.
-        for &v in &mesh.triangles[ti] {
-            vertex_count[v as usize] -= 1;
-            for &n in vertex_triangles.triangles_at(v as usize) {
-                if !removed[n as usize] {
-                    queue.push(n);
-                }
-            }
-        }
+        queue.extend(collapse.neighbours(t));
     }
+    let removed = collapse.into_removed();
     let mut t = 0;
     mesh.triangles.retain(|_| {
         let keep = !removed[t];

@@ -4,6 +4,7 @@
 //! The method is described on [`SheetRepairs`].
 
 pub(crate) mod cleaning;
+pub(crate) mod collapse;
 pub(crate) mod flaps;
 pub(crate) mod junction_holes;
 pub(crate) mod junction_planes;
@@ -14,6 +15,7 @@ pub(crate) mod perforations;
 pub(crate) mod rim_trimming;
 pub(crate) mod sheet_smoothing;
 pub(crate) mod tunnels;
+pub(crate) mod voxel_columns;
 
 use cleaning::CleaningParams;
 use flaps::FlapParams;
@@ -37,11 +39,11 @@ use tunnels::TunnelParams;
 /// | stage | function | what it does |
 /// |---|---|---|
 /// | cleaning | [`clean_sheet`](crate::clean_sheet) | weld, undo pinches, fill small holes over material, drop fragments |
-/// | rim trimming | [`trim_rims`](crate::trim_rims) | trim the sheet back from the part's rounded rims (medial-axis test), then clean again |
+/// | rim trimming | [`trim_rims`](crate::trim_rims) | trim the sheet back from the part's rounded rims (medial-axis test; keeping its topology where the voxels show material, with the perforation check on), then clean again |
 /// | material holes | [`fill_material_holes`](crate::fill_material_holes) | fill large holes where the material is continuous, on the part's mid-surface |
 /// | junction holes | [`fill_holes_within_sheets`](crate::fill_holes_within_sheets) | fill holes of the sheets meeting at a junction |
 /// | tunnels | [`close_material_tunnels`](crate::close_material_tunnels) | open closed pockets, close loops that go around material only |
-/// | perforations | [`cut_perforations`](crate::cut_perforations) | cut the sheet open where its voxels show a hole through the part (volumes only), then clean again without filling holes |
+/// | perforations | [`cut_perforations`](crate::cut_perforations) | cut the sheet open where its voxels show a hole through the part (volumes only; folds off the part are collapsed, not cut), then clean again without filling holes |
 /// | flaps | [`collapse_misaligned_flaps`](crate::collapse_misaligned_flaps) | collapse fins standing across the sheet |
 /// | centring | [`centre_between_faces`](crate::centre_between_faces) | re-centre vertices between the part's two faces |
 /// | junction fold | [`fold_junction_vertices`](crate::fold_junction_vertices) | fold junction fillets onto the plates (needs centring) |
