@@ -188,12 +188,14 @@ mod tests {
         /// and the Euler characteristic (with holes punched first, so that the removable
         /// triangles may join them to each other and to the rim).
         #[test]
-        fn collapsing_keeps_the_topology(n in 2u32..7, holes in prop::collection::vec(any::<u16>(), 0..4),
+        fn collapsing_keeps_the_topology(n in 2u32..7,
+                                         holes in prop::collection::vec(any::<u16>(), 0..4),
                                          removable in prop::collection::vec(any::<bool>(), 72),
                                          priority in prop::collection::vec(0.0f64..1.0, 72)) {
             let full = grid(n, n);
             let nt = full.triangles.len();
-            let punched: Vec<bool> = (0..nt).map(|t| holes.iter().any(|&h| h as usize % nt == t)).collect();
+            let punched: Vec<bool> =
+                (0..nt).map(|t| holes.iter().any(|&h| h as usize % nt == t)).collect();
             let mesh = without(&full, &punched);
             let nt = mesh.triangles.len();
             let removable: Vec<bool> = (0..nt).map(|t| removable[t % removable.len()]).collect();
@@ -209,7 +211,8 @@ mod tests {
         /// On a disk every triangle may go but one: the collapses eat it down to a single
         /// triangle, which stays as the component it is.
         #[test]
-        fn a_disk_collapses_to_one_triangle(n in 1u32..7, priority in prop::collection::vec(0.0f64..1.0, 72)) {
+        fn a_disk_collapses_to_one_triangle(n in 1u32..7,
+                                            priority in prop::collection::vec(0.0f64..1.0, 72)) {
             let mesh = grid(n, n);
             let nt = mesh.triangles.len();
             let priority: Vec<f64> = (0..nt).map(|t| priority[t % priority.len()]).collect();

@@ -460,7 +460,8 @@ mod tests {
             edges.dedup();
             let columns = SheetColumns::read(&mesh, &edges, &part, 1.0, 1.0).unwrap();
             let fraction = PerforationParams::default().little_material_fraction;
-            let in_hole = DVec3::new(12.0 + offset * hole * angle.cos(), 12.0 + offset * hole * angle.sin(), 6.0);
+            let r = offset * hole;
+            let in_hole = DVec3::new(12.0 + r * angle.cos(), 12.0 + r * angle.sin(), 6.0);
             prop_assert!(columns.flanked(in_hole, DVec3::Z, 0, fraction, 1.0));
             let off = DVec3::new(6.0, 18.0, 6.0 + height);
             let along = DVec3::new(side.cos(), side.sin(), 0.0);

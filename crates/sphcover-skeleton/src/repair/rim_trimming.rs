@@ -450,7 +450,8 @@ mod tests {
             prop_assert!(without_voxels.iter().zip(&rim_triangle).all(|(k, r)| *k != *r));
             let kept_mesh = |keep: &[bool]| {
                 let mut out = mesh.clone();
-                out.triangles = mesh.triangles.iter().zip(keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect();
+                out.triangles =
+                    mesh.triangles.iter().zip(keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect();
                 sphcover_core::MeshTopology::of(&out)
             };
             let before = sphcover_core::MeshTopology::of(&mesh);
