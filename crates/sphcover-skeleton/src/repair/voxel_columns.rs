@@ -31,15 +31,15 @@ const COLUMN_SAMPLES: [f64; 9] = [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75
 const FLANK_DIRECTIONS: usize = 12;
 
 /// How many of the [`FLANK_DIRECTIONS`] must meet material for a vertex to be flanked by it.
-/// On the small perforations (`small_perforations` example, seeds 1–8, 10 % noise) every
-/// column over a hole's middle met material in all 12; the folds standing 2–2.5 voxels off
-/// the plate, whose across direction lies along the plate, in 3–5 (the directions that run
-/// down to the plate).
+/// On the small perforations (`small_perforations` example, seeds 1–8, 10 % noise) the air
+/// vertices within 2 voxels of a hole's centre met material in 11 or 12 (1,774 vertices);
+/// those more than 1.5 voxels off the plate's mid-plane, on folds whose across direction lies
+/// along the plate, in 5–7 (123 vertices: the directions that run down to the plate).
 const FLANK_MIN_DIRECTIONS: usize = 10;
 
-/// How far (voxels) [`SheetColumns::flanked`] looks along the sheet: farther than the
-/// largest hole the cover's function spans (a hole wider than a support's diameter is open in
-/// the raw sheet), and farther than a fold stands off the plate.
+/// How far (voxels) [`SheetColumns::flanked`] looks along the sheet: across the small
+/// perforations' holes (up to 3.2 voxels in radius on the true sheet) from anywhere inside
+/// them, and down the 2–2.5 voxels a fold stands off the plate, at slants of up to 60°.
 const FLANK_REACH_VOXELS: f64 = 6.0;
 
 /// The voxels a sheet is checked against: the volume its cover was fitted to, as measured,
