@@ -31,10 +31,12 @@ pub struct PerforationParams {
     /// the thinnest part's half-thickness (a longer column reads the air on both sides of a
     /// thin part and takes its material for a hole).
     pub column_half_length_voxels: f64,
-    /// A vertex is over air when its column's mean value is below the threshold plus this
-    /// fraction of the way to the part's level (the median column of its piece of sheet),
-    /// and below the midpoint of the background and the part's level plus this fraction of
-    /// the way from there to the level (the same point when the threshold is the midpoint).
+    /// A vertex is over air when the mean of its column and of four columns half a voxel from
+    /// it along the sheet is below the threshold plus this fraction of the way to the part's
+    /// level (the median column of its piece of sheet), and below the midpoint of the
+    /// background and the part's level plus this fraction of the way from there to the level
+    /// (the same point when the threshold is the midpoint), and lies four deviations of its
+    /// noise below the level.
     pub air_fraction: f64,
     /// A vertex is over little material when its column's mean is below both points of
     /// [`PerforationParams::air_fraction`] taken with this fraction; such vertices joined
@@ -69,7 +71,7 @@ pub(crate) fn over_little_material(
     let mut edges = sorted_edges(mesh);
     edges.dedup();
     let columns = SheetColumns::read(mesh, &edges, part, params.column_half_length_voxels, voxel)?;
-    Some(columns.below(params.little_material_fraction, false))
+    Some(columns.below(params.little_material_fraction))
 }
 
 /// Cuts the sheet open where it spans a perforation of the part; returns how many
@@ -83,8 +85,8 @@ pub(crate) fn over_little_material(
 /// ridge's across directions) says how much material lies under it. Vertices over little
 /// material ([`PerforationParams::little_material_fraction`]) joined through edges form
 /// regions; a region holding a vertex over air ([`PerforationParams::air_fraction`]: one
-/// vertex over a hole's middle is enough, and noise of 30% of the contrast puts no column
-/// over material that low) is a perforation, and the triangles touching it are removed,
+/// vertex over a hole's middle is enough, and noise of 30% of the contrast puts no mean of
+/// five columns over material that low) is a perforation, and the triangles touching it are removed,
 /// unless the region reaches a junction (where the column follows one sheet only: at 30%
 /// noise a cut opened the T-junction) or a rim of the sheet, or passes within
 /// `RIM_CLEARANCE_VOXELS` of one. Rims (boundary loops longer than a hole's) run out to the
@@ -147,8 +149,8 @@ pub fn cut_perforations(
     };
     // Hysteresis: a region of vertices over little material is a perforation when some of
     // its vertices are over air.
-    let little = columns.below(params.little_material_fraction, false);
-    let air = columns.below(params.air_fraction, true);
+    let little = columns.below(params.little_material_fraction);
+    let air = columns.over_air(mesh, params.air_fraction, voxel);
     let mut regions = DisjointSets::new(n);
     for &(a, b) in &edges {
         if little[a as usize] && little[b as usize] {
@@ -385,14 +387,33 @@ mod tests {
         let mut whole = sheet();
         assert_eq!(cut_perforations(&mut whole, &part(&solid), &params, 1.0), 0);
         assert_eq!(whole, sheet());
-        // Noise that reaches from the part's level to the hole's columns (4 deviations of a
-        // column's mean, 4 · 0.6 / √4.5, exceed the contrast): nothing is taken for air.
+        // Noise that reaches from the part's level to the hole's columns (4 deviations of
+        // five columns' mean, 4 · 0.8 / √9, exceed the contrast): nothing is taken for air.
         let noisy = VoxelPart {
-            noise: 0.6,
+            noise: 0.8,
             ..part(&holed)
         };
         let mut unsure = sheet();
         assert_eq!(cut_perforations(&mut unsure, &noisy, &params, 1.0), 0);
+    }
+
+    /// A line of voxels at half the part's value through the slab: the column along it reads
+    /// 0.5, under the air limit (0.625, a quarter of the way from the threshold to the level),
+    /// but the air test reads the mean of five columns half a voxel apart, 0.7. A hole of
+    /// radius 1 voxel or more holds all five (the 1.2-voxel hole above is cut).
+    #[test]
+    fn a_dip_narrower_than_the_air_test_is_not_cut() {
+        let params = PerforationParams::default();
+        let dip = slab(|i, j| if i == 12.0 && j == 12.0 { 0.5 } else { 1.0 });
+        let part = VoxelPart {
+            volume: &dip,
+            threshold: 0.5,
+            background: 0.0,
+            noise: 0.0,
+        };
+        let mut mesh = sheet();
+        assert_eq!(cut_perforations(&mut mesh, &part, &params, 1.0), 0);
+        assert_eq!(mesh, sheet());
     }
 
     /// A hole whose columns read air a quarter of a voxel from a rim vertex (which itself

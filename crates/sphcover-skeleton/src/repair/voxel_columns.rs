@@ -15,14 +15,21 @@ use sphcover_core::{DisjointSets, TriMesh, Volume};
 /// level at least.
 const NOISE_DEVIATIONS: f64 = 4.0;
 
-/// Independent voxels' worth of noise in a column's mean: the nine trilinear samples along
-/// ±1 voxel weigh the voxels around them so that, for noise independent from voxel to voxel,
-/// the mean's variance is that of 6.5 voxels on average over positions and directions and of
-/// more than 4.7 in 95% of them (computed from the interpolation weights). Taking 3, the
-/// repair left half the small perforations spanned at 30% noise (spurious area up to 0.057);
-/// with 4.5, 5–7 of 8 open and at most 0.039, and no cut on the other phantoms; with 6, a cut
-/// opened a hole in the rough-boundary plate at 30% noise.
-const COLUMN_INDEPENDENT_VOXELS: f64 = 4.5;
+/// The air test reads the mean of five columns: the vertex's and four half a voxel from it
+/// along the sheet. A hole of radius 1 voxel or more holds all five; noise that puts a
+/// single column over air rarely puts their mean there.
+const DISK_RADIUS_VOXELS: f64 = 0.5;
+
+/// Independent voxels' worth of noise in the five columns' mean: their 45 trilinear samples
+/// weigh the voxels around them so that, for noise independent from voxel to voxel, the
+/// mean's variance is that of 10.0 voxels on average over positions and directions and of
+/// more than 9.2 in 95% of them (computed from the interpolation weights; a single column:
+/// 6.6 and 4.8). With a single column and 4.5 voxels the repair left 1–5 of the small
+/// perforations spanned at 30 % noise (spurious area up to 0.056 on seeds 1–16; 3 voxels:
+/// up to 0.057 on seeds 1–3; 6: a hole cut into the rough-boundary plate), and on slices
+/// twice the pixels apart, where half the voxels are interpolated, it cut holes into three
+/// plates that have none (`docs/benchmarks.md`, *Small perforations*).
+const DISK_INDEPENDENT_VOXELS: f64 = 9.0;
 
 /// Nine samples a quarter of the column apart: about three voxels' worth of noise.
 const COLUMN_SAMPLES: [f64; 9] = [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0];
@@ -172,9 +179,8 @@ impl<'a> SheetColumns<'a> {
 
     /// The value under which vertex `v`'s column holds less than `fraction` of the part: the
     /// lower of `fraction` of the way from the threshold to the part's level and `fraction`
-    /// of the way from the midpoint of the background and the level to it; with `noisy`,
-    /// also the column noise's [`NOISE_DEVIATIONS`] below the level.
-    fn limit(&self, v: usize, fraction: f64, noisy: bool) -> f64 {
+    /// of the way from the midpoint of the background and the level to it.
+    fn limit(&self, v: usize, fraction: f64) -> f64 {
         let top = self.top[v];
         let part = &self.part;
         // Both bounds are `from + fraction · (top − from)`, which grows with `from`: the
@@ -186,21 +192,42 @@ impl<'a> SheetColumns<'a> {
         // cut a strip of holes across it.
         let mid = 0.5 * (part.background.min(part.threshold) + top);
         let from = part.threshold.min(mid);
-        let limit = from + fraction * (top - from);
-        if noisy {
-            // At 30% of the contrast a quarter of the way to the part's level is within 2.4
-            // deviations of it, and a cut opened the T-junction's web.
-            let column_noise = NOISE_DEVIATIONS * part.noise / COLUMN_INDEPENDENT_VOXELS.sqrt();
-            limit.min(top - column_noise)
-        } else {
-            limit
-        }
+        from + fraction * (top - from)
     }
 
     /// Which vertices' columns hold less than `fraction` of the part ([`Self::limit`]).
-    pub(crate) fn below(&self, fraction: f64, noisy: bool) -> Vec<bool> {
+    pub(crate) fn below(&self, fraction: f64) -> Vec<bool> {
         (0..self.mean.len())
-            .map(|v| self.mean[v].is_some_and(|m| m < self.limit(v, fraction, noisy)))
+            .map(|v| self.mean[v].is_some_and(|m| m < self.limit(v, fraction)))
+            .collect()
+    }
+
+    /// Which vertices of `mesh` (the mesh the columns were read on) stand over air: the mean
+    /// of their column and of the four columns [`DISK_RADIUS_VOXELS`] from it along the sheet
+    /// holds less than `fraction` of the part ([`Self::limit`]) and lies at least
+    /// [`NOISE_DEVIATIONS`] of that mean's noise below the part's level (at 30 % of the
+    /// contrast a quarter of the way to the level is within 2.4 deviations of a single
+    /// column's noise, and a cut opened the T-junction's web).
+    pub(crate) fn over_air(&self, mesh: &TriMesh, fraction: f64, voxel: f64) -> Vec<bool> {
+        let normals = mesh.normals.as_deref().unwrap_or_default();
+        let disk_noise = NOISE_DEVIATIONS * self.part.noise / DISK_INDEPENDENT_VOXELS.sqrt();
+        let r = DISK_RADIUS_VOXELS * voxel;
+        (0..self.mean.len())
+            .into_par_iter()
+            .map(|v| {
+                let (Some(centre), Some(d)) = (self.mean[v], normals[v].try_normalize()) else {
+                    return false;
+                };
+                let p = mesh.vertices[v];
+                let u = d.any_orthonormal_vector();
+                let w = d.cross(u);
+                let around = [u, -u, w, -w].map(|t| self.column_at(p + t * r, d));
+                let Some(around) = around.into_iter().sum::<Option<f64>>() else {
+                    return false;
+                };
+                let mean = (centre + around) / 5.0;
+                mean < self.limit(v, fraction).min(self.top[v] - disk_noise)
+            })
             .collect()
     }
 
@@ -214,7 +241,7 @@ impl<'a> SheetColumns<'a> {
         let Some(d) = d.try_normalize() else {
             return false;
         };
-        let limit = self.limit(v, fraction, false);
+        let limit = self.limit(v, fraction);
         let u = d.any_orthonormal_vector();
         let w = d.cross(u);
         // Half a voxel apart.
