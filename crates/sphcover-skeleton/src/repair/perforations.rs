@@ -42,7 +42,7 @@ pub struct PerforationParams {
     /// it along the sheet is below the threshold plus this fraction of the way to the part's
     /// level (the median column of its piece of sheet), and below the midpoint of the
     /// background and the part's level plus this fraction of the way from there to the level
-    /// (the same point when the threshold is the midpoint), and lies four deviations of its
+    /// (the same point when the threshold is the midpoint), and lies 4.5 deviations of its
     /// noise below the level.
     pub air_fraction: f64,
     /// A vertex is over little material when its column's mean is below both points of
@@ -406,10 +406,10 @@ mod tests {
         let mut whole = sheet();
         assert_eq!(cut_perforations(&mut whole, &part(&solid), &params, 1.0), 0);
         assert_eq!(whole, sheet());
-        // Noise that reaches from the part's level to the hole's columns (4 deviations of
-        // five columns' mean, 4 · 0.8 / √9, exceed the contrast): nothing is taken for air.
+        // Noise that reaches from the part's level to the hole's columns (4.5 deviations of
+        // five columns' mean, 4.5 · 0.7 / √9, exceed the contrast): nothing is taken for air.
         let noisy = VoxelPart {
-            noise: 0.8,
+            noise: 0.7,
             ..part(&holed)
         };
         let mut unsure = sheet();
