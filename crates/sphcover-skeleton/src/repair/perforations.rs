@@ -299,6 +299,16 @@ mod tests {
         .unwrap()
     }
 
+    /// `volume` as a part of level 1 over a background of 0, thresholded at 0.5, without noise.
+    fn noiseless(volume: &Volume) -> VoxelPart<'_> {
+        VoxelPart {
+            volume,
+            threshold: 0.5,
+            background: 0.0,
+            noise: 0.0,
+        }
+    }
+
     /// A sheet on the slab's mid-plane z = 6 over 2 ≤ x, y ≤ 22, half a voxel between
     /// vertices, with normals +z.
     fn sheet() -> TriMesh {
@@ -424,14 +434,11 @@ mod tests {
     fn a_dip_narrower_than_the_air_test_is_not_cut() {
         let params = PerforationParams::default();
         let dip = slab(|i, j| if i == 12.0 && j == 12.0 { 0.5 } else { 1.0 });
-        let part = VoxelPart {
-            volume: &dip,
-            threshold: 0.5,
-            background: 0.0,
-            noise: 0.0,
-        };
         let mut mesh = sheet();
-        assert_eq!(cut_perforations(&mut mesh, &part, &params, 1.0), 0);
+        assert_eq!(
+            cut_perforations(&mut mesh, &noiseless(&dip), &params, 1.0),
+            0
+        );
         assert_eq!(mesh, sheet());
     }
 
@@ -485,12 +492,7 @@ mod tests {
     fn a_fold_off_the_plate_is_not_cut() {
         let params = PerforationParams::default();
         let solid = plate(-1.0);
-        let part = VoxelPart {
-            volume: &solid,
-            threshold: 0.5,
-            background: 0.0,
-            noise: 0.0,
-        };
+        let part = noiseless(&solid);
         let mut mesh = sheet();
         let normals = mesh.normals.as_mut().unwrap();
         for (p, n) in mesh.vertices.iter_mut().zip(normals.iter_mut()) {
@@ -514,7 +516,7 @@ mod tests {
                                                offset in 0.0f64..0.5, height in 2.0f64..3.0,
                                                side in 0.0f64..6.3) {
             let volume = plate(hole);
-            let part = VoxelPart { volume: &volume, threshold: 0.5, background: 0.0, noise: 0.0 };
+            let part = noiseless(&volume);
             let mesh = sheet();
             let mut edges = sorted_edges(&mesh);
             edges.dedup();
