@@ -8,10 +8,11 @@
 //! stays. The flap repair eats fins this way; the rim trimming, where the voxels are at
 //! hand, trims this way too, so that it cannot join two holes or a hole and the rim.
 
-use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 
 use sphcover_core::{TriMesh, VertexTriangles};
+
+use super::MinFirst;
 
 /// The state of a sequence of elementary collapses on a mesh: which triangles are gone, and
 /// how many live triangles use each edge and each corner.
@@ -102,26 +103,6 @@ impl<'m> FreeEdgeCollapse<'m> {
     }
 }
 
-/// A key and an index ordered for a min-heap in [`BinaryHeap`]: the lowest key first, ties
-/// by the lowest index.
-#[derive(PartialEq)]
-pub(crate) struct MinFirst(pub(crate) f64, pub(crate) u32);
-
-impl Eq for MinFirst {}
-
-impl PartialOrd for MinFirst {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for MinFirst {
-    /// Reversed: the max-heap pops the lowest key.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
-    }
-}
-
 /// Collapses as many of the `removable` triangles of `mesh` as elementary collapses allow,
 /// lowest `priority` first (ties by index; a triangle is tried again whenever a neighbour
 /// goes), and returns which are gone. The result does not depend on anything but the inputs.
@@ -149,26 +130,9 @@ pub(crate) fn collapse_in_order(mesh: &TriMesh, removable: &[bool], priority: &[
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DVec3;
+    use crate::repair::grid;
     use proptest::prelude::*;
     use sphcover_core::MeshTopology;
-
-    /// An `nx × ny` grid of unit squares in z = 0, each split along its diagonal: square
-    /// `(i, j)` is triangles `2 (i·ny + j)` and the next.
-    fn grid(nx: u32, ny: u32) -> TriMesh {
-        let id = |i: u32, j: u32| i * (ny + 1) + j;
-        let vertices = (0..=nx)
-            .flat_map(|i| (0..=ny).map(move |j| DVec3::new(i as f64, j as f64, 0.0)))
-            .collect();
-        let mut triangles = Vec::new();
-        for i in 0..nx {
-            for j in 0..ny {
-                triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
-        TriMesh::new(vertices, triangles)
-    }
 
     /// The mesh without the triangles marked.
     fn without(mesh: &TriMesh, removed: &[bool]) -> TriMesh {
@@ -228,7 +192,7 @@ mod tests {
         // 5 × 3 squares, holes at squares (1, 1) and (3, 1), the strip (2, 1) between them
         // removable.
         let five = grid(5, 3);
-        let square = |i: usize, j: usize| [6 * i + 2 * j, 6 * i + 2 * j + 1];
+        let square = |i: usize, j: usize| [2 * (i + 5 * j), 2 * (i + 5 * j) + 1];
         let mut punched = vec![false; 30];
         for t in square(1, 1).into_iter().chain(square(3, 1)) {
             punched[t] = true;

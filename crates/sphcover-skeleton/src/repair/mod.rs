@@ -17,6 +17,8 @@ pub(crate) mod sheet_smoothing;
 pub(crate) mod tunnels;
 pub(crate) mod voxel_columns;
 
+use std::cmp::Ordering;
+
 use cleaning::CleaningParams;
 use flaps::FlapParams;
 use junction_holes::SheetHoleParams;
@@ -118,6 +120,26 @@ impl SheetRepairs {
     }
 }
 
+/// A key and an index ordered for a min-heap in [`std::collections::BinaryHeap`]: the lowest
+/// key first, ties by the lowest index (shortest paths, collapse orders).
+#[derive(PartialEq)]
+pub(crate) struct MinFirst(pub(crate) f64, pub(crate) u32);
+
+impl Eq for MinFirst {}
+
+impl PartialOrd for MinFirst {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for MinFirst {
+    /// Reversed: the max-heap pops the lowest key.
+    fn cmp(&self, other: &Self) -> Ordering {
+        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
+    }
+}
+
 /// Every triangle's edges as (lower, higher) vertex pairs, sorted: an edge appears once per
 /// triangle it bounds, so runs of one are boundary edges and runs of three or more junctions.
 pub(crate) fn sorted_edges(mesh: &sphcover_core::TriMesh) -> Vec<(u32, u32)> {
@@ -128,4 +150,25 @@ pub(crate) fn sorted_edges(mesh: &sphcover_core::TriMesh) -> Vec<(u32, u32)> {
         .collect();
     edges.sort_unstable();
     edges
+}
+
+/// An `n × m` grid of unit squares in z = 0, two triangles each (square `(i, j)` holds
+/// triangles `2(i + n j)` and `2(i + n j) + 1`), for the repairs' tests.
+#[cfg(test)]
+pub(crate) fn grid(n: u32, m: u32) -> sphcover_core::TriMesh {
+    let mut v = Vec::new();
+    for j in 0..=m {
+        for i in 0..=n {
+            v.push(glam::DVec3::new(i as f64, j as f64, 0.0));
+        }
+    }
+    let mut t = Vec::new();
+    for j in 0..m {
+        for i in 0..n {
+            let a = i + (n + 1) * j;
+            t.push([a, a + 1, a + n + 2]);
+            t.push([a, a + n + 2, a + n + 1]);
+        }
+    }
+    sphcover_core::TriMesh::new(v, t)
 }

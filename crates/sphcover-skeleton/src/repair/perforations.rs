@@ -169,7 +169,8 @@ pub fn cut_perforations(
     // Hysteresis: a region of vertices over little material is a perforation when some of
     // its vertices are over air.
     let little = columns.below(params.little_material_fraction);
-    let air = columns.over_air(mesh, params.air_fraction, voxel);
+    // Only a vertex over little material belongs to a region: the others' air is not read.
+    let air = columns.over_air(mesh, &little, params.air_fraction, voxel);
     let mut regions = DisjointSets::new(n);
     for &(a, b) in &edges {
         if little[a as usize] && little[b as usize] {

@@ -8,7 +8,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::{TriMesh, triangle_area};
 
-use super::collapse::{MinFirst, collapse_in_order};
+use super::MinFirst;
+use super::collapse::collapse_in_order;
 use super::part_surface::PartSurface;
 use super::sorted_edges;
 
@@ -363,27 +364,8 @@ pub(crate) fn distance_to_boundary(mesh: &TriMesh, limit: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::repair::grid;
     use proptest::prelude::*;
-
-    /// An `n × m` grid of unit squares, two triangles each (square `(i, j)` holds triangles
-    /// `2(i + n j)` and `2(i + n j) + 1`).
-    fn grid(n: u32, m: u32) -> TriMesh {
-        let mut v = Vec::new();
-        for j in 0..=m {
-            for i in 0..=n {
-                v.push(DVec3::new(i as f64, j as f64, 0.0));
-            }
-        }
-        let mut t = Vec::new();
-        for j in 0..m {
-            for i in 0..n {
-                let a = i + (n + 1) * j;
-                t.push([a, a + 1, a + n + 2]);
-                t.push([a, a + n + 2, a + n + 1]);
-            }
-        }
-        TriMesh::new(v, t)
-    }
 
     proptest! {
         /// Removing the squares of column `c` cuts a grid in two; the smaller side is joined

@@ -2,12 +2,12 @@
 //!
 //! The method is described on [`close_material_tunnels()`].
 
-use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 
 use glam::DVec3;
 use sphcover_core::TriMesh;
 
+use super::MinFirst;
 use super::flaps::triangle_alignment;
 
 /// Parameters of [`close_material_tunnels`]; lengths in voxels.
@@ -131,24 +131,6 @@ impl Reducer {
             }
             None => false,
         }
-    }
-}
-
-#[derive(PartialEq)]
-struct Entry(f64, u32);
-impl Eq for Entry {}
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        // Min-heap on distance, then vertex index (deterministic).
-        other
-            .0
-            .total_cmp(&self.0)
-            .then_with(|| other.1.cmp(&self.1))
     }
 }
 
@@ -451,8 +433,8 @@ fn short_loops(
         distance[root as usize] = 0.0;
         branch[root as usize] = root;
         let mut heap = BinaryHeap::new();
-        heap.push(Entry(0.0, root));
-        while let Some(Entry(d, v)) = heap.pop() {
+        heap.push(MinFirst(0.0, root));
+        while let Some(MinFirst(d, v)) = heap.pop() {
             if d > distance[v as usize] {
                 continue;
             }
@@ -465,7 +447,7 @@ fn short_loops(
                     distance[w as usize] = nd;
                     parent[w as usize] = (v, e);
                     branch[w as usize] = if v == root { w } else { branch[v as usize] };
-                    heap.push(Entry(nd, w));
+                    heap.push(MinFirst(nd, w));
                 }
             }
         }

@@ -205,19 +205,29 @@ impl<'a> SheetColumns<'a> {
             .collect()
     }
 
-    /// Which vertices of `mesh` (the mesh the columns were read on) stand over air: the mean
+    /// Which of the vertices `among` of `mesh` (the mesh the columns were read on; the others
+    /// are not read) stand over air: the mean
     /// of their column and of the four columns [`DISK_RADIUS_VOXELS`] from it along the sheet
     /// holds less than `fraction` of the part ([`Self::limit`]) and lies at least
     /// [`NOISE_DEVIATIONS`] of that mean's noise below the part's level (at 30 % of the
     /// contrast a quarter of the way to the level is within 2.4 deviations of a single
     /// column's noise, and a cut opened the T-junction's web).
-    pub(crate) fn over_air(&self, mesh: &TriMesh, fraction: f64, voxel: f64) -> Vec<bool> {
+    pub(crate) fn over_air(
+        &self,
+        mesh: &TriMesh,
+        among: &[bool],
+        fraction: f64,
+        voxel: f64,
+    ) -> Vec<bool> {
         let normals = mesh.normals.as_deref().unwrap_or_default();
         let disk_noise = NOISE_DEVIATIONS * self.part.noise / DISK_INDEPENDENT_VOXELS.sqrt();
         let r = DISK_RADIUS_VOXELS * voxel;
         (0..self.mean.len())
             .into_par_iter()
             .map(|v| {
+                if !among[v] {
+                    return false;
+                }
                 let (Some(centre), Some(d)) = (self.mean[v], normals[v].try_normalize()) else {
                     return false;
                 };
