@@ -327,6 +327,8 @@ fn thick_slices_are_resampled_with_a_note() {
         serde_json::json!([48, 48, 12])
     );
     assert_eq!(json["resampled"]["dims"], serde_json::json!([48, 48, 23]));
+    // Slices three times the pixels: the sheet across the plate is placed on their centroid.
+    assert!(json["slice_centred_vertices"].as_u64().unwrap() > 0);
 
     let out = sphcover(&[
         "skeleton",
@@ -376,6 +378,7 @@ fn the_report_file_holds_the_stage_counts() {
     assert!(json["perforations_cut"].is_u64());
     assert!(json["flap_triangles_collapsed"].is_u64());
     assert!(json["resampled"].is_null());
+    assert_eq!(json["slice_centred_vertices"], 0);
 }
 
 /// Voxels holding NaN or an infinity are refused by every command that processes a volume,

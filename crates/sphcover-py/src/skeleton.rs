@@ -202,6 +202,7 @@ fn sheet_dict<'py>(
     d.set_item("tunnels_closed", s.tunnels)?;
     d.set_item("perforations_cut", s.perforations)?;
     d.set_item("flap_triangles_collapsed", s.flap_triangles)?;
+    d.set_item("slice_centred_vertices", s.slice_centred_vertices)?;
     d.set_item("thickness_exceeds_r_max", s.thickness_exceeds_r_max())?;
     match &s.material {
         Some(m) => {

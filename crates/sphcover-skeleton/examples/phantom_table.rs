@@ -141,6 +141,7 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
         let r = &mut p.repairs;
         match name {
             "sigma" => p.sigma = v,
+            "smooth_mask_noise" => p.smooth_mask_noise = v,
             "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = (v > 0.0).then_some(v),
             "rim_trim_factor" => set(&mut r.rim_trimming, |t| t.factor = v),
             "rim_keep_pieces_voxels" => set(&mut r.rim_trimming, |t| {
@@ -162,6 +163,15 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
                 set(&mut r.tunnels, |t| t.max_perimeter_voxels = v);
             }
             "flaps_min_alignment" => set(&mut r.flaps, |f| f.min_alignment = v),
+            "slice_centroids_min_axis_cosine" => {
+                set(&mut r.slice_centroids, |s| s.min_axis_cosine = v);
+            }
+            "slice_centroids_max_run_slices" => {
+                set(&mut r.slice_centroids, |s| s.max_run_slices = v as usize);
+            }
+            "slice_centroids_max_shift_slices" => {
+                set(&mut r.slice_centroids, |s| s.max_shift_slices = v);
+            }
             "min_component_fraction" => r.cleaning.min_component_fraction = v,
             "max_hole_perimeter_voxels" => r.cleaning.max_hole_perimeter_voxels = v,
             "min_relative_strength" => p.ridge.min_relative_strength = v,
@@ -184,7 +194,8 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
                     5 => (r.centring, r.junction_fold) = (None, None),
                     6 => r.junction_fold = None,
                     7 => r.junction_planes = None,
-                    _ => panic!("PARAMS: off takes 1..=7"),
+                    8 => r.slice_centroids = None,
+                    _ => panic!("PARAMS: off takes 1..=8"),
                 }
             }
             _ => panic!("PARAMS: unknown parameter {name:?}"),

@@ -128,7 +128,7 @@ pub fn extract_skeleton_from_samples_until(
         cover_stats,
         cover,
     };
-    sheet_from_cover(front, None, false, times, params, progress, stop)
+    sheet_from_cover(front, None, None, false, times, params, progress, stop)
 }
 
 /// What the front stages of scattered samples share.

@@ -78,10 +78,11 @@ fn placement(sheet: &TriMesh, normal: DVec3, c: f64) -> (f64, f64) {
 }
 
 /// A plate tilted 25° off the slices, at two positions across them, noise-free and at 10 %
-/// noise. Measured: 95 % of the vertices within 0.04–0.15 mm of the mid-plane at 3:1 and 5:1
-/// (0.07–0.08 mm on the isotropic grid), coverage 0.99–1.00, one component. Processed
-/// without resampling, the noise-free 3:1 plate at c = 5.9 came out in 7 pieces covering 81 %
-/// of the plane.
+/// noise. Measured: 95 % of the vertices within 0.02–0.19 mm of the mid-plane at 3:1 and 5:1
+/// (0.07–0.08 mm on the isotropic grid; noise-free, 0.02 mm at 3:1 and 0.07–0.08 at 5:1
+/// with the slice centroids, 0.04 and 0.09–0.10 without), coverage 0.99–1.00, one
+/// component. Processed without resampling, the noise-free 3:1 plate at c = 5.9 came out in
+/// 7 pieces covering 81 % of the plane.
 ///
 /// Plates parallel to the slices are the hard case of thick slices (the slice profile
 /// flattens their ridge): at some positions across the slices they break into pieces, as

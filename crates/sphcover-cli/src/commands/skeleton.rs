@@ -316,6 +316,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "perforations_cut": s.perforations,
         "material_holes_filled": s.material_holes,
         "flap_triangles_collapsed": s.flap_triangles,
+        "slice_centred_vertices": s.slice_centred_vertices,
         "resampled": s.resampled.map(|r| serde_json::json!({
             "factors": r.resampling.factors,
             "input_dims": r.original_dims,

@@ -16,11 +16,12 @@ use sphcover_core::{
 
 use crate::error::SkeletonError;
 use crate::intensity_model::IntensityModel;
-use crate::material::{MaterialChoice, MaterialReport};
+use crate::material::{MaterialChoice, MaterialReport, windowed_volume};
 use crate::object_mask::ObjectMaskStats;
 use crate::repair::SheetRepairs;
 use crate::repair::cleaning::CleaningStats;
 use crate::repair::perforations::VoxelPart;
+use crate::repair::slice_centroids::ThickSlices;
 use crate::resample::{ResampledGrid, resample_if_anisotropic};
 use crate::ridge_points::RidgeFilter;
 use crate::voxel_grid::measured_after_resampling;
@@ -208,6 +209,9 @@ pub struct SkeletonStats {
     pub junction_corner_vertices: usize,
     /// Vertices re-centred between the part's faces.
     pub centred_vertices: usize,
+    /// Vertices moved to the centroid of the measured slices (volumes resampled from slices
+    /// more than twice as thick as the pixels).
+    pub slice_centred_vertices: usize,
     /// Triangles of the output.
     pub triangles: usize,
     /// Vertices of the output.
@@ -267,10 +271,33 @@ pub fn extract_skeleton_until(
         .as_ref()
         .is_none_or(|(_, record)| measured_after_resampling(record.resampling.size))
         .then_some(grid);
-    let (sheet, mut stats) =
-        sheet_from_cover(ctx.finish()?, measured, true, times, params, progress, stop)?;
+    let front = ctx.finish()?;
+    // The slice centroids read the slices as measured, on the threshold's scale.
+    let slice_axis = resampled
+        .as_ref()
+        .filter(|_| measured.is_none())
+        .and_then(|(_, record)| single_resampled_axis(record.resampling.factors));
+    let window = front.material.as_ref().and_then(|m| m.window);
+    let windowed = slice_axis.and(window).map(|w| windowed_volume(volume, w));
+    let thick_slices = slice_axis.map(|axis| (windowed.as_ref().unwrap_or(volume), axis));
+    let (sheet, mut stats) = sheet_from_cover(
+        front,
+        measured,
+        thick_slices,
+        true,
+        times,
+        params,
+        progress,
+        stop,
+    )?;
     stats.resampled = resampled.map(|(_, record)| record);
     Ok((sheet, stats))
+}
+
+/// The voxel axis of a grid resampled along that axis alone.
+fn single_resampled_axis(factors: [usize; 3]) -> Option<usize> {
+    let mut axes = (0..3).filter(|&a| factors[a] > 1);
+    axes.next().filter(|_| axes.next().is_none())
 }
 
 /// The names of the stages [`extract_skeleton`] (and
@@ -299,11 +326,14 @@ pub(crate) fn offset<'p>(
 
 /// Runs the stages after the cover, common to volumes and scattered samples, on the
 /// product of the front stages (`front`, whose stages took `times`) and, for a volume read
-/// as measured or resampled from slices at most 2:1, the grid the cover was fitted to;
-/// `on_grid` when the cover was fitted to a voxel grid at all.
+/// as measured or resampled from slices at most 2:1, the grid the cover was fitted to; for
+/// one resampled from thicker slices along one axis, the slices as measured (on the
+/// threshold's scale) and that axis; `on_grid` when the cover was fitted to a voxel grid at
+/// all.
 pub(crate) fn sheet_from_cover(
     front: CoverStage,
     grid: Option<&Volume>,
+    thick_slices: Option<(&Volume, usize)>,
     on_grid: bool,
     mut times: StageTimes,
     params: &SkeletonParams,
@@ -333,6 +363,12 @@ pub(crate) fn sheet_from_cover(
             threshold: intensity.threshold,
             background: intensity.background_level,
             noise: intensity.noise_std,
+        }),
+        thick_slices.map(|(volume, axis)| ThickSlices {
+            volume,
+            axis,
+            threshold: intensity.threshold,
+            background: intensity.background_level,
         }),
     );
     times.extend(run_stages_until(
@@ -367,6 +403,7 @@ pub(crate) fn sheet_from_cover(
         junction_snapped_vertices: repairs.junction_snapped_vertices,
         junction_corner_vertices: repairs.junction_corner_vertices,
         centred_vertices: repairs.centred_vertices,
+        slice_centred_vertices: repairs.slice_centred_vertices,
         triangles: ctx.sheet.triangles.len(),
         vertices: ctx.sheet.vertices.len(),
         components: topology.components,
@@ -490,6 +527,10 @@ fn check_repairs(r: &SheetRepairs) -> Result<(), SkeletonError> {
             "junction_planes.max_fit_angle_degrees",
             j.max_fit_angle_degrees,
         ));
+    }
+    if let Some(s) = &r.slice_centroids {
+        values.push(("slice_centroids.min_axis_cosine", s.min_axis_cosine));
+        values.push(("slice_centroids.max_shift_slices", s.max_shift_slices));
     }
     if let Some(s) = &r.smoothing {
         values.push(("smoothing.lambda", s.lambda));

@@ -22,6 +22,7 @@ use crate::repair::part_surface::PartSurface;
 use crate::repair::perforations::{VoxelPart, cut_perforations, over_little_material};
 use crate::repair::rim_trimming::trim_rims;
 use crate::repair::sheet_smoothing::smooth_across;
+use crate::repair::slice_centroids::{ThickSlices, centre_on_slice_centroids};
 use crate::repair::tunnels::close_material_tunnels;
 use crate::ridge_points::{
     RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points, vertex_derivatives,
@@ -41,6 +42,7 @@ pub(crate) struct RepairCounts {
     pub perforations: usize,
     pub flap_triangles: usize,
     pub centred_vertices: usize,
+    pub slice_centred_vertices: usize,
     pub junction_folded_vertices: usize,
     pub junction_snapped_vertices: usize,
     pub junction_corner_vertices: usize,
@@ -60,6 +62,9 @@ pub(crate) struct SheetContext<'c> {
     pub complex: TetComplex,
     /// The voxels of the part, for a volume.
     pub voxels: Option<VoxelPart<'c>>,
+    /// The slices as measured, for a volume resampled from slices more than twice as thick
+    /// as its pixels.
+    pub slices: Option<ThickSlices<'c>>,
     pub mesh: Option<TetMesh>,
     pub derivatives: Vec<Option<VertexDerivatives>>,
     pub ridge: Vec<Option<RidgePoint>>,
@@ -85,6 +90,7 @@ impl<'c> SheetContext<'c> {
         voxel: f64,
         complex: TetComplex,
         voxels: Option<VoxelPart<'c>>,
+        slices: Option<ThickSlices<'c>>,
     ) -> SheetContext<'c> {
         SheetContext {
             params,
@@ -94,6 +100,7 @@ impl<'c> SheetContext<'c> {
             voxel,
             complex,
             voxels,
+            slices,
             mesh: None,
             derivatives: Vec::new(),
             ridge: Vec::new(),
@@ -138,7 +145,7 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
         Stage::new("patches", patches),
         Stage::new("cleaning", cleaning),
     ];
-    let optional: [(bool, SheetStage<'c>); 11] = [
+    let optional: [(bool, SheetStage<'c>); 12] = [
         (
             repairs.rim_trimming.is_some(),
             Stage::new("rim trimming", rim_trimming),
@@ -169,6 +176,10 @@ pub(crate) fn sheet_stage_list<'c>(params: &SkeletonParams) -> Vec<SheetStage<'c
         (
             repairs.junction_planes.is_some(),
             Stage::new("junction planes", junction_planes),
+        ),
+        (
+            repairs.slice_centroids.is_some(),
+            Stage::new("slice centroids", slice_centroids),
         ),
         (
             repairs.smoothing.is_some(),
@@ -401,6 +412,15 @@ fn junction_planes(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
         let snap = snap_to_junction_planes(&mut ctx.sheet, params, ctx.voxel);
         ctx.repairs.junction_snapped_vertices = snap.moved;
         ctx.repairs.junction_corner_vertices = snap.corner_vertices;
+    }
+    Ok(())
+}
+
+/// The sheet across plates moved to the centroid of the measured slices.
+fn slice_centroids(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
+    if let (Some(params), Some(slices)) = (&ctx.params.repairs.slice_centroids, &ctx.slices) {
+        ctx.repairs.slice_centred_vertices =
+            centre_on_slice_centroids(&mut ctx.sheet, slices, params);
     }
     Ok(())
 }

@@ -14,6 +14,7 @@ pub(crate) mod part_surface;
 pub(crate) mod perforations;
 pub(crate) mod rim_trimming;
 pub(crate) mod sheet_smoothing;
+pub(crate) mod slice_centroids;
 pub(crate) mod tunnels;
 pub(crate) mod voxel_columns;
 
@@ -28,6 +29,7 @@ use medial_correction::{CentringParams, JunctionFoldParams};
 use perforations::PerforationParams;
 use rim_trimming::RimTrimParams;
 use sheet_smoothing::SmoothingParams;
+use slice_centroids::SliceCentroidParams;
 use tunnels::TunnelParams;
 
 /// Which repairs run on the raw ridge patches, and their parameters (method below). `Default`
@@ -50,6 +52,7 @@ use tunnels::TunnelParams;
 /// | centring | [`centre_between_faces`](crate::centre_between_faces) | re-centre vertices between the part's two faces |
 /// | junction fold | [`fold_junction_vertices`](crate::fold_junction_vertices) | fold junction fillets onto the plates (needs centring) |
 /// | junction planes | [`snap_to_junction_planes`](crate::snap_to_junction_planes) | snap the band where sheets meet onto their planes, and split its edges across their corner |
+/// | slice centroids | [`centre_on_slice_centroids`](crate::centre_on_slice_centroids) | move the sheet across plates to the measured slices' centroid (slices over 2:1) |
 /// | smoothing | [`smooth_across`](crate::smooth_across) | smooth across the sheet (off by default) |
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -76,6 +79,9 @@ pub struct SheetRepairs {
     pub junction_fold: Option<JunctionFoldParams>,
     /// Snapping junction bands onto the sheets' planes.
     pub junction_planes: Option<JunctionPlaneParams>,
+    /// Moving the sheet across plates to the centroid of the measured slices, on slices
+    /// more than twice as thick as the pixels (volumes only).
+    pub slice_centroids: Option<SliceCentroidParams>,
     /// Smoothing across the sheet. Off by default: on the 10 % phantoms three rounds lower
     /// the 95th-percentile distance of flat plates (0.23 → 0.19 voxel) but raise it at the
     /// T-junction (0.45 → 0.52) and on the spherical cap (0.32 → 0.37), where the umbrella
@@ -96,6 +102,7 @@ impl Default for SheetRepairs {
             centring: Some(CentringParams::default()),
             junction_fold: Some(JunctionFoldParams::default()),
             junction_planes: Some(JunctionPlaneParams::default()),
+            slice_centroids: Some(SliceCentroidParams::default()),
             smoothing: None,
         }
     }
@@ -115,6 +122,7 @@ impl SheetRepairs {
             centring: None,
             junction_fold: None,
             junction_planes: None,
+            slice_centroids: None,
             smoothing: None,
         }
     }
