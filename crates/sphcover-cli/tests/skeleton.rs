@@ -379,6 +379,7 @@ fn the_report_file_holds_the_stage_counts() {
     assert!(json["flap_triangles_collapsed"].is_u64());
     assert!(json["resampled"].is_null());
     assert_eq!(json["slice_centred_vertices"], 0);
+    assert_eq!(json["off_plate_triangles_collapsed"], 0);
 }
 
 /// Voxels holding NaN or an infinity are refused by every command that processes a volume,

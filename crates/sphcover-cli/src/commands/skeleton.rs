@@ -317,6 +317,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "material_holes_filled": s.material_holes,
         "flap_triangles_collapsed": s.flap_triangles,
         "slice_centred_vertices": s.slice_centred_vertices,
+        "off_plate_triangles_collapsed": s.off_plate_triangles,
         "resampled": s.resampled.map(|r| serde_json::json!({
             "factors": r.resampling.factors,
             "input_dims": r.original_dims,

@@ -212,6 +212,9 @@ pub struct SkeletonStats {
     /// Vertices moved to the centroid of the measured slices (volumes resampled from slices
     /// more than twice as thick as the pixels).
     pub slice_centred_vertices: usize,
+    /// Triangles standing off the plates of thick slices collapsed (volumes resampled from
+    /// slices more than twice as thick as the pixels).
+    pub off_plate_triangles: usize,
     /// Triangles of the output.
     pub triangles: usize,
     /// Vertices of the output.
@@ -404,6 +407,7 @@ pub(crate) fn sheet_from_cover(
         junction_corner_vertices: repairs.junction_corner_vertices,
         centred_vertices: repairs.centred_vertices,
         slice_centred_vertices: repairs.slice_centred_vertices,
+        off_plate_triangles: repairs.off_plate_triangles,
         triangles: ctx.sheet.triangles.len(),
         vertices: ctx.sheet.vertices.len(),
         components: topology.components,
@@ -531,6 +535,10 @@ fn check_repairs(r: &SheetRepairs) -> Result<(), SkeletonError> {
     if let Some(s) = &r.slice_centroids {
         values.push(("slice_centroids.min_axis_cosine", s.min_axis_cosine));
         values.push(("slice_centroids.max_shift_slices", s.max_shift_slices));
+        values.push((
+            "slice_centroids.max_off_plate_pixels",
+            s.max_off_plate_pixels,
+        ));
     }
     if let Some(s) = &r.smoothing {
         values.push(("smoothing.lambda", s.lambda));

@@ -22,7 +22,9 @@ use crate::repair::part_surface::PartSurface;
 use crate::repair::perforations::{VoxelPart, cut_perforations, over_little_material};
 use crate::repair::rim_trimming::trim_rims;
 use crate::repair::sheet_smoothing::smooth_across;
-use crate::repair::slice_centroids::{ThickSlices, centre_on_slice_centroids};
+use crate::repair::slice_centroids::{
+    ThickSlices, centre_on_slice_centroids, collapse_off_plate_triangles,
+};
 use crate::repair::tunnels::close_material_tunnels;
 use crate::ridge_points::{
     RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points, vertex_derivatives,
@@ -43,6 +45,7 @@ pub(crate) struct RepairCounts {
     pub flap_triangles: usize,
     pub centred_vertices: usize,
     pub slice_centred_vertices: usize,
+    pub off_plate_triangles: usize,
     pub junction_folded_vertices: usize,
     pub junction_snapped_vertices: usize,
     pub junction_corner_vertices: usize,
@@ -416,9 +419,12 @@ fn junction_planes(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     Ok(())
 }
 
-/// The sheet across plates moved to the centroid of the measured slices.
+/// Pieces off the plates of thick slices collapsed, the sheet across them moved to the
+/// centroid of the measured slices.
 fn slice_centroids(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
     if let (Some(params), Some(slices)) = (&ctx.params.repairs.slice_centroids, &ctx.slices) {
+        ctx.repairs.off_plate_triangles =
+            collapse_off_plate_triangles(&mut ctx.sheet, slices, params);
         ctx.repairs.slice_centred_vertices =
             centre_on_slice_centroids(&mut ctx.sheet, slices, params);
     }

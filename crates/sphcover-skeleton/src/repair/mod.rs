@@ -52,7 +52,7 @@ use tunnels::TunnelParams;
 /// | centring | [`centre_between_faces`](crate::centre_between_faces) | re-centre vertices between the part's two faces |
 /// | junction fold | [`fold_junction_vertices`](crate::fold_junction_vertices) | fold junction fillets onto the plates (needs centring) |
 /// | junction planes | [`snap_to_junction_planes`](crate::snap_to_junction_planes) | snap the band where sheets meet onto their planes, and split its edges across their corner |
-/// | slice centroids | [`centre_on_slice_centroids`](crate::centre_on_slice_centroids) | move the sheet across plates to the measured slices' centroid (slices over 2:1) |
+/// | slice centroids | [`centre_on_slice_centroids`](crate::centre_on_slice_centroids) | collapse pieces off the plates, move the rest to the measured slices' centroid (slices over 2:1) |
 /// | smoothing | [`smooth_across`](crate::smooth_across) | smooth across the sheet (off by default) |
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -79,8 +79,9 @@ pub struct SheetRepairs {
     pub junction_fold: Option<JunctionFoldParams>,
     /// Snapping junction bands onto the sheets' planes.
     pub junction_planes: Option<JunctionPlaneParams>,
-    /// Moving the sheet across plates to the centroid of the measured slices, on slices
-    /// more than twice as thick as the pixels (volumes only).
+    /// Collapsing the pieces of sheet off the plates and moving the rest to the centroid of
+    /// the measured slices, on slices more than twice as thick as the pixels (volumes
+    /// only).
     pub slice_centroids: Option<SliceCentroidParams>,
     /// Smoothing across the sheet. Off by default: on the 10 % phantoms three rounds lower
     /// the 95th-percentile distance of flat plates (0.23 → 0.19 voxel) but raise it at the
