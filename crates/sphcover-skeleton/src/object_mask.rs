@@ -37,7 +37,9 @@ pub struct ObjectMaskStats {
 /// of one voxel: a speck is one voxel, and smoothing takes it far below the threshold, while
 /// a plate keeps most of its contrast. Below that noise level the smoothed mask is not used,
 /// since it would also erode the thinnest plates (a 2-voxel plate blurred by the scanner
-/// barely reaches half the contrast).
+/// barely reaches half the contrast). On grids resampled from thick slices the level is
+/// lower (a speck there is a needle along the slice axis: see
+/// [`crate::SkeletonParams::smooth_mask_noise`]).
 pub fn drop_small_object_components(
     volume: &Volume,
     threshold: f64,

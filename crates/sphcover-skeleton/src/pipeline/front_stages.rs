@@ -51,6 +51,8 @@ pub(crate) fn intensity_cover_params(
 pub(super) struct VolumeFront<'a> {
     volume: &'a Volume,
     params: &'a SkeletonParams,
+    /// The largest factor the volume was resampled by along an axis (1 when it was not).
+    resampling_factor: usize,
     material: Option<MaterialReport>,
     /// The volume windowed to the chosen material, when the input is a CT with materials.
     windowed: Option<Volume>,
@@ -64,10 +66,15 @@ pub(super) struct VolumeFront<'a> {
 }
 
 impl<'a> VolumeFront<'a> {
-    pub fn new(volume: &'a Volume, params: &'a SkeletonParams) -> VolumeFront<'a> {
+    pub fn new(
+        volume: &'a Volume,
+        params: &'a SkeletonParams,
+        resampling_factor: usize,
+    ) -> VolumeFront<'a> {
         VolumeFront {
             volume,
             params,
+            resampling_factor,
             material: None,
             windowed: None,
             intensity: None,
@@ -141,7 +148,8 @@ fn intensity_model(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
 /// exceed the threshold in the volume smoothed by one voxel.
 fn object_mask(ctx: &mut VolumeFront<'_>) -> Result<(), SkeletonError> {
     let intensity = ctx.intensity();
-    let smooth = (intensity.noise_std > ctx.params.smooth_mask_noise * intensity.contrast().abs())
+    let bound = ctx.params.smooth_mask_noise / ctx.resampling_factor as f64;
+    let smooth = (intensity.noise_std > bound * intensity.contrast().abs())
         .then(|| smoothed_values(ctx.source(), 1.0, intensity.value_range.0));
     let (cleaned, mask) = drop_small_object_components(
         ctx.source(),
