@@ -3,6 +3,10 @@
 //! where an isotropic scan of the same plate puts it.
 
 use sphcover_core::{DVec3, TriMesh, Volume, VoxelValues};
+use sphcover_evaluation::sheet_metrics::score_mesh;
+use sphcover_evaluation::thin_phantoms::{
+    Phantom, PhantomParams, ThinShape, thick_slices, thin_phantom,
+};
 use sphcover_skeleton::{NmsParams, SkeletonParams, extract_skeleton, nms_skeleton};
 
 /// In-plane pixel size (mm).
@@ -144,20 +148,8 @@ fn plates_in_thick_slices_give_one_sheet_on_the_mid_plane() {
 /// tetrahedra within the part whose grown balls overlap, carries it whole (0.999, 0.996).
 #[test]
 fn a_t_junction_on_thick_slices_is_one_sheet() {
-    use sphcover_evaluation::sheet_metrics::score_mesh;
-    use sphcover_evaluation::thin_phantoms::{
-        PhantomParams, ThinShape, thick_slices, thin_phantom,
-    };
     for noise in [0.0, 0.1] {
-        let phantom = thin_phantom(
-            ThinShape::TJunction,
-            &PhantomParams {
-                noise,
-                seed: 1,
-                ..PhantomParams::default()
-            },
-        );
-        let volume = thick_slices(&phantom.volume, 3);
+        let (phantom, volume) = t_junction_on_slices(noise, 3);
         let (sheet, stats) =
             extract_skeleton(&volume, &SkeletonParams::default(), &|_| {}).unwrap();
         let m = score_mesh(&sheet, &phantom.truth, 1.0);
@@ -180,19 +172,7 @@ fn a_t_junction_on_thick_slices_is_one_sheet() {
 /// `smooth_mask_noise` 0.2 but over 0.2 / 3) the base came apart: 0.498 and 0.284.
 #[test]
 fn a_t_junction_on_5_to_1_slices_keeps_its_base() {
-    use sphcover_evaluation::sheet_metrics::score_mesh;
-    use sphcover_evaluation::thin_phantoms::{
-        PhantomParams, ThinShape, thick_slices, thin_phantom,
-    };
-    let phantom = thin_phantom(
-        ThinShape::TJunction,
-        &PhantomParams {
-            noise: 0.1,
-            seed: 1,
-            ..PhantomParams::default()
-        },
-    );
-    let volume = thick_slices(&phantom.volume, 5);
+    let (phantom, volume) = t_junction_on_slices(0.1, 5);
     let (sheet, stats) = extract_skeleton(&volume, &SkeletonParams::default(), &|_| {}).unwrap();
     let m = score_mesh(&sheet, &phantom.truth, 1.0);
     assert_eq!(stats.components, 1, "{m:?}");
@@ -202,4 +182,18 @@ fn a_t_junction_on_5_to_1_slices_keeps_its_base() {
         stats.object_mask
     );
     assert!(m.coverage >= 0.85 && m.spurious <= 0.03, "{m:?}");
+}
+
+/// The generated T-junction (seed 1) at `noise` on slices `k` voxels thick.
+fn t_junction_on_slices(noise: f64, k: usize) -> (Phantom, Volume) {
+    let phantom = thin_phantom(
+        ThinShape::TJunction,
+        &PhantomParams {
+            noise,
+            seed: 1,
+            ..PhantomParams::default()
+        },
+    );
+    let volume = thick_slices(&phantom.volume, k);
+    (phantom, volume)
 }

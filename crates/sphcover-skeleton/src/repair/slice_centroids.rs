@@ -386,24 +386,12 @@ mod tests {
 
     /// A sheet of 1-pixel squares over `[4, 19]²` in x and y, at height `z(x, y)`.
     fn sheet_over(z: impl Fn(f64, f64) -> f64) -> TriMesh {
-        let n = 16;
-        let mut vertices = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let (x, y) = (4.0 + i as f64, 4.0 + j as f64);
-                vertices.push(DVec3::new(x, y, z(x, y)));
-            }
+        let mut sheet = crate::repair::grid(15, 15);
+        for v in &mut sheet.vertices {
+            let (x, y) = (4.0 + v.x, 4.0 + v.y);
+            *v = DVec3::new(x, y, z(x, y));
         }
-        let mut triangles = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let v = (j * n + i) as u32;
-                let n = n as u32;
-                triangles.push([v, v + 1, v + n + 1]);
-                triangles.push([v, v + n + 1, v + n]);
-            }
-        }
-        TriMesh::new(vertices, triangles)
+        sheet
     }
 
     fn slices(volume: &Volume) -> ThickSlices<'_> {
