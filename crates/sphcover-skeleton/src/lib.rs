@@ -119,7 +119,9 @@ pub use repair::part_surface::PartSurface;
 pub use repair::perforations::{PerforationParams, VoxelPart, cut_perforations};
 pub use repair::rim_trimming::{RimTrimParams, trim_rims};
 pub use repair::sheet_smoothing::{SmoothingParams, smooth_across};
-pub use repair::slice_centroids::{SliceCentroidParams, ThickSlices, centre_on_slice_centroids};
+pub use repair::slice_centroids::{
+    SliceCentroidParams, ThickSlices, centre_on_slice_centroids, collapse_off_plate_triangles,
+};
 pub use repair::tunnels::{TunnelParams, close_material_tunnels};
 pub use resample::{ResampledGrid, resample_volume};
 pub use ridge_points::{
