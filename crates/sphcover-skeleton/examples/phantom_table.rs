@@ -172,6 +172,9 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
             "slice_centroids_max_shift_slices" => {
                 set(&mut r.slice_centroids, |s| s.max_shift_slices = v);
             }
+            "slice_centroids_max_off_plate_pixels" => {
+                set(&mut r.slice_centroids, |s| s.max_off_plate_pixels = v);
+            }
             "min_component_fraction" => r.cleaning.min_component_fraction = v,
             "max_hole_perimeter_voxels" => r.cleaning.max_hole_perimeter_voxels = v,
             "min_relative_strength" => p.ridge.min_relative_strength = v,
