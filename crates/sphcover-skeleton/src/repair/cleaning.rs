@@ -10,6 +10,8 @@ use sphcover_core::{
     DisjointSets, MeshTopology, TriMesh, VertexTriangles, remove_unused_vertices, triangle_area,
 };
 
+use super::retain_triangles;
+
 /// Parameters of [`clean_sheet`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -206,12 +208,7 @@ fn resolve_pinches(mesh: &mut TriMesh, stats: &mut CleaningStats) {
             return;
         }
         let before = mesh.triangles.len();
-        let mut t = 0;
-        mesh.triangles.retain(|_| {
-            let keep = !remove[t];
-            t += 1;
-            keep
-        });
+        retain_triangles(&mut mesh.triangles, |t| !remove[t]);
         stats.pinch_triangles += before - mesh.triangles.len();
     }
 }
@@ -243,11 +240,8 @@ fn drop_fragments(mesh: &mut TriMesh, params: &Limits, stats: &mut CleaningStats
         .collect();
     stats.dropped_components = keep.iter().filter(|&&k| !k).count();
     let before = mesh.triangles.len();
-    let mut t = 0;
-    mesh.triangles.retain(|_| {
-        let k = keep[topo.triangle_component[t] as usize];
-        t += 1;
-        k
+    retain_triangles(&mut mesh.triangles, |t| {
+        keep[topo.triangle_component[t] as usize]
     });
     stats.dropped_triangles = before - mesh.triangles.len();
 }

@@ -6,6 +6,7 @@ use glam::DVec3;
 use sphcover_core::TriMesh;
 
 use super::collapse::FreeEdgeCollapse;
+use super::retain_triangles;
 
 /// `|n · ē|` of each triangle: `n` its normal, `ē` the mean across direction of its corners
 /// (signs aligned to the first corner's); 1 without normals.
@@ -76,12 +77,7 @@ pub fn collapse_misaligned_flaps(mesh: &mut TriMesh, params: &FlapParams) -> usi
         queue.extend(collapse.neighbours(t));
     }
     let removed = collapse.into_removed();
-    let mut t = 0;
-    mesh.triangles.retain(|_| {
-        let keep = !removed[t];
-        t += 1;
-        keep
-    });
+    retain_triangles(&mut mesh.triangles, |t| !removed[t]);
     count
 }
 

@@ -129,6 +129,16 @@ impl SheetRepairs {
     }
 }
 
+/// Keeps the triangles whose index `keep` accepts, in their order: how a repair drops the
+/// triangles it marked.
+pub(crate) fn retain_triangles(triangles: &mut Vec<[u32; 3]>, keep: impl Fn(usize) -> bool) {
+    let mut t = 0;
+    triangles.retain(|_| {
+        t += 1;
+        keep(t - 1)
+    });
+}
+
 /// A key and an index ordered for a min-heap in [`std::collections::BinaryHeap`]: the lowest
 /// key first, ties by the lowest index (shortest paths, collapse orders).
 #[derive(PartialEq)]

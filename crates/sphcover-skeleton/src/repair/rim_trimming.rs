@@ -8,10 +8,10 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::{TriMesh, triangle_area};
 
-use super::MinFirst;
 use super::collapse::collapse_in_order;
 use super::part_surface::PartSurface;
 use super::sorted_edges;
+use super::{MinFirst, retain_triangles};
 
 /// Parameters of [`trim_rims`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,11 +107,7 @@ pub fn trim_rims(
         reconnect_split_pieces(mesh, &mut keep, area * voxel * voxel);
     }
     let mut out = mesh.clone();
-    let mut k = 0;
-    out.triangles.retain(|_| {
-        k += 1;
-        keep[k - 1]
-    });
+    retain_triangles(&mut out.triangles, |t| keep[t]);
     let removed = mesh.triangles.len() - out.triangles.len();
     (out, removed)
 }

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use sphcover_core::{TriMesh, Volume};
 
 use super::collapse::collapse_in_order;
+use super::retain_triangles;
 
 /// Parameters of [`collapse_off_plate_triangles`] and [`centre_on_slice_centroids`]; lengths
 /// in slices but for `max_off_plate_pixels`.
@@ -97,6 +98,25 @@ impl ThickSlices<'_> {
         self.volume.value(self.volume.index(ijk[0], ijk[1], ijk[2]))
     }
 
+    /// Whether column `column` is above the threshold at slice `k`.
+    fn inside(&self, column: [usize; 2], k: usize) -> bool {
+        self.at(column, k) > self.threshold
+    }
+
+    /// The first and last slice of the run above the threshold through slice `k` (which
+    /// must be in it) of column `column`.
+    fn run_through(&self, column: [usize; 2], k: usize) -> (usize, usize) {
+        let n = self.volume.dims()[self.axis];
+        let first = (0..k)
+            .rev()
+            .find(|&j| !self.inside(column, j))
+            .map_or(0, |j| j + 1);
+        let last = (k + 1..n)
+            .find(|&j| !self.inside(column, j))
+            .map_or(n - 1, |j| j - 1);
+        (first, last)
+    }
+
     /// The centroid (slice coordinate) of the part where column `column` crosses it at
     /// slice coordinate `w`: over the run of slices above the threshold that holds one of
     /// the two slices around `w` (the higher), and the slice on either side (where a plate
@@ -109,11 +129,9 @@ impl ThickSlices<'_> {
         let above = (below + 1).min(n - 1);
         let start = [below, above]
             .into_iter()
-            .filter(|&k| self.at(column, k) > self.threshold)
+            .filter(|&k| self.inside(column, k))
             .max_by(|&x, &y| self.at(column, x).total_cmp(&self.at(column, y)))?;
-        let inside = |k: usize| self.at(column, k) > self.threshold;
-        let first = (0..=start).rev().take_while(|&k| inside(k)).last()?;
-        let last = (start..n).take_while(|&k| inside(k)).last()?;
+        let (first, last) = self.run_through(column, start);
         if first == 0 || last + 1 == n || last - first + 1 > max_run {
             return None;
         }
@@ -158,20 +176,17 @@ impl ThickSlices<'_> {
     /// `None` without one, or when one of them is longer than `max_run` slices (a part
     /// standing along the axis there, whose sheet may lie anywhere along the column).
     fn nearest_plate(&self, column: [usize; 2], w: f64, max_run: usize) -> Option<f64> {
-        let n = self.volume.dims()[self.axis];
-        let inside = |k: usize| self.at(column, k) > self.threshold;
-        let last_slice = (n - 1) as f64;
+        let last_slice = (self.volume.dims()[self.axis] - 1) as f64;
         let lo = (w - OFF_PLATE_REACH_SLICES).ceil().clamp(0.0, last_slice) as usize;
         let hi = (w + OFF_PLATE_REACH_SLICES).floor().clamp(0.0, last_slice) as usize;
         let mut nearest: Option<f64> = None;
         let mut k = lo;
         while k <= hi {
-            if !inside(k) {
+            if !self.inside(column, k) {
                 k += 1;
                 continue;
             }
-            let first = (0..=k).rev().take_while(|&j| inside(j)).last()?;
-            let last = (k..n).take_while(|&j| inside(j)).last()?;
+            let (first, last) = self.run_through(column, k);
             if last - first + 1 > max_run {
                 return None;
             }
@@ -238,11 +253,7 @@ pub fn collapse_off_plate_triangles(
     let removable: Vec<bool> = off.iter().map(|&d| d > max_off).collect();
     let farthest_first: Vec<f64> = off.iter().map(|&d| -d).collect();
     let removed = collapse_in_order(sheet, &removable, &farthest_first);
-    let mut t = 0;
-    sheet.triangles.retain(|_| {
-        t += 1;
-        !removed[t - 1]
-    });
+    retain_triangles(&mut sheet.triangles, |t| !removed[t]);
     removed.iter().filter(|&&r| r).count()
 }
 

@@ -7,8 +7,8 @@ use std::collections::{BinaryHeap, HashMap};
 use glam::DVec3;
 use sphcover_core::TriMesh;
 
-use super::MinFirst;
 use super::flaps::triangle_alignment;
+use super::{MinFirst, retain_triangles};
 
 /// Parameters of [`close_material_tunnels`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -376,12 +376,7 @@ pub(crate) fn remove_closed_pockets(mesh: &mut TriMesh) -> usize {
         }
     }
     let before = mesh.triangles.len();
-    let mut t = 0;
-    mesh.triangles.retain(|_| {
-        let keep = !removed[t];
-        t += 1;
-        keep
-    });
+    retain_triangles(&mut mesh.triangles, |t| !removed[t]);
     before - mesh.triangles.len()
 }
 
