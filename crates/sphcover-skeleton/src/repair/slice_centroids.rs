@@ -36,11 +36,12 @@ impl Default for SliceCentroidParams {
     /// coverage 0.908 and spurious share 0.069 (0.890 and 0.076 with no vertex moved). With
     /// the collapses, 0.907 and 0.041; a bound of 1.2 or 2 pixels gave 0.906 and 0.038,
     /// 0.907 and 0.050 (with the object mask smoothed on such grids as now: 0.927 and 0.026
-    /// for 1.5 pixels, 0.926 and 0.023 for 1.2, 0.927 and 0.033 for 2). A largest move of 0.3 slices gave 0.905; of 1 slice 0.918,
-    /// by moving misplaced pieces of the T-junction onto its plates, but on the head CT's
-    /// 4.8 mm slices 71 vault holes over 20 mm instead of 42 (the largest 101 mm instead of
-    /// 52): half a slice is more than the interpolant's bias, a whole one relocates pieces
-    /// of sheet. Runs of at most 1 or 2 slices gave 0.895 and 0.907, 4 the same as 3 (3
+    /// for 1.5 pixels, 0.926 and 0.023 for 1.2, 0.927 and 0.033 for 2; with the triangles
+    /// over air collapsed as well, 0.927 and 0.023 for 1.5). A largest move of 0.3 slices
+    /// gave 0.905; of 1 slice 0.918, by moving misplaced pieces of the T-junction onto its
+    /// plates, but on the head CT's 4.8 mm slices 71 vault holes over 20 mm instead of 42
+    /// (the largest 101 mm instead of 52): half a slice is more than the interpolant's bias,
+    /// a whole one relocates pieces of sheet. Runs of at most 1 or 2 slices gave 0.895 and 0.907, 4 the same as 3 (3
     /// takes a plate 6 pixels thick tilted 25° on slices 3 pixels thick, 2 does not);
     /// cosines of 0.3 and 0.7 gave 0.909 and 0.906.
     fn default() -> SliceCentroidParams {
