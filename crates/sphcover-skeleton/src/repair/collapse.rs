@@ -130,21 +130,14 @@ pub(crate) fn collapse_in_order(mesh: &TriMesh, removable: &[bool], priority: &[
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::repair::grid;
+    use crate::repair::{grid, kept_triangles_of};
     use proptest::prelude::*;
     use sphcover_core::MeshTopology;
 
     /// The mesh without the triangles marked.
     fn without(mesh: &TriMesh, removed: &[bool]) -> TriMesh {
-        let mut out = mesh.clone();
-        out.triangles = mesh
-            .triangles
-            .iter()
-            .zip(removed)
-            .filter(|(_, r)| !**r)
-            .map(|(t, _)| *t)
-            .collect();
-        out
+        let keep: Vec<bool> = removed.iter().map(|r| !r).collect();
+        kept_triangles_of(mesh, &keep)
     }
 
     proptest! {

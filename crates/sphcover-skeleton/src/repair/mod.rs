@@ -171,6 +171,17 @@ pub(crate) fn sorted_edges(mesh: &sphcover_core::TriMesh) -> Vec<(u32, u32)> {
     edges
 }
 
+/// `mesh` with only the triangles `keep` marks, for the repairs' tests.
+#[cfg(test)]
+pub(crate) fn kept_triangles_of(
+    mesh: &sphcover_core::TriMesh,
+    keep: &[bool],
+) -> sphcover_core::TriMesh {
+    let mut out = mesh.clone();
+    retain_triangles(&mut out.triangles, |t| keep[t]);
+    out
+}
+
 /// An `n × m` grid of unit squares in z = 0, two triangles each (square `(i, j)` holds
 /// triangles `2(i + n j)` and `2(i + n j) + 1`), for the repairs' tests.
 #[cfg(test)]

@@ -360,7 +360,7 @@ pub(crate) fn distance_to_boundary(mesh: &TriMesh, limit: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::repair::grid;
+    use crate::repair::{grid, kept_triangles_of};
     use proptest::prelude::*;
 
     proptest! {
@@ -385,11 +385,7 @@ mod tests {
             if smaller >= min_area {
                 prop_assert!((1..=2).contains(&restored), "{restored}");
                 // Edge-connected now: flood fill over kept triangles reaches them all.
-                let kept = TriMesh::new(
-                    mesh.vertices.clone(),
-                    mesh.triangles.iter().zip(&keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect(),
-                );
-                let topology = sphcover_core::MeshTopology::of(&kept);
+                let topology = sphcover_core::MeshTopology::of(&kept_triangles_of(&mesh, &keep));
                 prop_assert_eq!(topology.components, 1);
             } else {
                 prop_assert_eq!(restored, 0);
@@ -426,12 +422,8 @@ mod tests {
                 .collect();
             let without_voxels = kept_triangles(&mesh, rim, &distance[..nv], None);
             prop_assert!(without_voxels.iter().zip(&rim_triangle).all(|(k, r)| *k != *r));
-            let kept_mesh = |keep: &[bool]| {
-                let mut out = mesh.clone();
-                out.triangles =
-                    mesh.triangles.iter().zip(keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect();
-                sphcover_core::MeshTopology::of(&out)
-            };
+            let kept_mesh =
+                |keep: &[bool]| sphcover_core::MeshTopology::of(&kept_triangles_of(&mesh, keep));
             let before = sphcover_core::MeshTopology::of(&mesh);
             let over_material = kept_triangles(&mesh, rim, &distance[..nv], Some(&vec![false; nv]));
             let after = kept_mesh(&over_material);
