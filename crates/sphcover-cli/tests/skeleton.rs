@@ -329,6 +329,8 @@ fn thick_slices_are_resampled_with_a_note() {
     assert_eq!(json["resampled"]["dims"], serde_json::json!([48, 48, 23]));
     // Slices three times the pixels: the sheet across the plate is placed on their centroid.
     assert!(json["slice_centred_vertices"].as_u64().unwrap() > 0);
+    // And the ridge test took the Hessian with the slice axis compressed.
+    assert!(json["hessian_slice_stretch"].as_f64().unwrap() > 1.0);
 
     let out = sphcover(&[
         "skeleton",
@@ -380,6 +382,7 @@ fn the_report_file_holds_the_stage_counts() {
     assert!(json["resampled"].is_null());
     assert_eq!(json["slice_centred_vertices"], 0);
     assert_eq!(json["off_plate_triangles_collapsed"], 0);
+    assert!(json["hessian_slice_stretch"].is_null());
 }
 
 /// Voxels holding NaN or an infinity are refused by every command that processes a volume,

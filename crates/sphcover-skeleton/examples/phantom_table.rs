@@ -141,6 +141,8 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
         let r = &mut p.repairs;
         match name {
             "sigma" => p.sigma = v,
+            "threshold" => p.threshold = Some(v),
+            "slice_blur_pixels" => p.slice_blur_pixels = (v > 0.0).then_some(v),
             "smooth_mask_noise" => p.smooth_mask_noise = v,
             "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = (v > 0.0).then_some(v),
             "rim_trim_factor" => set(&mut r.rim_trimming, |t| t.factor = v),

@@ -8,7 +8,7 @@ use sphcover_ops::{CgParams, MassKind, PairGeometry, implicit_smoothing};
 
 use crate::error::SkeletonError;
 use crate::ridge_points::VertexDerivatives;
-use crate::symmetric_eigen::smallest_eigen;
+use crate::slice_stretch::{SliceStretch, ridge_eigen};
 
 /// The nine smoothed components, in this order: `∂x f, ∂y f, ∂z f, H_xx, H_yy, H_zz, H_xy,
 /// H_xz, H_yz`.
@@ -18,6 +18,8 @@ const FIELDS: usize = 9;
 /// intersection graph of the balls `(positions[i], radii[i])` by one implicit heat step of
 /// time `time` (world units squared; method below). `time = 0` returns the
 /// unsmoothed derivatives. Vertices where `f` is undefined stay `None` and do not take part.
+/// With `stretch` (a grid resampled from thick slices) the eigenpairs are those of the
+/// stretched Hessian ([`SliceStretch`]).
 ///
 /// The thesis names derivative smoothing as the remedy for noise but never formulates it
 /// (it proposes "a linear cover and discrete operators", §6.2.3). Here it is formulated with
@@ -48,6 +50,7 @@ pub fn smoothed_vertex_derivatives(
     positions: &[DVec3],
     radii: &[f64],
     time: f64,
+    stretch: Option<&SliceStretch>,
 ) -> Result<Vec<Option<VertexDerivatives>>, SkeletonError> {
     let vgh = evaluator.values_gradients_hessians(positions);
     let raw: Vec<Option<(f64, [f64; FIELDS])>> = vgh
@@ -87,7 +90,7 @@ pub fn smoothed_vertex_derivatives(
                 DVec3::new(f[6], f[4], f[8]),
                 DVec3::new(f[7], f[8], f[5]),
             );
-            let eigen = smallest_eigen(&hessian)?;
+            let eigen = ridge_eigen(&hessian, stretch)?;
             Some(VertexDerivatives {
                 position,
                 value,
@@ -186,8 +189,8 @@ mod tests {
             };
             let (cover, positions, radii) = setup(q);
             let eval = PuEvaluator::new(&cover, 1.0).unwrap();
-            let plain = smoothed_vertex_derivatives(&eval, &positions, &radii, 0.0).unwrap();
-            let smooth = smoothed_vertex_derivatives(&eval, &positions, &radii, time).unwrap();
+            let plain = smoothed_vertex_derivatives(&eval, &positions, &radii, 0.0, None).unwrap();
+            let smooth = smoothed_vertex_derivatives(&eval, &positions, &radii, time, None).unwrap();
             for (p, s) in plain.iter().zip(&smooth) {
                 let (p, s) = (p.unwrap(), s.unwrap());
                 for k in 0..3 {

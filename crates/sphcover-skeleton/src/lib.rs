@@ -86,6 +86,7 @@ mod pipeline;
 mod repair;
 mod resample;
 mod ridge_points;
+mod slice_stretch;
 mod symmetric_eigen;
 mod voxel_grid;
 
@@ -127,6 +128,7 @@ pub use resample::{ResampledGrid, resample_volume};
 pub use ridge_points::{
     RidgeFilter, RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points,
 };
+pub use slice_stretch::SliceStretch;
 pub use symmetric_eigen::SmallestEigen;
 pub use voxel_grid::{
     MAX_ANISOTROPY, MAX_RESAMPLED_ANISOTROPY, NonCubicVoxels, Resampling, VoxelGridCheck,

@@ -7,7 +7,8 @@ use rayon::prelude::*;
 use sphcover_core::PuEvaluator;
 use sphcover_tetra::TetMesh;
 
-use crate::symmetric_eigen::{SmallestEigen, smallest_eigen};
+use crate::slice_stretch::{SliceStretch, ridge_eigen};
+use crate::symmetric_eigen::SmallestEigen;
 
 /// `f`, `∇f` and the Hessian's smallest eigenpair at one vertex of the tetrahedral mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,6 +28,7 @@ pub struct VertexDerivatives {
 pub(crate) fn vertex_derivatives(
     evaluator: &PuEvaluator<'_>,
     positions: &[DVec3],
+    stretch: Option<&SliceStretch>,
 ) -> Vec<Option<VertexDerivatives>> {
     let vgh = evaluator.values_gradients_hessians(positions);
     positions
@@ -34,7 +36,7 @@ pub(crate) fn vertex_derivatives(
         .zip(vgh)
         .map(|(&position, d)| {
             let d = d?;
-            let eigen = smallest_eigen(&d.hessian)?;
+            let eigen = ridge_eigen(&d.hessian, stretch)?;
             Some(VertexDerivatives {
                 position,
                 value: d.value,

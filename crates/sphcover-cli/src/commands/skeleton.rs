@@ -177,6 +177,12 @@ fn write_sheet(
     if let Some(material) = &stats.material {
         report_material(material, reporter);
     }
+    if let Some(stretch) = stats.hessian_slice_stretch {
+        reporter.detail(&format!(
+            "  thick slices: ridge test with the slice axis compressed {stretch:.3}x; {} vertices moved to the slices' centroids, {} triangles off the plates collapsed",
+            stats.slice_centred_vertices, stats.off_plate_triangles
+        ));
+    }
     if stats.thickness_exceeds_r_max() {
         reporter.warn(&format!(
             "the object is up to {:.3} thick, more than the largest support radius {:.3}: thick parts may lose their sheet; if the thin part is another material, choose it with --threshold{}",
@@ -317,6 +323,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "material_holes_filled": s.material_holes,
         "flap_triangles_collapsed": s.flap_triangles,
         "slice_centred_vertices": s.slice_centred_vertices,
+        "hessian_slice_stretch": s.hessian_slice_stretch,
         "off_plate_triangles_collapsed": s.off_plate_triangles,
         "resampled": s.resampled.map(|r| serde_json::json!({
             "factors": r.resampling.factors,

@@ -78,6 +78,11 @@ pub struct SkeletonParams {
     /// graph that smooths over this length (voxels) before the ridge test; `None` takes the
     /// derivatives as they are.
     pub derivative_smoothing_voxels: Option<f64>,
+    /// On a grid resampled from slices more than twice as thick as its pixels, the Hessian
+    /// is taken with the slice axis compressed ([`SliceStretch`](crate::SliceStretch)) for
+    /// this in-plane blur of the derivatives (standard deviation, pixels); `None` takes it
+    /// as it is.
+    pub slice_blur_pixels: Option<f64>,
     /// Radius shrink σ_t of the tetrahedral mesh. The thesis uses 0.75 (§3.5.2) against
     /// skinny tetrahedra; on volume covers of thin plates (centres one voxel layer apart
     /// across a 3–5 voxel plate) the shrunk balls rarely meet four at a time, and the dual
@@ -160,6 +165,7 @@ impl Default for SkeletonParams {
             tet_shrink: 1.0,
             tet_complex: TetComplex::Auto,
             derivative_smoothing_voxels: Some(1.0),
+            slice_blur_pixels: Some(1.1),
             kernel: Kernel::WendlandC2,
             ridge: RidgeFilter::default(),
             repairs: SheetRepairs::default(),
@@ -222,6 +228,10 @@ pub struct SkeletonStats {
     /// Vertices moved to the centroid of the measured slices (volumes resampled from slices
     /// more than twice as thick as the pixels).
     pub slice_centred_vertices: usize,
+    /// The factor by which the Hessian compressed the slice axis for the ridge test
+    /// ([`SliceStretch`](crate::SliceStretch)), on volumes resampled from slices more than
+    /// twice as thick as the pixels.
+    pub hessian_slice_stretch: Option<f64>,
     /// Triangles standing off the plates of thick slices collapsed (volumes resampled from
     /// slices more than twice as thick as the pixels).
     pub off_plate_triangles: usize,
@@ -420,6 +430,7 @@ pub(crate) fn sheet_from_cover(
         junction_corner_vertices: repairs.junction_corner_vertices,
         centred_vertices: repairs.centred_vertices,
         slice_centred_vertices: repairs.slice_centred_vertices,
+        hessian_slice_stretch: ctx.hessian_slice_stretch,
         off_plate_triangles: repairs.off_plate_triangles,
         triangles: ctx.sheet.triangles.len(),
         vertices: ctx.sheet.vertices.len(),

@@ -29,6 +29,7 @@ use crate::repair::tunnels::close_material_tunnels;
 use crate::ridge_points::{
     RidgePoint, VertexDerivatives, orient_eigenvectors, ridge_points, vertex_derivatives,
 };
+use crate::slice_stretch::SliceStretch;
 
 /// A stage after the cover.
 pub(crate) type SheetStage<'c> = Stage<SheetContext<'c>, SkeletonError>;
@@ -72,6 +73,8 @@ pub(crate) struct SheetContext<'c> {
     pub derivatives: Vec<Option<VertexDerivatives>>,
     pub ridge: Vec<Option<RidgePoint>>,
     pub ridge_count: usize,
+    /// The factor by which the Hessian compressed the slice axis of thick slices.
+    pub hessian_slice_stretch: Option<f64>,
     pub raw_triangles: usize,
     /// The cover's function with σ = 1, which the repairs probe (from the tetrahedral mesh
     /// of [`TetComplex::OverlapInPart`] or the first repair on).
@@ -108,6 +111,7 @@ impl<'c> SheetContext<'c> {
             derivatives: Vec::new(),
             ridge: Vec::new(),
             ridge_count: 0,
+            hessian_slice_stretch: None,
             raw_triangles: 0,
             function: None,
             sheet: TriMesh::default(),
@@ -257,6 +261,9 @@ fn derivatives(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
         .iter()
         .map(|&s| cover.centres()[s as usize])
         .collect();
+    let stretch = slice_stretch(ctx);
+    ctx.hessian_slice_stretch = stretch.map(|s| s.factor());
+    let stretch = stretch.as_ref();
     let mut derivatives = match ctx.params.derivative_smoothing_voxels {
         Some(voxels) => {
             let radii: Vec<f64> = mesh
@@ -265,14 +272,25 @@ fn derivatives(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
                 .map(|&s| cover.radii()[s as usize])
                 .collect();
             let length = voxels * ctx.voxel;
-            smoothed_vertex_derivatives(&evaluator, &positions, &radii, 0.5 * length * length)?
+            let time = 0.5 * length * length;
+            smoothed_vertex_derivatives(&evaluator, &positions, &radii, time, stretch)?
         }
-        None => vertex_derivatives(&evaluator, &positions),
+        None => vertex_derivatives(&evaluator, &positions, stretch),
     };
     drop(evaluator);
     orient_eigenvectors(mesh, &mut derivatives);
     ctx.derivatives = derivatives;
     Ok(())
+}
+
+/// How the Hessian compresses the slice axis of thick slices ([`SliceStretch`]); `None`
+/// without thick slices or the parameter.
+fn slice_stretch(ctx: &SheetContext<'_>) -> Option<SliceStretch> {
+    let (slices, blur) = (ctx.slices.as_ref()?, ctx.params.slice_blur_pixels?);
+    let size = slices.volume.voxel_size().to_array();
+    let [p, q] = slices.in_slice_axes();
+    let axis = slices.volume.affine().matrix3.col(slices.axis);
+    SliceStretch::new(axis, size[slices.axis] / size[p].min(size[q]), blur)
 }
 
 /// Ridge points on the mesh edges (thesis eq. 6.1, 6.4, 6.5).

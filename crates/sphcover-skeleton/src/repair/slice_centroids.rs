@@ -84,7 +84,7 @@ const MIN_NEIGHBOUR_WEIGHT: f64 = 192.0;
 
 impl ThickSlices<'_> {
     /// The voxel axes along the slices, in order.
-    fn in_slice_axes(&self) -> [usize; 2] {
+    pub(crate) fn in_slice_axes(&self) -> [usize; 2] {
         match self.axis {
             0 => [1, 2],
             1 => [0, 2],
