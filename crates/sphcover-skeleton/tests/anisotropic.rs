@@ -171,8 +171,9 @@ fn a_t_junction_on_thick_slices_is_one_sheet() {
 /// Without the smoothed object mask on such grids (the noise level 0.118 of the contrast,
 /// under `smooth_mask_noise` 0.2 but over 0.2 / 3) the base came apart: 0.498 and 0.284.
 /// Without the stretched Hessian of thick slices (`SkeletonParams::slice_blur_pixels`):
-/// 0.871 and 0.019 with χ 0; with it the web's sheet runs on 1–4 voxels below the base's
-/// mid-plane at the junction (most of the spurious share).
+/// 0.871 and 0.019 with χ 0; with it the sheet near the junction lies 1–4 voxels below the
+/// base's mid-plane, where the junction-plane snap fits the base's plane too low (most of
+/// the spurious share).
 #[test]
 fn a_t_junction_on_5_to_1_slices_keeps_its_base() {
     let (phantom, volume) = t_junction_on_slices(0.1, 5);
