@@ -287,10 +287,7 @@ fn derivatives(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
 /// without thick slices or the parameter.
 fn slice_stretch(ctx: &SheetContext<'_>) -> Option<SliceStretch> {
     let (slices, blur) = (ctx.slices.as_ref()?, ctx.params.slice_blur_pixels?);
-    let size = slices.volume.voxel_size().to_array();
-    let [p, q] = slices.in_slice_axes();
-    let axis = slices.volume.affine().matrix3.col(slices.axis);
-    SliceStretch::new(axis, size[slices.axis] / size[p].min(size[q]), blur)
+    SliceStretch::new(slices.axis_direction(), slices.slice_pixels(), blur)
 }
 
 /// Ridge points on the mesh edges (thesis eq. 6.1, 6.4, 6.5).

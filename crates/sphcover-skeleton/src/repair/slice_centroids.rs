@@ -84,12 +84,24 @@ const MIN_NEIGHBOUR_WEIGHT: f64 = 192.0;
 
 impl ThickSlices<'_> {
     /// The voxel axes along the slices, in order.
-    pub(crate) fn in_slice_axes(&self) -> [usize; 2] {
+    fn in_slice_axes(&self) -> [usize; 2] {
         match self.axis {
             0 => [1, 2],
             1 => [0, 2],
             _ => [0, 1],
         }
+    }
+
+    /// The slices' thickness in pixels (their spacing over the finer in-slice edge).
+    pub(crate) fn slice_pixels(&self) -> f64 {
+        let size = self.volume.voxel_size().to_array();
+        let [p, q] = self.in_slice_axes();
+        size[self.axis] / size[p].min(size[q])
+    }
+
+    /// Unit vector along the slice axis (world coordinates).
+    pub(crate) fn axis_direction(&self) -> DVec3 {
+        self.volume.affine().matrix3.col(self.axis).normalize()
     }
 
     /// The value of column `(a, b)` (along the in-slice axes) at slice `k`.
@@ -264,9 +276,7 @@ pub fn collapse_off_plate_triangles(
     let to_voxel = slices.volume.affine().inverse();
     let dims = slices.volume.dims();
     let [p, q] = slices.in_slice_axes();
-    let size = slices.volume.voxel_size().to_array();
-    let pixel = size[p].min(size[q]);
-    let max_off = params.max_off_plate_pixels * pixel / size[slices.axis];
+    let max_off = params.max_off_plate_pixels / slices.slice_pixels();
     let off: Vec<f64> = sheet
         .triangles
         .par_iter()
@@ -320,7 +330,7 @@ pub fn centre_on_slice_centroids(
 ) -> usize {
     let affine = slices.volume.affine();
     let to_voxel = affine.inverse();
-    let axis = affine.matrix3.col(slices.axis).normalize();
+    let axis = slices.axis_direction();
     let dims = slices.volume.dims();
     let [p, q] = slices.in_slice_axes();
     let normals = unoriented_normals(sheet);
