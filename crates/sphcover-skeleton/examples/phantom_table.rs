@@ -146,6 +146,7 @@ fn overridden(mut p: SkeletonParams) -> SkeletonParams {
             "smooth_mask_noise" => p.smooth_mask_noise = v,
             "derivative_smoothing_voxels" => p.derivative_smoothing_voxels = (v > 0.0).then_some(v),
             "rim_trim_factor" => set(&mut r.rim_trimming, |t| t.factor = v),
+            "rim_slice_exponent" => set(&mut r.rim_trimming, |t| t.slice_exponent = v),
             "rim_keep_pieces_voxels" => set(&mut r.rim_trimming, |t| {
                 t.keep_pieces_voxels = v.is_finite().then_some(v);
             }),

@@ -66,6 +66,20 @@ impl SliceStretch {
         self.factor
     }
 
+    /// The same axis with the factor `s^exponent`.
+    pub(crate) fn powered(&self, exponent: f64) -> SliceStretch {
+        SliceStretch {
+            axis: self.axis,
+            factor: self.factor.powf(exponent),
+        }
+    }
+
+    /// `‖S⁻¹ v‖`: the length of `v` in the coordinates where the slice axis is compressed,
+    /// in which the blur is the same along every axis.
+    pub(crate) fn compressed_length(&self, v: DVec3) -> f64 {
+        self.scaled(v, 1.0 / self.factor).length()
+    }
+
     /// `M v` with `M = I + (m − 1) a aᵀ`.
     fn scaled(&self, v: DVec3, m: f64) -> DVec3 {
         v + (m - 1.0) * v.dot(self.axis) * self.axis
@@ -119,6 +133,27 @@ mod tests {
             let e = stretch.smallest_eigen(&hessian).unwrap();
             prop_assert!(e.vector.dot(n).abs() > 1.0 - 1e-9, "{:?} against {n:?}", e.vector);
             prop_assert!((e.vector.length() - 1.0).abs() < 1e-12);
+        }
+
+        /// Lengths along the axis shrink by `s^γ`, lengths across it stay, and `γ = 0` is
+        /// the plain length.
+        #[test]
+        fn compressed_lengths_shrink_along_the_axis_only(
+            v in unit(), axis in unit(), slices in 1.0..8.0f64, blur in 0.3..3.0f64,
+            gamma in 0.0..1.0f64, length in 0.01..10.0f64,
+        ) {
+            let stretch = SliceStretch::new(axis, slices, blur).unwrap();
+            let powered = stretch.powered(gamma);
+            let s = powered.factor();
+            prop_assert!((s - stretch.factor().powf(gamma)).abs() < 1e-12);
+            let along = v.dot(axis) * axis;
+            let across = v - along;
+            let expected = (across + along / s).length() * length;
+            prop_assert!((powered.compressed_length(length * v) - expected).abs() < 1e-9 * length);
+            prop_assert!((powered.compressed_length(length * axis) - length / s).abs() < 1e-9 * length);
+            prop_assert!(powered.compressed_length(v) <= 1.0 + 1e-12);
+            let plain = stretch.powered(0.0).compressed_length(length * v);
+            prop_assert!((plain - length).abs() < 1e-9 * length);
         }
 
         /// The factor follows `s² = 1 + (k² − 1) / (12 b²)`, is 1 for slices one pixel

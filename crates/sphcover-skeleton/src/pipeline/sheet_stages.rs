@@ -340,7 +340,15 @@ fn rim_trimming(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
         (Some(voxels), Some(params)) => over_little_material(&ctx.sheet, voxels, params, ctx.voxel),
         _ => None,
     };
-    let (trimmed, removed) = trim_rims(&ctx.sheet, &part, params, ctx.voxel, little.as_deref());
+    let stretch = slice_stretch(ctx).map(|s| s.powered(params.slice_exponent));
+    let (trimmed, removed) = trim_rims(
+        &ctx.sheet,
+        &part,
+        params,
+        ctx.voxel,
+        little.as_deref(),
+        stretch.as_ref(),
+    );
     ctx.repairs.rim_triangles = removed;
     ctx.sheet = trimmed;
     Ok(())

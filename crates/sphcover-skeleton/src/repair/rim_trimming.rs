@@ -12,6 +12,7 @@ use super::collapse::collapse_in_order;
 use super::part_surface::PartSurface;
 use super::sorted_edges;
 use super::{MinFirst, retain_triangles};
+use crate::slice_stretch::SliceStretch;
 
 /// Parameters of [`trim_rims`]; lengths in voxels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -24,6 +25,11 @@ pub struct RimTrimParams {
     /// Pieces of the sheet of at least this area (voxel²) that trimming would cut off stay
     /// joined to the rest ([`trim_rims`]); `None` lets trimming cut off pieces of any size.
     pub keep_pieces_voxels: Option<f64>,
+    /// `γ`: on a grid resampled from thick slices, the test measures `h` and the distances
+    /// along the sheet with the slice axis compressed by `s^γ`, where `s` is the factor of
+    /// [`SliceStretch`](crate::SliceStretch) (see [`trim_rims`]); 0 measures them in the
+    /// grid's coordinates.
+    pub slice_exponent: f64,
 }
 
 impl Default for RimTrimParams {
@@ -32,6 +38,7 @@ impl Default for RimTrimParams {
             factor: 0.9,
             step_voxels: 0.25,
             keep_pieces_voxels: Some(16.0),
+            slice_exponent: 0.5,
         }
     }
 }
@@ -82,12 +89,18 @@ pub(crate) const DIRECTIONS: usize = 12;
 /// material; the perforation cut opens the holes the voxels show. Without them (`None`: a
 /// point set, or a grid resampled from thick slices, whose voxels between slices are
 /// interpolated) every rim triangle goes.
+///
+/// On thick slices the part reads thicker across them than it is (the slices' box profile
+/// widens it at the surface level), so an `h` taken as measured would trim inside the true
+/// boundary. With `stretch` ([`RimTrimParams::slice_exponent`]), `h` and the distances along
+/// the sheet are measured in coordinates where the slice axis is compressed by its factor.
 pub fn trim_rims(
     mesh: &TriMesh,
     surface: &PartSurface<'_>,
     params: &RimTrimParams,
     voxel: f64,
     little_material: Option<&[bool]>,
+    stretch: Option<&SliceStretch>,
 ) -> (TriMesh, usize) {
     let Some(normals) = &mesh.normals else {
         return (mesh.clone(), 0);
@@ -99,7 +112,14 @@ pub fn trim_rims(
         .with_min_len(256)
         .map(|v| {
             distance[v].is_finite()
-                && is_rim(surface, mesh.vertices[v], normals[v], params.factor, step)
+                && is_rim(
+                    surface,
+                    mesh.vertices[v],
+                    normals[v],
+                    params.factor,
+                    step,
+                    stretch,
+                )
         })
         .collect();
     let mut keep = kept_triangles(mesh, &in_rim, &distance, little_material);
@@ -287,23 +307,26 @@ pub(crate) fn reconnect_split_pieces(mesh: &TriMesh, keep: &mut [bool], min_area
 
 /// True when the part's surface is closer than `factor · h(p)` along some direction
 /// perpendicular to `e` (see [`trim_rims`]), marching in steps of `step` (world
-/// units).
+/// units). With `stretch`, both lengths are measured with the slice axis compressed.
 pub(crate) fn is_rim(
     surface: &PartSurface<'_>,
     p: DVec3,
     e: DVec3,
     factor: f64,
     step: f64,
+    stretch: Option<&SliceStretch>,
 ) -> bool {
     let Some(h) = surface.half_thickness(p, e, step) else {
         return false;
     };
-    let reach = factor * h;
+    let compressed = |d: DVec3| stretch.map_or(1.0, |s| s.compressed_length(d));
+    let reach = factor * h * compressed(e);
     let u = e.any_orthonormal_vector();
     let v = e.cross(u);
     (0..DIRECTIONS).any(|k| {
         let angle = std::f64::consts::TAU * k as f64 / DIRECTIONS as f64;
         let dir = angle.cos() * u + angle.sin() * v;
+        let reach = reach / compressed(dir);
         let mut s = step;
         while s <= reach {
             if surface.is_outside(p + s * dir) {
