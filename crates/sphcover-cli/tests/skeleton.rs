@@ -331,6 +331,10 @@ fn thick_slices_are_resampled_with_a_note() {
     assert!(json["slice_centred_vertices"].as_u64().unwrap() > 0);
     // And the ridge test took the Hessian with the slice axis compressed.
     assert!(json["hessian_slice_stretch"].as_f64().unwrap() > 1.0);
+    // And the rim test measured across the slices by the square root of its factor.
+    let rim = json["rim_slice_stretch"].as_f64().unwrap();
+    let hessian = json["hessian_slice_stretch"].as_f64().unwrap();
+    assert!((rim - hessian.sqrt()).abs() < 1e-12, "{rim} {hessian}");
 
     let out = sphcover(&[
         "skeleton",
@@ -383,6 +387,7 @@ fn the_report_file_holds_the_stage_counts() {
     assert_eq!(json["slice_centred_vertices"], 0);
     assert_eq!(json["off_plate_triangles_collapsed"], 0);
     assert!(json["hessian_slice_stretch"].is_null());
+    assert!(json["rim_slice_stretch"].is_null());
 }
 
 /// Voxels holding NaN or an infinity are refused by every command that processes a volume,

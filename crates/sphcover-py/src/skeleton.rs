@@ -204,6 +204,7 @@ fn sheet_dict<'py>(
     d.set_item("flap_triangles_collapsed", s.flap_triangles)?;
     d.set_item("slice_centred_vertices", s.slice_centred_vertices)?;
     d.set_item("hessian_slice_stretch", s.hessian_slice_stretch)?;
+    d.set_item("rim_slice_stretch", s.rim_slice_stretch)?;
     d.set_item("off_plate_triangles_collapsed", s.off_plate_triangles)?;
     d.set_item("thickness_exceeds_r_max", s.thickness_exceeds_r_max())?;
     match &s.material {

@@ -178,8 +178,11 @@ fn write_sheet(
         report_material(material, reporter);
     }
     if let Some(stretch) = stats.hessian_slice_stretch {
+        let rim = stats
+            .rim_slice_stretch
+            .map_or(String::new(), |s| format!(", rim test {s:.3}x"));
         reporter.detail(&format!(
-            "  thick slices: ridge test with the slice axis compressed {stretch:.3}x; {} vertices moved to the slices' centroids, {} triangles off the plates collapsed",
+            "  thick slices: ridge test with the slice axis compressed {stretch:.3}x{rim}; {} vertices moved to the slices' centroids, {} triangles off the plates collapsed",
             stats.slice_centred_vertices, stats.off_plate_triangles
         ));
     }
@@ -324,6 +327,7 @@ fn report_json(args: &SkeletonArgs, s: &SkeletonStats) -> serde_json::Value {
         "flap_triangles_collapsed": s.flap_triangles,
         "slice_centred_vertices": s.slice_centred_vertices,
         "hessian_slice_stretch": s.hessian_slice_stretch,
+        "rim_slice_stretch": s.rim_slice_stretch,
         "off_plate_triangles_collapsed": s.off_plate_triangles,
         "resampled": s.resampled.map(|r| serde_json::json!({
             "factors": r.resampling.factors,

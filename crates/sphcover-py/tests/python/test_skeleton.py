@@ -29,6 +29,7 @@ def test_the_sheet_of_a_plate_is_its_mid_plane():
     # Cubic voxels: no slices to centre the sheet on.
     assert sheet.stats["slice_centred_vertices"] == 0
     assert sheet.stats["hessian_slice_stretch"] is None
+    assert sheet.stats["rim_slice_stretch"] is None
     # World z of the mid-plane: 3 + 0.5·centre, within a tenth of a voxel on average.
     assert np.mean(np.abs(sheet.vertices[:, 2] - (3.0 + 0.5 * centre))) < 0.05
     # The sheet spans the plate: x from about 1 + 0.5·6 to 1 + 0.5·26.
@@ -104,6 +105,7 @@ def test_thick_slices_are_resampled_and_the_sheet_stays_in_world_coordinates():
     assert resampled["input_dims"] == [48, 48, 12] and resampled["dims"] == [48, 48, 23]
     assert sheet.stats["slice_centred_vertices"] > 0
     assert sheet.stats["hessian_slice_stretch"] > 1.0
+    assert 1.0 < sheet.stats["rim_slice_stretch"] < sheet.stats["hessian_slice_stretch"]
     assert sheet.stats["components"] == 1
     assert np.max(np.abs(sheet.vertices @ normal - offset)) < 0.3
 

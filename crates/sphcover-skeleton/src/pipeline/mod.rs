@@ -232,6 +232,10 @@ pub struct SkeletonStats {
     /// ([`SliceStretch`](crate::SliceStretch)), on volumes resampled from slices more than
     /// twice as thick as the pixels.
     pub hessian_slice_stretch: Option<f64>,
+    /// The factor by which the rim test compressed the slice axis
+    /// ([`RimTrimParams::slice_exponent`](crate::RimTrimParams::slice_exponent)), on the same
+    /// volumes.
+    pub rim_slice_stretch: Option<f64>,
     /// Triangles standing off the plates of thick slices collapsed (volumes resampled from
     /// slices more than twice as thick as the pixels).
     pub off_plate_triangles: usize,
@@ -431,6 +435,7 @@ pub(crate) fn sheet_from_cover(
         centred_vertices: repairs.centred_vertices,
         slice_centred_vertices: repairs.slice_centred_vertices,
         hessian_slice_stretch: ctx.hessian_slice_stretch,
+        rim_slice_stretch: ctx.rim_slice_stretch,
         off_plate_triangles: repairs.off_plate_triangles,
         triangles: ctx.sheet.triangles.len(),
         vertices: ctx.sheet.vertices.len(),

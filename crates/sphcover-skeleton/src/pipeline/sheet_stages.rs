@@ -75,6 +75,8 @@ pub(crate) struct SheetContext<'c> {
     pub ridge_count: usize,
     /// The factor by which the Hessian compressed the slice axis of thick slices.
     pub hessian_slice_stretch: Option<f64>,
+    /// The factor by which the rim test compressed it.
+    pub rim_slice_stretch: Option<f64>,
     pub raw_triangles: usize,
     /// The cover's function with σ = 1, which the repairs probe (from the tetrahedral mesh
     /// of [`TetComplex::OverlapInPart`] or the first repair on).
@@ -112,6 +114,7 @@ impl<'c> SheetContext<'c> {
             ridge: Vec::new(),
             ridge_count: 0,
             hessian_slice_stretch: None,
+            rim_slice_stretch: None,
             raw_triangles: 0,
             function: None,
             sheet: TriMesh::default(),
@@ -341,6 +344,7 @@ fn rim_trimming(ctx: &mut SheetContext<'_>) -> Result<(), SkeletonError> {
         _ => None,
     };
     let stretch = slice_stretch(ctx).map(|s| s.powered(params.slice_exponent));
+    ctx.rim_slice_stretch = stretch.map(|s| s.factor());
     let (trimmed, removed) = trim_rims(
         &ctx.sheet,
         &part,
