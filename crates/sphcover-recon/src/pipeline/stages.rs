@@ -31,7 +31,10 @@ use crate::graph_cut::graph_cut_sig_alongside;
 use crate::graphcut_reconstruction::reconstruct_graphcut;
 use crate::memory_model::RECON_MEMORY_MODEL;
 use crate::normals::estimate_normals;
-use crate::polygonise::{GridStep, PolygoniseParams, UnseenTrim, polygonise_blending};
+use crate::polygonise::{
+    FieldPiece, GridStep, PiecewiseFunction, PolygoniseParams, UnseenTrim,
+    polygonise_piecewise_indexed,
+};
 use crate::scan_statistics::{ScanStatistics, scan_statistics};
 use crate::vertex_colors::nearest_sample_colors;
 use crate::vertex_refinement::{RefinementSamples, RefinementScale, refine_vertices};
@@ -588,7 +591,10 @@ fn polygonise_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let poly = polygonisation_params(ctx, &seeds);
     let eval = PuEvaluator::new(ctx.cover(), 1.0)?;
     let blend = Some(&ctx.confidence().support_confidence[..]);
-    let (mesh, stats) = polygonise_blending(&eval, &seeds, &poly, blend)?;
+    let field = PiecewiseFunction::single(FieldPiece { eval: &eval, blend })?;
+    // Seeds that are all the samples have their index: the scan's.
+    let seed_index = matches!(seeds, Cow::Borrowed(_)).then(|| ctx.index());
+    let (mesh, stats) = polygonise_piecewise_indexed(&field, &seeds, seed_index, &poly)?;
     ctx.stats.unseen_area_fraction = stats.unseen_area_fraction;
     ctx.stats.polygonise = Some(stats);
     ctx.mesh = mesh;

@@ -14,7 +14,7 @@ mod search;
 mod trim;
 mod tubes;
 
-use sphcover_core::{ParameterError, PointIndexError, PuEvaluator, TriMesh};
+use sphcover_core::{ParameterError, PointIndex, PointIndexError, PuEvaluator, TriMesh};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -307,11 +307,29 @@ pub fn polygonise_piecewise(
     seeds: &[DVec3],
     params: &PolygoniseParams,
 ) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
+    polygonise_piecewise_indexed(field, seeds, None, params)
+}
+
+/// [`polygonise_piecewise`] given a point index over `seeds` (built by [`PointIndex::new`]
+/// from exactly those points), which the trim then asks for its distances instead of
+/// indexing the seeds again: a reconstruction whose seeds are all its samples has that index
+/// already.
+pub(crate) fn polygonise_piecewise_indexed(
+    field: &PiecewiseFunction<'_>,
+    seeds: &[DVec3],
+    seed_index: Option<&PointIndex>,
+    params: &PolygoniseParams,
+) -> Result<(TriMesh, PolygoniseStats), PolygoniseError> {
+    debug_assert!(seed_index.is_none_or(|index| index.input_len() == seeds.len()));
     let start = Instant::now();
     let (mut mesh, mut stats) = polygonise_untrimmed(field, seeds, params)?;
-    let distance2 = match trimming_points(&mesh, params) {
-        Some(points) => Some(trim::distances_squared(&points, &finite(seeds))?),
-        None => None,
+    let distance2 = match (trimming_points(&mesh, params), seed_index) {
+        (Some(points), Some(index)) => Some(trim::distances_squared(&points, index)),
+        (Some(points), None) => Some(trim::distances_squared(
+            &points,
+            &PointIndex::new(&finite(seeds))?,
+        )),
+        (None, _) => None,
     };
     trim_and_resolve(&mut mesh, distance2.as_deref(), params, &mut stats);
     stats.total_time = start.elapsed();

@@ -10,7 +10,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sphcover_core::{DisjointSets, PointIndex, TriMesh, remove_unused_vertices, triangle_area};
 
-use super::{PolygoniseError, PolygoniseParams};
+use super::PolygoniseParams;
 
 /// Drops triangles whose centroid is farther than `limit` from every seed, given each
 /// triangle's squared distance to the nearest (`distance2`); returns how many.
@@ -41,19 +41,15 @@ pub(crate) fn trimming_points<'m>(
     }
 }
 
-/// The squared distance from each of `points` to the nearest seed.
-pub(crate) fn distances_squared(
-    points: &[DVec3],
-    seeds: &[DVec3],
-) -> Result<Vec<f64>, PolygoniseError> {
-    let index = PointIndex::new(seeds)?;
+/// The squared distance from each of `points` to the nearest point of `seeds` (an index).
+pub(crate) fn distances_squared(points: &[DVec3], seeds: &PointIndex) -> Vec<f64> {
     // Consecutive points (mesh vertices or triangle centres) mostly lie close together, so
     // the previous point's nearest seed bounds each search from the start.
-    Ok(points
+    points
         .par_iter()
         .map_init(
             || None,
-            |hint, &p| match index.nearest_distance2(p, *hint) {
+            |hint, &p| match seeds.nearest_distance2(p, *hint) {
                 Some((d2, slot)) => {
                     *hint = Some(slot);
                     d2
@@ -61,7 +57,7 @@ pub(crate) fn distances_squared(
                 None => f64::INFINITY,
             },
         )
-        .collect())
+        .collect()
 }
 
 /// Removes the triangles marked in `drop` and the vertices left unused; returns how many
