@@ -268,7 +268,7 @@ impl PointIndex {
         mut visit: impl FnMut(usize, f64),
     ) {
         let inside = |d2: f64| if CLOSED { d2 <= r2 } else { d2 < r2 };
-        self.for_each_leaf_near::<CLOSED>(x, r2, |leaf| {
+        self.for_each_leaf_near::<CLOSED, false>(x, r2, |leaf| {
             for s in leaf.lo as usize..leaf.hi as usize {
                 let d2 = (self.points[s] - x).length_squared();
                 if inside(d2) {
@@ -289,6 +289,24 @@ impl PointIndex {
         x: DVec3,
         r: f64,
         slots: &mut Vec<u32>,
+        dist2: Option<&mut Vec<f64>>,
+    ) {
+        self.extend_within_in::<false>(x, r, slots, dist2);
+    }
+
+    /// [`PointIndex::extend_within`] in ascending slot order rather than tree order (the
+    /// same slots, as a sort of them would give).
+    pub(crate) fn extend_within_ascending(&self, x: DVec3, r: f64, slots: &mut Vec<u32>) {
+        self.extend_within_in::<true>(x, r, slots, None);
+    }
+
+    /// [`PointIndex::extend_within`] in tree order, or in ascending slot order when
+    /// `ASCENDING`.
+    fn extend_within_in<const ASCENDING: bool>(
+        &self,
+        x: DVec3,
+        r: f64,
+        slots: &mut Vec<u32>,
         mut dist2: Option<&mut Vec<f64>>,
     ) {
         if r.is_nan() || r <= 0.0 {
@@ -296,7 +314,7 @@ impl PointIndex {
         }
         debug_assert!(dist2.as_ref().is_none_or(|d| d.len() == slots.len()));
         let r2 = r * r;
-        self.for_each_leaf_near::<false>(x, r2, |leaf| {
+        self.for_each_leaf_near::<false, ASCENDING>(x, r2, |leaf| {
             let points = &self.points[leaf.lo as usize..leaf.hi as usize];
             let start = slots.len();
             // Every slot of the leaf is appended, then those outside are squeezed out: a
@@ -328,9 +346,9 @@ impl PointIndex {
     }
 
     /// Calls `visit(leaf)` for every leaf whose bounding box meets the ball `‖p − x‖² < r2`
-    /// (`≤` when `CLOSED`), nearer children first (tree order). Nothing for a non-finite `x`
-    /// or a NaN `r2`.
-    fn for_each_leaf_near<const CLOSED: bool>(
+    /// (`≤` when `CLOSED`), nearer children first (tree order), or left children first
+    /// (ascending slots) when `ASCENDING`. Nothing for a non-finite `x` or a NaN `r2`.
+    fn for_each_leaf_near<const CLOSED: bool, const ASCENDING: bool>(
         &self,
         x: DVec3,
         r2: f64,
@@ -355,7 +373,11 @@ impl PointIndex {
                 visit(node);
                 continue;
             }
-            let (near, far) = node.children_near_far(n, x);
+            let (near, far) = if ASCENDING {
+                (n + 1, n + node.right as usize)
+            } else {
+                node.children_near_far(n, x)
+            };
             for child in [far, near] {
                 if inside(self.nodes[child].box_distance2(x)) {
                     stack[top] = child as u32;
@@ -506,6 +528,13 @@ mod tests {
             index.for_each_slot_within(x, r, |s, d2| visited.push((s as u32, d2.to_bits())));
             prop_assert_eq!((slots[0], dist2[0]), (u32::MAX, -1.0));
             prop_assert!(slots[1..].iter().zip(&dist2[1..]).map(|(&s, d)| (s, d.to_bits())).eq(visited));
+            // In ascending slot order: the same slots, sorted.
+            let mut ascending = vec![u32::MAX];
+            index.extend_within_ascending(x, r, &mut ascending);
+            let mut sorted = appended[1..].to_vec();
+            sorted.sort_unstable();
+            prop_assert_eq!(ascending[0], u32::MAX);
+            prop_assert_eq!(&ascending[1..], &sorted[..]);
             for &s in &sample {
                 prop_assert!(gathered.contains(&s));
             }

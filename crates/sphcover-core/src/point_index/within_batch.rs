@@ -112,8 +112,7 @@ impl WithinState {
             // relative margin covers the rounding of both distances.
             if let Some((centre, t)) = bounding_sphere(&plan.blocks[b].1) {
                 let reach = (r + t) * (1.0 + 1e-9);
-                index.extend_within(centre, reach, &mut self.candidates, None);
-                self.candidates.sort_unstable();
+                index.extend_within_ascending(centre, reach, &mut self.candidates);
             }
             self.near.resize(self.candidates.len(), (0, 0.0));
         }
