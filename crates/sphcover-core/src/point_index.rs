@@ -578,6 +578,11 @@ mod tests {
                         prop_assert_eq!((index.points[s] - x).length_squared().to_bits(), d2.to_bits());
                     }
                 }
+                // Some point lies within `r` exactly when the brute force finds one.
+                for r in [0.0, 0.05, 0.2, 0.6] {
+                    let brute = points.iter().any(|&p| (p - x).length_squared() < r * r);
+                    prop_assert_eq!(index.any_within(x, r), brute);
+                }
             }
         }
     }

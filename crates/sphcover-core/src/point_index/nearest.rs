@@ -69,6 +69,35 @@ impl PointIndex {
         Some(best)
     }
 
+    /// Whether an indexed point lies within `r` of `x` (`‖p − x‖² < r²`, as
+    /// [`PointIndex::for_each_slot_within`] tests it). The search descends towards `x` and
+    /// stops at the first such point, so it costs far less than the nearest distance where
+    /// the answer is yes. False for a non-finite `x`, a radius that is not positive or an
+    /// empty index.
+    ///
+    /// ```
+    /// use sphcover_core::{DVec3, PointIndex};
+    ///
+    /// let points: Vec<DVec3> = (0..100).map(|i| DVec3::new(i as f64, 0.0, 0.0)).collect();
+    /// let index = PointIndex::new(&points)?;
+    /// assert!(index.any_within(DVec3::new(41.2, 0.5, 0.0), 0.6));
+    /// assert!(!index.any_within(DVec3::new(41.5, 0.5, 0.0), 0.6));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn any_within(&self, x: DVec3, r: f64) -> bool {
+        if self.nodes.is_empty() || !x.is_finite() || r.is_nan() || r <= 0.0 {
+            return false;
+        }
+        let mut search = AnyWithin {
+            points: &self.points,
+            x,
+            r2: r * r,
+            found: false,
+        };
+        self.branch_and_bound(x, &mut search);
+        search.found
+    }
+
     /// The largest squared distance among the `k` nearest indexed points to `x` (among all
     /// of them when fewer are indexed): the last distance
     /// [`PointIndex::nearest_k_with_distances`] gives, the same bits. `None` for `k = 0`, a
@@ -319,6 +348,28 @@ impl BranchAndBound for NearestDistance<'_> {
                 self.best = (d2, s);
             }
         }
+    }
+}
+
+/// Whether a point lies within the ball: once one is found, every node left is pruned.
+struct AnyWithin<'a> {
+    points: &'a [DVec3],
+    x: DVec3,
+    r2: f64,
+    found: bool,
+}
+
+impl BranchAndBound for AnyWithin<'_> {
+    #[inline(always)]
+    fn prunes(&self, box_d2: f64) -> bool {
+        self.found || box_d2 >= self.r2
+    }
+
+    #[inline(always)]
+    fn leaf(&mut self, lo: usize, hi: usize) {
+        self.found = self.points[lo..hi]
+            .iter()
+            .any(|&p| (p - self.x).length_squared() < self.r2);
     }
 }
 

@@ -323,13 +323,22 @@ pub(crate) fn polygonise_piecewise_indexed(
     debug_assert!(seed_index.is_none_or(|index| index.input_len() == seeds.len()));
     let start = Instant::now();
     let (mut mesh, mut stats) = polygonise_untrimmed(field, seeds, params)?;
-    let distance2 = match (trimming_points(&mesh, params), seed_index) {
-        (Some(points), Some(index)) => Some(trim::distances_squared(&points, index)),
-        (Some(points), None) => Some(trim::distances_squared(
-            &points,
-            &PointIndex::new(&finite(seeds))?,
-        )),
-        (None, _) => None,
+    let distance2 = match trimming_points(&mesh, params) {
+        Some(points) => {
+            let built;
+            let index = match seed_index {
+                Some(index) => index,
+                None => {
+                    built = PointIndex::new(&finite(seeds))?;
+                    &built
+                }
+            };
+            Some(match (params.trim, &params.unseen) {
+                (None, Some(unseen)) => trim::unseen_distances_squared(&mesh, index, unseen.near),
+                _ => trim::distances_squared(&points, index),
+            })
+        }
+        None => None,
     };
     trim_and_resolve(&mut mesh, distance2.as_deref(), params, &mut stats);
     stats.total_time = start.elapsed();

@@ -41,6 +41,47 @@ pub(crate) fn trimming_points<'m>(
     }
 }
 
+/// What [`trim_unseen`] reads of each vertex's squared distance to the nearest point of
+/// `seeds`, given the level `near` it cuts along: the distance itself at the vertices with no
+/// seed nearer than `near` and at their neighbours (the region test and the cut read those),
+/// and 0 at the others, which the trim only compares with `near`. A vertex with a seed within
+/// a hair less than `near` (the search stops at the first) is nearer than `near` whatever the
+/// rounding, so it keeps, as with the exact distances, every decision and every cut's bits.
+pub(crate) fn unseen_distances_squared(mesh: &TriMesh, seeds: &PointIndex, near: f64) -> Vec<f64> {
+    let inner = near * (1.0 - 1e-9);
+    let seen: Vec<bool> = mesh
+        .vertices
+        .par_iter()
+        .map(|&v| seeds.any_within(v, inner))
+        .collect();
+    let mut exact = seen.iter().map(|&s| !s).collect::<Vec<bool>>();
+    for t in &mesh.triangles {
+        if t.iter().any(|&v| !seen[v as usize]) {
+            for &v in t {
+                exact[v as usize] = true;
+            }
+        }
+    }
+    let wanted: Vec<DVec3> = mesh
+        .vertices
+        .iter()
+        .zip(&exact)
+        .filter(|&(_, &e)| e)
+        .map(|(&v, _)| v)
+        .collect();
+    let mut measured = distances_squared(&wanted, seeds).into_iter();
+    exact
+        .iter()
+        .map(|&e| {
+            if e {
+                measured.next().unwrap_or(0.0)
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 /// The squared distance from each of `points` to the nearest point of `seeds` (an index).
 pub(crate) fn distances_squared(points: &[DVec3], seeds: &PointIndex) -> Vec<f64> {
     // Consecutive points (mesh vertices or triangle centres) mostly lie close together, so
@@ -215,14 +256,14 @@ fn interpolate_vertex(mesh: &mut TriMesh, a: usize, b: usize, t: f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::{triangle_area, trim_unseen};
+    use super::{distances_squared, triangle_area, trim_unseen, unseen_distances_squared};
     use crate::polygonise::tests::{cover_of, params};
     use crate::polygonise::{PolygoniseParams, UnseenTrim, polygonise};
     use glam::DVec3;
     use proptest::prelude::*;
     use sphcover_core::MeshTopology;
-    use sphcover_core::PuEvaluator;
     use sphcover_core::TriMesh;
+    use sphcover_core::{PointIndex, PuEvaluator};
     use sphcover_evaluation::sphere;
 
     /// A flat `n` × `n` grid of unit squares, two triangles each, in the plane z = 0.
@@ -280,6 +321,28 @@ mod tests {
     }
 
     proptest! {
+        /// The distances read lazily cut exactly as the exact distances do (the same mesh,
+        /// bit for bit), whatever the seeds and the level.
+        #[test]
+        fn the_unseen_trim_reads_the_distances_it_needs(
+            seeds in proptest::collection::vec((-1.0f64..9.0, -1.0f64..9.0, -1.0f64..1.0), 1..30),
+            near in 0.3f64..3.0,
+            reach in 0.0f64..4.0,
+        ) {
+            let mesh = grid(8);
+            let seeds: Vec<DVec3> = seeds.iter().map(|&(x, y, z)| DVec3::new(x, y, z)).collect();
+            let index = PointIndex::new(&seeds).unwrap();
+            let unseen = UnseenTrim { near, reach };
+            let exact = distances_squared(&mesh.vertices, &index);
+            let lazy = unseen_distances_squared(&mesh, &index, near);
+            let (mut a, mut b) = (mesh.clone(), mesh.clone());
+            let removed_a = trim_unseen(&mut a, &exact, &unseen);
+            let removed_b = trim_unseen(&mut b, &lazy, &unseen);
+            prop_assert_eq!(a, b);
+            prop_assert_eq!(removed_a.triangles, removed_b.triangles);
+            prop_assert_eq!(removed_a.area_fraction.to_bits(), removed_b.area_fraction.to_bits());
+        }
+
         #[test]
         fn cutting_keeps_what_is_seen_and_shares_the_cut(
             distances in proptest::collection::vec(0.0f64..3.0, 49),
