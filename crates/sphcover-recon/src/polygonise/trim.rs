@@ -54,32 +54,21 @@ pub(crate) fn unseen_distances_squared(mesh: &TriMesh, seeds: &PointIndex, near:
         .par_iter()
         .map(|&v| seeds.any_within(v, inner))
         .collect();
-    let mut exact = seen.iter().map(|&s| !s).collect::<Vec<bool>>();
+    let mut read: Vec<bool> = seen.iter().map(|&s| !s).collect();
     for t in &mesh.triangles {
         if t.iter().any(|&v| !seen[v as usize]) {
             for &v in t {
-                exact[v as usize] = true;
+                read[v as usize] = true;
             }
         }
     }
-    let wanted: Vec<DVec3> = mesh
-        .vertices
-        .iter()
-        .zip(&exact)
-        .filter(|&(_, &e)| e)
-        .map(|(&v, _)| v)
-        .collect();
-    let mut measured = distances_squared(&wanted, seeds).into_iter();
-    exact
-        .iter()
-        .map(|&e| {
-            if e {
-                measured.next().unwrap_or(0.0)
-            } else {
-                0.0
-            }
-        })
-        .collect()
+    let wanted: Vec<usize> = (0..read.len()).filter(|&v| read[v]).collect();
+    let points: Vec<DVec3> = wanted.iter().map(|&v| mesh.vertices[v]).collect();
+    let mut distance2 = vec![0.0; read.len()];
+    for (&v, d2) in wanted.iter().zip(distances_squared(&points, seeds)) {
+        distance2[v] = d2;
+    }
+    distance2
 }
 
 /// The squared distance from each of `points` to the nearest point of `seeds` (an index).
