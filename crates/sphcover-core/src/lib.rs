@@ -103,6 +103,7 @@ pub use support_samples::SupportSamples;
 pub use surface_cover::{
     MAX_OCTREE_DEPTH, SurfaceCoverError, SurfaceCoverParams, SurfaceCoverStats,
     SurfaceCoverTimings, SurfaceSamples, build_surface_cover, build_surface_cover_from_cloud,
+    build_surface_cover_with_samples,
 };
 pub use symmetric_eigen::SymmetricEigen3;
 pub use threads::on_threads;

@@ -391,7 +391,7 @@ impl PointIndex {
 /// Moves the pairs `(slots[k], dist2[k])` with `dist2[k] < r2` to the front, in order,
 /// without a branch per pair; returns how many there are.
 #[inline]
-fn keep_inside(slots: &mut [u32], dist2: &mut [f64], r2: f64) -> usize {
+pub(crate) fn keep_inside(slots: &mut [u32], dist2: &mut [f64], r2: f64) -> usize {
     let n = slots.len().min(dist2.len());
     let (slots, dist2) = (&mut slots[..n], &mut dist2[..n]);
     let mut kept = 0;

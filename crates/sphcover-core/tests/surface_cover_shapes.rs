@@ -2,10 +2,12 @@
 //! distance near the surface, has the right sign away from it, and stays within 2ε on every
 //! sample; the same seed gives a bit-identical cover on 1 and 2 threads.
 
+use proptest::prelude::*;
 use sphcover_core::synthetic::{Surface, fibonacci_sphere};
 use sphcover_core::{
-    Cover, DVec3, PointCloud, PointIndex, PuEvaluator, SurfaceCoverParams, SurfaceSamples,
-    build_surface_cover, build_surface_cover_from_cloud,
+    Cover, DVec3, Kernel, PointCloud, PointIndex, PuEvaluator, SupportSamples, SurfaceCoverParams,
+    SurfaceSamples, build_surface_cover, build_surface_cover_from_cloud,
+    build_surface_cover_with_samples,
 };
 
 const SPHERE_R: f64 = 0.5;
@@ -362,4 +364,52 @@ fn a_given_index_gives_the_same_cover_and_a_wrong_one_is_ignored() {
     .unwrap();
     assert_eq!(stats.skipped_normals, 1);
     assert!(filtered == filtered_given, "covers differ");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The samples the build gives (rows of grown supports taken from their growth) are the
+    /// gather of its cover over the given index, slot for slot; the cover is the plain one.
+    #[test]
+    fn the_build_s_support_samples_are_the_gather(
+        n in 300usize..3000,
+        bump in 0.0f64..0.05,
+        eps in 1e-3f64..2e-2,
+        growth_tolerance in prop::sample::select(vec![1e-7, 0.05, 0.3]),
+        max_growth in 1.0f64..6.0,
+        kernel in prop::sample::select(Kernel::ALL.to_vec()),
+        expansion in any::<bool>(),
+        confidence in prop::option::of(0.1f64..1.0),
+        seed in any::<u64>(),
+    ) {
+        let (points, normals): (Vec<DVec3>, Vec<DVec3>) = fibonacci_sphere(n)
+            .into_iter()
+            .map(|u| ((0.3 + bump * (7.0 * u.x).sin() * (5.0 * u.y).cos()) * u, u))
+            .unzip();
+        let trust: Option<Vec<f64>> = confidence
+            .map(|c| (0..n).map(|i| if i % 3 == 0 { c } else { 1.0 }).collect());
+        let params = SurfaceCoverParams {
+            eps,
+            growth_tolerance,
+            max_growth,
+            kernel,
+            expansion,
+            seed,
+            ..SurfaceCoverParams::default()
+        };
+        let index = PointIndex::new(&points).unwrap();
+        let samples = SurfaceSamples::new(&points, &normals)
+            .with_confidence(trust.as_deref())
+            .with_index(&index);
+        let (cover, stats, incidence) = build_surface_cover_with_samples(&samples, &params).unwrap();
+        let (plain, plain_stats) = build_surface_cover(&samples, &params).unwrap();
+        prop_assert!(cover == plain, "covers differ");
+        prop_assert_eq!(stats.supports_after_expansion, plain_stats.supports_after_expansion);
+        prop_assert_eq!(incidence, Some(SupportSamples::gather(&cover, &index)));
+        // Without an index the build has none to give samples over.
+        let unindexed = SurfaceSamples::new(&points, &normals).with_confidence(trust.as_deref());
+        let (_, _, none) = build_surface_cover_with_samples(&unindexed, &params).unwrap();
+        prop_assert!(none.is_none());
+    }
 }

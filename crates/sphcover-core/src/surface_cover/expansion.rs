@@ -43,6 +43,7 @@ use super::SurfaceCoverParams;
 use super::fit::{Candidates, Fit, Samples};
 use super::octree::Leaf;
 use crate::point_index::{PointIndex, PointIndexError};
+use crate::support_samples::SupportSamples;
 use glam::DVec3;
 use rand_pcg::Pcg64;
 use rand_pcg::rand_core::{RngCore, SeedableRng};
@@ -74,6 +75,9 @@ pub(crate) struct Expanded {
     pub radius: Vec<f64>,
     /// The fit of each survivor at its radius; the octree's for the deleted supports.
     pub fit: Vec<Fit>,
+    /// The slots of the points in each survivor's ball, when asked for and its growth
+    /// gathered them (see [`grow`]).
+    pub rows: Vec<Option<Vec<u32>>>,
     /// Fits computed while growing.
     pub fits: u64,
     /// Time spent growing and in the range queries (parallel).
@@ -83,7 +87,9 @@ pub(crate) struct Expanded {
 }
 
 /// Expands the octree's supports `leaves` (see the module docs), whose centres, radii and
-/// fits are `centres`, `initial` and `fit`.
+/// fits are `centres`, `initial` and `fit`; with `keep_rows`, keeps the points of the
+/// supports' balls that their growth gathered.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn expand(
     leaves: &[Leaf],
     centres: &[DVec3],
@@ -92,27 +98,30 @@ pub(crate) fn expand(
     samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
+    keep_rows: bool,
 ) -> Result<Expanded, PointIndexError> {
     expand_with(centres, initial, fit, params.seed, BATCH, |cand, i| {
-        grow(cand, &leaves[i], samples, params, max_radius)
+        grow(cand, &leaves[i], samples, params, max_radius, keep_rows)
     })
 }
 
 /// The pass in batches of `batch` visits over the supports with centres `centres` and radii
-/// `initial`, whose octree fits are `fit`; `grow(candidates, i)` grows support `i`.
+/// `initial`, whose octree fits are `fit`; `grow(candidates, i)` grows support `i` and may
+/// give its row.
 fn expand_with(
     centres: &[DVec3],
     initial: &[f64],
     mut fit: Vec<Fit>,
     seed: u64,
     batch: usize,
-    grow: impl Fn(&mut Candidates, usize) -> Grown + Sync,
+    grow: impl Fn(&mut Candidates, usize) -> (Grown, Option<Vec<u32>>) + Sync,
 ) -> Result<Expanded, PointIndexError> {
     let start = Instant::now();
     let n = centres.len();
     let index = PointIndex::new(centres)?;
     let mut radius = initial.to_vec();
     let mut alive = vec![true; n];
+    let mut rows = vec![None; n];
     let mut fits = 0u64;
     let mut growth = Duration::ZERO;
     let mut live = Vec::with_capacity(batch);
@@ -132,12 +141,12 @@ fn expand_with(
         // grown one), so each grown support keeps those candidates, with their distance, and
         // the sequential pass re-checks them against the radius of the moment (bitwise the
         // same test).
-        let grown: Vec<(Grown, Vec<(u32, f64)>)> = live
+        let mut grown: Vec<_> = live
             .par_iter()
             .with_min_len(64)
             .map_init(Candidates::default, |cand, &i| {
                 let i = i as usize;
-                let g = grow(cand, i);
+                let (g, row) = grow(cand, i);
                 let mut near = Vec::new();
                 let ci = centres[i];
                 let reach = (g.radius - r_min).max(0.0) + 1e-9 * g.radius;
@@ -147,11 +156,11 @@ fn expand_with(
                         near.push((k, d));
                     }
                 });
-                (g, near)
+                (g, row, near)
             })
             .collect();
         growth += t_batch.elapsed();
-        fits += grown.iter().map(|(g, _)| u64::from(g.fits)).sum::<u64>();
+        fits += grown.iter().map(|(g, _, _)| u64::from(g.fits)).sum::<u64>();
         for &i in visits {
             let Ok(at) = live.binary_search(&i) else {
                 continue;
@@ -160,10 +169,11 @@ fn expand_with(
             if !alive[i] {
                 continue;
             }
-            let (g, near) = &grown[at];
+            let (g, row, near) = &mut grown[at];
             radius[i] = g.radius;
             fit[i] = g.fit;
-            for &(k, d) in near {
+            rows[i] = row.take();
+            for &(k, d) in near.iter() {
                 let k = k as usize;
                 if alive[k] && d + radius[k] <= g.radius {
                     alive[k] = false;
@@ -175,6 +185,7 @@ fn expand_with(
         alive,
         radius,
         fit,
+        rows,
         fits,
         growth,
         elimination: start.elapsed().saturating_sub(growth),
@@ -194,16 +205,21 @@ fn growth_start(leaf: &Leaf, params: &SurfaceCoverParams, max_radius: f64) -> (G
     (unchanged, cap)
 }
 
-/// Grows one support (see the module docs).
+/// Grows one support (see the module docs). With `keep_row`, also its row of
+/// [`SupportSamples`] (the slots of the points in its ball, grown or not) when its trials
+/// gathered them: a gather at the final radius would visit the index in the same order, set
+/// by the centre alone, so the row is the candidates inside that ball. A support that grew
+/// gets its row in any case, gathered once more when its candidates fall short of the ball.
 fn grow(
     cand: &mut Candidates,
     leaf: &Leaf,
     samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
-) -> Grown {
+    keep_row: bool,
+) -> (Grown, Option<Vec<u32>>) {
     let (mut best, cap) = growth_start(leaf, params, max_radius);
-    let Some(cap) = cap else { return best };
+    let Some(cap) = cap else { return (best, None) };
     let eps = params.eps;
     let ratio = 1.0 + params.growth_tolerance;
     // Every later trial below a failed radius `hi` has a squared radius below `hi² / ratio`,
@@ -269,7 +285,20 @@ fn grow(
             None => break,
         }
     }
-    best
+    if !keep_row {
+        return (best, None);
+    }
+    let reach = SupportSamples::ball_radius(best.radius);
+    if held >= reach {
+        cand.keep_within(reach);
+    } else if best.radius > leaf.radius {
+        cand.gather(samples, leaf.centre, reach);
+    } else {
+        // Nothing gathered reaches the ball the octree left: the gather of all the rows
+        // finds it as cheaply.
+        return (best, None);
+    }
+    (best, Some(cand.slots().to_vec()))
 }
 
 /// `0..n` in the seeded random order: Fisher–Yates driven by PCG-64, with the multiply-shift
@@ -407,8 +436,18 @@ mod tests {
                 ..SurfaceCoverParams::default()
             };
             let max_radius = 0.2;
-            let fast = grow(&mut Candidates::default(), &leaf, &samples, &params, max_radius);
+            let (fast, row) =
+                grow(&mut Candidates::default(), &leaf, &samples, &params, max_radius, true);
             let plain = grow_over_one_gather(&leaf, &samples, &params, max_radius);
+            // A row is the gather of the support's ball, slot for slot, and every grown
+            // support has one.
+            prop_assert!(row.is_some() || fast.radius == radius);
+            if let Some(row) = row {
+                let reach = SupportSamples::ball_radius(fast.radius);
+                let mut direct = Vec::new();
+                samples.index.extend_within(centre, reach, &mut direct, None);
+                prop_assert_eq!(row, direct);
+            }
             prop_assert_eq!(fast.radius, plain.radius);
             prop_assert_eq!(fast.fit, plain.fit);
             prop_assert_eq!(fast.fits, plain.fits);
@@ -447,7 +486,7 @@ mod tests {
             let octree_fits = vec![octree_fit; centres.len()];
             let fast = expand_with(&centres, &initial, octree_fits, seed, batch, |_, i| {
                 calls.fetch_add(1, Ordering::Relaxed);
-                grown[i]
+                (grown[i], Some(vec![i as u32]))
             })
             .unwrap();
             let (alive, radius, visited) = expand_one_at_a_time(&centres, &initial, &grown, seed);
@@ -455,6 +494,7 @@ mod tests {
             for i in (0..centres.len()).filter(|&i| alive[i]) {
                 prop_assert_eq!(fast.radius[i], radius[i]);
                 prop_assert_eq!(fast.fit[i], grown[i].fit);
+                prop_assert_eq!(fast.rows[i].as_deref(), Some(&[i as u32][..]));
             }
             // Every support visited alive was grown, no support twice, and with one visit
             // per batch no other.

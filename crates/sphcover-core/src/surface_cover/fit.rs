@@ -18,7 +18,7 @@
 use crate::kernel::Kernel;
 use crate::local_function::LinearFunction;
 use crate::opposite_faces::{FaceSelection, face_to_fit};
-use crate::point_index::PointIndex;
+use crate::point_index::{PointIndex, keep_inside};
 use glam::DVec3;
 use std::borrow::Cow;
 
@@ -94,17 +94,14 @@ impl Candidates {
     /// rounding) and count as 0 in the error pass, so the sums do not change by a bit, nor
     /// the error of a fit within its limit (one above it stays above).
     pub fn keep_within(&mut self, r: f64) {
-        let r2 = r * r;
-        let mut kept = 0;
-        for j in 0..self.len() {
-            if self.dist2[j] < r2 {
-                self.slots[kept] = self.slots[j];
-                self.dist2[kept] = self.dist2[j];
-                kept += 1;
-            }
-        }
+        let kept = keep_inside(&mut self.slots, &mut self.dist2, r * r);
         self.slots.truncate(kept);
         self.dist2.truncate(kept);
+    }
+
+    /// The slots of the candidates, in order.
+    pub fn slots(&self) -> &[u32] {
+        &self.slots
     }
 
     /// Fits the candidates inside the ball of radius `r` (at most the gather radius) with

@@ -15,6 +15,7 @@ use crate::local_function::LocalFunctions;
 use crate::opposite_faces::FaceSelection;
 use crate::point_cloud::PointCloud;
 use crate::point_index::{PointIndex, PointIndexError};
+use crate::support_samples::SupportSamples;
 use fit::Samples;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -313,22 +314,62 @@ pub fn build_surface_cover(
     samples: &SurfaceSamples<'_>,
     params: &SurfaceCoverParams,
 ) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
-    build(
-        samples.points,
-        samples.normals,
-        samples.confidence,
-        samples.index,
-        params,
-    )
+    let (cover, stats, _) = build(samples, params, false)?;
+    Ok((cover, stats))
 }
 
-fn build(
-    points: &[DVec3],
-    normals: &[DVec3],
-    confidence: Option<&[f64]>,
-    given_index: Option<&PointIndex>,
+/// [`build_surface_cover`], and the samples of every support over the index that came with
+/// `samples` ([`SurfaceSamples::with_index`]): what [`SupportSamples::gather`] of the cover
+/// and that index gives, bit for bit. Most supports take their rows from the points their
+/// fits gathered (those the expansion grew, and the octants grown to their `n_min` nearest
+/// points), so only the others are gathered again.
+/// `None` when the build could not use that index as it is (no index given, or points left
+/// out for a zero normal or confidence); [`SupportSamples::gather`] serves then.
+///
+/// ```
+/// use sphcover_core::{
+///     DVec3, PointIndex, SupportSamples, SurfaceCoverParams, SurfaceSamples,
+///     build_surface_cover_with_samples,
+/// };
+///
+/// // Points on a sphere of radius 0.3, with outward normals.
+/// let n = 2000;
+/// let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+/// let normals: Vec<DVec3> = (0..n)
+///     .map(|i| {
+///         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+///         let (s, a) = ((1.0 - z * z).sqrt(), golden * i as f64);
+///         DVec3::new(s * a.cos(), s * a.sin(), z)
+///     })
+///     .collect();
+/// let points: Vec<DVec3> = normals.iter().map(|&u| 0.3 * u).collect();
+/// let index = PointIndex::new(&points)?;
+/// let samples = SurfaceSamples::new(&points, &normals).with_index(&index);
+/// let (cover, _stats, incidence) =
+///     build_surface_cover_with_samples(&samples, &SurfaceCoverParams::default())?;
+/// assert_eq!(incidence, Some(SupportSamples::gather(&cover, &index)));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn build_surface_cover_with_samples(
+    samples: &SurfaceSamples<'_>,
     params: &SurfaceCoverParams,
-) -> Result<(Cover, SurfaceCoverStats), SurfaceCoverError> {
+) -> Result<(Cover, SurfaceCoverStats, Option<SupportSamples>), SurfaceCoverError> {
+    build(samples, params, true)
+}
+
+/// The build; with `want_rows`, also the samples of every support when the given index
+/// served as it is.
+fn build(
+    given: &SurfaceSamples<'_>,
+    params: &SurfaceCoverParams,
+    want_rows: bool,
+) -> Result<(Cover, SurfaceCoverStats, Option<SupportSamples>), SurfaceCoverError> {
+    let SurfaceSamples {
+        points,
+        normals,
+        confidence,
+        index: given_index,
+    } = *given;
     let start = Instant::now();
     check_params(params)?;
     let n = points.len();
@@ -443,7 +484,8 @@ fn build(
         min: -half_side,
         side: 2.0 * half_side,
     };
-    let leaves = octree::build(&samples, params, geometry, &mut stats);
+    let keep_rows = want_rows && matches!(samples.index, Cow::Borrowed(_));
+    let (leaves, mut rows) = octree::build(&samples, params, geometry, &mut stats, keep_rows);
     stats.supports_before_expansion = leaves.len();
     stats.grown_leaves = leaves.iter().filter(|l| l.grown).count();
     stats.empty_leaves = leaves.iter().filter(|l| l.empty).count();
@@ -455,8 +497,8 @@ fn build(
     let mut fits: Vec<fit::Fit> = leaves.iter().map(|l| l.fit).collect();
     if params.expansion {
         let max_radius = 2.0 * half_side * 3f64.sqrt();
-        let expanded = expansion::expand(
-            &leaves, &centres, &radii, fits, &samples, params, max_radius,
+        let mut expanded = expansion::expand(
+            &leaves, &centres, &radii, fits, &samples, params, max_radius, keep_rows,
         )?;
         fits = expanded.fit;
         stats.fits += expanded.fits;
@@ -471,20 +513,26 @@ fn build(
                 centres[kept] = centres[i];
                 radii[kept] = expanded.radius[i];
                 fits[kept] = fits[i];
+                rows.swap(kept, i);
+                if let Some(row) = expanded.rows[i].take() {
+                    rows[kept] = Some(row);
+                }
                 kept += 1;
             }
         }
         centres.truncate(kept);
         radii.truncate(kept);
         fits.truncate(kept);
+        rows.truncate(kept);
     }
     stats.supports_after_expansion = centres.len();
     stats.supports_over_eps = fits.iter().filter(|f| f.error > params.eps).count();
     stats.max_error = fits.iter().map(|f| f.error).fold(0.0, f64::max);
     let funcs = LocalFunctions::from_linear(fits.iter().map(fit::Fit::linear));
     let cover = Cover::new(centres, radii, funcs, params.kernel)?;
+    let incidence = keep_rows.then(|| SupportSamples::from_rows(&cover, &samples.index, rows));
     stats.timings.total = start.elapsed();
-    Ok((cover, stats))
+    Ok((cover, stats, incidence))
 }
 
 /// Normalises a copy of `cloud` to the unit frame (thesis §3.4.1) and builds its cover; uses

@@ -60,6 +60,7 @@
 
 use super::fit::{Candidates, Fit, Samples, error_lower_bound};
 use super::{SurfaceCoverParams, SurfaceCoverStats};
+use crate::support_samples::SupportSamples;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashSet;
@@ -229,15 +230,22 @@ struct Octree<'a> {
     /// list, not a map per level: inserting 112-byte leaves into maps, and reading them back
     /// out, holds one thread alone between the parallel waves.)
     leaves: Vec<Leaf>,
+    /// With `keep_rows`, the row of [`SupportSamples`] of each of `leaves` that grew to its
+    /// `n_min` nearest points (see [`Octree::fit_cell`]).
+    rows: Vec<Option<Vec<u32>>>,
+    keep_rows: bool,
 }
 
-/// Builds the balanced adaptive octree and returns its leaves in Morton order.
+/// Builds the balanced adaptive octree and returns its leaves in Morton order; with
+/// `keep_rows`, also the row of [`SupportSamples`] of each leaf that grew to its `n_min`
+/// nearest points (the others' rows are `None`).
 pub(crate) fn build(
     samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     geometry: Geometry,
     stats: &mut SurfaceCoverStats,
-) -> Vec<Leaf> {
+    keep_rows: bool,
+) -> (Vec<Leaf>, Vec<Option<Vec<u32>>>) {
     let levels = params.max_depth as usize + 1;
     let mut tree = Octree {
         samples,
@@ -245,6 +253,8 @@ pub(crate) fn build(
         geometry,
         internal: vec![KeySet::default(); levels],
         leaves: Vec::new(),
+        rows: Vec::new(),
+        keep_rows,
     };
     stats.octants_per_level = vec![0; levels];
     let mut frontier = vec![(0u8, 0u64)];
@@ -257,11 +267,12 @@ pub(crate) fn build(
         }
     }
     let internal = &tree.internal;
-    let unordered: Vec<Leaf> = tree
+    let (unordered, mut unordered_rows): (Vec<Leaf>, Vec<Option<Vec<u32>>>) = tree
         .leaves
         .into_par_iter()
-        .filter(|l| !internal[l.level as usize].contains(&l.key))
-        .collect();
+        .zip(tree.rows)
+        .filter(|(l, _)| !internal[l.level as usize].contains(&l.key))
+        .unzip();
     // Sorting the keys alone, each computed once: `(Morton code, level)` names a cell, so
     // the order is total and independent of the order the waves fitted the leaves in.
     let mut order: Vec<(u64, u8, u32)> = unordered
@@ -280,11 +291,15 @@ pub(crate) fn build(
         .par_iter()
         .map(|&(_, _, i)| unordered[i as usize])
         .collect();
+    let rows = order
+        .iter()
+        .map(|&(_, _, i)| unordered_rows[i as usize].take())
+        .collect();
     stats.leaves_per_level = vec![0; levels];
     for l in &leaves {
         stats.leaves_per_level[l.level as usize] += 1;
     }
-    leaves
+    (leaves, rows)
 }
 
 impl Octree<'_> {
@@ -301,7 +316,7 @@ impl Octree<'_> {
         // in this call (the first frontier has none).
         let mut parents: Vec<(u8, u64, usize)> = Vec::new();
         while !frontier.is_empty() {
-            let fitted: Vec<Option<Leaf>> = frontier
+            let (fitted, mut rows): (Vec<Option<Leaf>>, Vec<Option<Vec<u32>>>) = frontier
                 .par_iter()
                 .enumerate()
                 .map_init(
@@ -316,12 +331,13 @@ impl Octree<'_> {
                         if parent_points >= BOUND_FIRST_POINTS
                             && let Some(leaf) = self.bound_cell(sample, level, key)
                         {
-                            return Some(leaf);
+                            return (Some(leaf), None);
                         }
                         self.fit_cell(cand, level, key, false)
+                            .map_or((None, None), |(leaf, row)| (Some(leaf), row))
                     },
                 )
-                .collect();
+                .unzip();
             let bounded = fitted.iter().flatten().filter(|l| l.bounded()).count();
             stats.bounded_octants += bounded;
             stats.fits += (frontier.len() - bounded) as u64;
@@ -339,7 +355,7 @@ impl Octree<'_> {
                     *slot = over && (sparse || group.iter().all(limited));
                 }
             }
-            let restored: Vec<Option<Leaf>> = parents
+            let restored: Vec<Option<(Leaf, Option<Vec<u32>>)>> = parents
                 .par_iter()
                 .zip(&undone)
                 .map_init(Candidates::default, |cand, (&(level, key, _), &u)| {
@@ -350,10 +366,11 @@ impl Octree<'_> {
                     }
                 })
                 .collect();
-            for ((&(level, key, _), leaf), &u) in parents.iter().zip(restored).zip(&undone) {
-                if let (true, Some(leaf)) = (u, leaf) {
+            for ((&(level, key, _), fitted), &u) in parents.iter().zip(restored).zip(&undone) {
+                if let (true, Some((leaf, row))) = (u, fitted) {
                     self.internal[level as usize].remove(&key);
                     self.leaves.push(leaf);
+                    self.rows.push(row);
                     new_leaves.push((level, key));
                     stats.sampling_limited_octants += 1;
                 }
@@ -376,6 +393,7 @@ impl Octree<'_> {
                 } else {
                     debug_assert!(!leaf.bounded(), "a bounded cell is refined");
                     self.leaves.push(leaf);
+                    self.rows.push(rows[idx].take());
                     new_leaves.push((level, key));
                 }
             }
@@ -433,10 +451,17 @@ impl Octree<'_> {
         })
     }
 
-    /// The support of a cell. `None` only when no point is indexed at all.
+    /// The support of a cell, and with `keep_rows` its row of [`SupportSamples`] when it grew
+    /// to its `n_min` nearest points. `None` only when no point is indexed at all.
     /// `exact`: compute the exact error even where the cell would be refined (a cell whose
     /// subdivision was undone).
-    fn fit_cell(&self, cand: &mut Candidates, level: u8, key: u64, exact: bool) -> Option<Leaf> {
+    fn fit_cell(
+        &self,
+        cand: &mut Candidates,
+        level: u8,
+        key: u64,
+        exact: bool,
+    ) -> Option<(Leaf, Option<Vec<u32>>)> {
         let (centre, natural) = self.geometry.cell(level, key);
         let samples = self.samples;
         cand.gather(samples, centre, natural);
@@ -451,7 +476,9 @@ impl Octree<'_> {
                 .sqrt();
             radius = natural.max(farthest * REACH);
             grown = radius > natural;
-            cand.gather(samples, centre, radius);
+            // A hair wider than the ball, as its row is: the fit gives the points outside
+            // the ball weight 0 and leaves them out of the error.
+            cand.gather(samples, centre, SupportSamples::ball_radius(radius));
         }
         let limit = if u32::from(level) < self.params.max_depth && !empty && !exact {
             self.params.eps
@@ -468,7 +495,10 @@ impl Octree<'_> {
             // No sample lies in the support's ball.
             fit.error = 0.0;
         }
-        Some(Leaf {
+        // A grown octant is never refined (see the module docs) nor grown further in the
+        // expansion, so its gather is its row.
+        let row = (self.keep_rows && grown).then(|| cand.slots().to_vec());
+        let leaf = Leaf {
             level,
             key,
             centre,
@@ -478,7 +508,8 @@ impl Octree<'_> {
             empty,
             refinable,
             own_points,
-        })
+        };
+        Some((leaf, row))
     }
 
     /// Restores the 2:1 balance around the leaves `seeds` (and around every leaf it creates)
@@ -581,6 +612,8 @@ mod tests {
             },
             internal: Vec::new(),
             leaves: Vec::new(),
+            rows: Vec::new(),
+            keep_rows: false,
         };
         let (mut cand, mut sample) = (Candidates::default(), Vec::new());
         let cells = 1u32 << level;
@@ -593,7 +626,7 @@ mod tests {
                         continue;
                     };
                     settled += 1;
-                    let fitted = tree.fit_cell(&mut cand, level, key, true).unwrap();
+                    let (fitted, _) = tree.fit_cell(&mut cand, level, key, true).unwrap();
                     assert!(fitted.fit.error > eps, "cell {x} {y} {z}");
                     assert!(bounded.fit.error <= fitted.fit.error * (1.0 + 1e-9));
                     assert!(fitted.refinable && !fitted.grown && !fitted.empty);
