@@ -220,6 +220,52 @@ pub(crate) fn sample_confidence_indexed(
     params: &ConfidenceParams,
     distrusted: impl Fn(usize) -> bool,
 ) -> Result<SampleConfidence, ConfidenceError> {
+    check_index(cover, index, incidence, samples)?;
+    let mut support = SupportConfidence::of(cover, index, incidence);
+    support.distrust(distrusted);
+    sample_confidence_with(cover, index, incidence, samples, scanner, params, support)
+}
+
+/// The supports' confidences `τ_i` over their samples, apart from the samples' (so that a
+/// pipeline can compute them beside other work), with the count of degenerate supports and
+/// the time they took.
+pub(crate) struct SupportConfidence {
+    tau: Vec<f64>,
+    degenerate: usize,
+    time: Duration,
+}
+
+impl SupportConfidence {
+    /// The confidences of the supports of `cover` over `incidence` (gathered from `cover`
+    /// and `index`).
+    pub(crate) fn of(cover: &Cover, index: &PointIndex, incidence: &SupportSamples) -> Self {
+        let start = Instant::now();
+        let (tau, degenerate) = support_confidence_in(cover, index, incidence);
+        SupportConfidence {
+            tau,
+            degenerate,
+            time: start.elapsed(),
+        }
+    }
+
+    /// Sets `τ_i = 0` for the supports that `distrusted(i)` names.
+    pub(crate) fn distrust(&mut self, distrusted: impl Fn(usize) -> bool) {
+        for (i, t) in self.tau.iter_mut().enumerate() {
+            if distrusted(i) {
+                *t = 0.0;
+            }
+        }
+    }
+}
+
+/// [`ConfidenceError::IndexMismatch`] unless `index` is over exactly `samples` and
+/// `incidence` was gathered from `cover` and `index`.
+fn check_index(
+    cover: &Cover,
+    index: &PointIndex,
+    incidence: &SupportSamples,
+    samples: &[DVec3],
+) -> Result<(), ConfidenceError> {
     let found = index.input_len();
     if found != samples.len() || !incidence.fits(cover, index) {
         return Err(ConfidenceError::IndexMismatch {
@@ -227,6 +273,21 @@ pub(crate) fn sample_confidence_indexed(
             found,
         });
     }
+    Ok(())
+}
+
+/// As [`sample_confidence_indexed`], with the supports' confidences `support` computed
+/// already (and the distrusted ones set to 0).
+pub(crate) fn sample_confidence_with(
+    cover: &Cover,
+    index: &PointIndex,
+    incidence: &SupportSamples,
+    samples: &[DVec3],
+    scanner: Option<&[f64]>,
+    params: &ConfidenceParams,
+    support: SupportConfidence,
+) -> Result<SampleConfidence, ConfidenceError> {
+    check_index(cover, index, incidence, samples)?;
     let t = params.outlier_threshold;
     if !(t.is_finite() && t >= 0.0) {
         return Err(ConfidenceError::InvalidThreshold(t));
@@ -249,17 +310,11 @@ pub(crate) fn sample_confidence_indexed(
         supports: cover.len(),
         samples: samples.len(),
         scanner_given: scanner.is_some(),
+        degenerate_supports: support.degenerate,
+        support_time: support.time,
         ..Default::default()
     };
-    let start = Instant::now();
-    let (mut tau, degenerate) = support_confidence_in(cover, index, incidence);
-    for (i, t) in tau.iter_mut().enumerate() {
-        if distrusted(i) {
-            *t = 0.0;
-        }
-    }
-    stats.degenerate_supports = degenerate;
-    stats.support_time = start.elapsed();
+    let tau = support.tau;
 
     let start = Instant::now();
     let confidence: Vec<f64> = match scanner {

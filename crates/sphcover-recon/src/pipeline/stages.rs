@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use sphcover_core::{
     Aabb, Cover, DVec3, FaceSelection, LocalFunctions, MeshTopology, Normalisation, PointCloud,
     PointIndex, PuEvaluator, SphereIntersectionGraph, Stage, SupportLists, SupportSamples,
-    SurfaceSamples, TriMesh, build_surface_cover,
+    SurfaceSamples, TriMesh, build_surface_cover, build_surface_cover_with_samples,
 };
 use sphcover_ops::{OpsError, PairGeometry};
 use std::borrow::Cow;
@@ -24,7 +24,8 @@ use super::{
     Trim, UNSEEN_NEAR, UNSEEN_REACH, default_depth,
 };
 use crate::confidence::{
-    SampleConfidence, blend_over_supports, sample_confidence, sample_confidence_indexed,
+    SampleConfidence, SupportConfidence, blend_over_supports, sample_confidence,
+    sample_confidence_with,
 };
 use crate::diffusion::{DiffusionParams, FittingTerms, diffuse};
 use crate::graph_cut::graph_cut_sig_alongside;
@@ -76,6 +77,8 @@ pub(super) struct ReconContext<'a> {
     pub pairs: Option<PairGeometry>,
     /// The samples inside each support, shared by the confidence and the fitting terms.
     pub incidence: Option<SupportSamples>,
+    /// The supports' confidences, when computed beside the graph cut.
+    pub support_confidence: Option<SupportConfidence>,
     pub confidence: Option<SampleConfidence>,
     /// The surface, in the unit frame until `topology` maps it back.
     pub mesh: TriMesh,
@@ -109,6 +112,7 @@ impl<'a> ReconContext<'a> {
             at_centres: None,
             pairs: None,
             incidence: None,
+            support_confidence: None,
             confidence: None,
             mesh: TriMesh::default(),
             unchanged_topology: None,
@@ -341,7 +345,16 @@ pub(super) fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> 
     let samples = SurfaceSamples::new(points, normals)
         .with_confidence(trust)
         .with_index(ctx.index());
-    let (cover, cover_stats) = build_surface_cover(&samples, &cover_params)?;
+    // The methods that diffuse read every support's samples: the build gives them.
+    let (cover, cover_stats, incidence) = match ctx.params.method {
+        Method::Integrated | Method::Diffusion => {
+            build_surface_cover_with_samples(&samples, &cover_params)?
+        }
+        Method::PartitionOfUnity | Method::GraphCut => {
+            let (cover, stats) = build_surface_cover(&samples, &cover_params)?;
+            (cover, stats, None)
+        }
+    };
     ctx.stats.cover = cover_stats;
     ctx.stats.supports = cover.len();
     ctx.stats.depth = ctx
@@ -350,6 +363,7 @@ pub(super) fn build_cover(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> 
         .unwrap_or_else(|| default_depth(ctx.points.len()));
     ctx.zeroed = vec![false; cover.len()];
     ctx.cover = Some(cover);
+    ctx.incidence = incidence;
     Ok(())
 }
 
@@ -384,28 +398,45 @@ fn centre_supports(cover: &Cover) -> Result<SupportLists, ReconError> {
     Ok(PuEvaluator::new(cover, 1.0)?.support_lists(cover.centres()))
 }
 
-/// The diffusion's pair geometry and the samples of each support: neither depends on the cut.
+/// The diffusion's pair geometry and the samples of each support, with the supports'
+/// confidences when the cover's build gave the samples (else they are gathered here): none
+/// of them depends on the cut.
 fn geometry_and_samples(
     cover: &Cover,
     graph: &SphereIntersectionGraph,
     index: &PointIndex,
-) -> (Result<PairGeometry, OpsError>, SupportSamples) {
-    rayon::join(
-        || PairGeometry::build(cover.centres(), cover.radii(), graph),
-        || SupportSamples::gather(cover, index),
-    )
+    known: Option<SupportSamples>,
+) -> (
+    Result<PairGeometry, OpsError>,
+    SupportSamples,
+    Option<SupportConfidence>,
+) {
+    let pairs = || PairGeometry::build(cover.centres(), cover.radii(), graph);
+    match known {
+        Some(incidence) => {
+            let (pairs, support) =
+                rayon::join(pairs, || SupportConfidence::of(cover, index, &incidence));
+            (pairs, incidence, Some(support))
+        }
+        None => {
+            let (pairs, incidence) = rayon::join(pairs, || SupportSamples::gather(cover, index));
+            (pairs, incidence, None)
+        }
+    }
 }
 
 /// The graph, and what the diffusion needs of it, without a cut.
 fn build_graph_and_geometry(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     build_graph(ctx)?;
     let graph = built(ctx.graph.take(), "sphere intersection graph");
+    let known = ctx.incidence.take();
     let cover = ctx.cover();
     let at_centres = centre_supports(cover)?;
-    let (pairs, incidence) = geometry_and_samples(cover, &graph, ctx.index());
+    let (pairs, incidence, support) = geometry_and_samples(cover, &graph, ctx.index(), known);
     ctx.pairs = Some(pairs?);
     ctx.at_centres = Some(at_centres);
     ctx.incidence = Some(incidence);
+    ctx.support_confidence = support;
     Ok(())
 }
 
@@ -415,13 +446,14 @@ fn build_graph_and_geometry(ctx: &mut ReconContext<'_>) -> Result<(), ReconError
 /// samples confirm them: at least `n_min` lie within ε of the local function's zero set.
 fn cut_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     let graph = built(ctx.graph.take(), "sphere intersection graph");
+    let known = ctx.incidence.take();
     let (cover, index) = (ctx.cover(), ctx.index());
     let at_centres = centre_supports(cover)?;
     // The pair geometry and the support samples are built while the max-flow solve, which
     // is sequential, holds one thread: they keep the others busy.
-    let (cut, (pairs, incidence)) =
+    let (cut, (pairs, incidence, support)) =
         graph_cut_sig_alongside(cover, &graph, &at_centres, &ctx.params.graph_cut, || {
-            geometry_and_samples(cover, &graph, index)
+            geometry_and_samples(cover, &graph, index, known)
         })?;
     let fitted = fitted_samples(
         cover,
@@ -444,6 +476,7 @@ fn cut_graph(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
     ctx.pairs = Some(pairs?);
     ctx.at_centres = Some(at_centres);
     ctx.incidence = Some(incidence);
+    ctx.support_confidence = support;
     Ok(())
 }
 
@@ -494,16 +527,20 @@ fn cut_dual_complex(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
 /// The confidence of every sample (eq. 5.39–5.40) over the samples of each support gathered
 /// beside the graph cut; the inconsistent supports count as τ = 0.
 fn confidence_over_supports(ctx: &mut ReconContext<'_>) -> Result<(), ReconError> {
+    let computed = ctx.support_confidence.take();
     let incidence = built(ctx.incidence.as_ref(), "support samples");
+    let (cover, index) = (ctx.cover(), ctx.index());
+    let mut support = computed.unwrap_or_else(|| SupportConfidence::of(cover, index, incidence));
     let zeroed = &ctx.zeroed;
-    let confidence = sample_confidence_indexed(
-        ctx.cover(),
-        ctx.index(),
+    support.distrust(|i| zeroed[i]);
+    let confidence = sample_confidence_with(
+        cover,
+        index,
         incidence,
         &ctx.points,
         ctx.scanner.as_deref(),
         &ctx.params.confidence,
-        |i| zeroed[i],
+        support,
     )?;
     ctx.confidence = Some(without_isolated(confidence, ctx));
     Ok(())
