@@ -75,8 +75,8 @@ pub(crate) struct Expanded {
     pub radius: Vec<f64>,
     /// The fit of each survivor at its radius; the octree's for the deleted supports.
     pub fit: Vec<Fit>,
-    /// The slots of the points in each survivor's ball, when asked for and its growth
-    /// gathered them (see [`grow`]).
+    /// The slots of the points in each survivor's ball: the row its growth gathered, when
+    /// asked for (see [`grow`]), else the one given for it; `None` for the deleted supports.
     pub rows: Vec<Option<Vec<u32>>>,
     /// Fits computed while growing.
     pub fits: u64,
@@ -88,30 +88,39 @@ pub(crate) struct Expanded {
 
 /// Expands the octree's supports `leaves` (see the module docs), whose centres, radii and
 /// fits are `centres`, `initial` and `fit`; with `keep_rows`, keeps the points of the
-/// supports' balls that their growth gathered.
+/// supports' balls that their growth gathered, and otherwise the octree's `rows`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn expand(
     leaves: &[Leaf],
     centres: &[DVec3],
     initial: &[f64],
     fit: Vec<Fit>,
+    rows: Vec<Option<Vec<u32>>>,
     samples: &Samples<'_>,
     params: &SurfaceCoverParams,
     max_radius: f64,
     keep_rows: bool,
 ) -> Result<Expanded, PointIndexError> {
-    expand_with(centres, initial, fit, params.seed, BATCH, |cand, i| {
-        grow(cand, &leaves[i], samples, params, max_radius, keep_rows)
-    })
+    expand_with(
+        centres,
+        initial,
+        fit,
+        rows,
+        params.seed,
+        BATCH,
+        |cand, i| grow(cand, &leaves[i], samples, params, max_radius, keep_rows),
+    )
 }
 
 /// The pass in batches of `batch` visits over the supports with centres `centres` and radii
-/// `initial`, whose octree fits are `fit`; `grow(candidates, i)` grows support `i` and may
-/// give its row.
+/// `initial`, whose octree fits are `fit` and rows `rows` (empty: none); `grow(candidates, i)`
+/// grows support `i` and may give its row. A deleted support's row is dropped at once, so its
+/// memory serves the rows grown after it.
 fn expand_with(
     centres: &[DVec3],
     initial: &[f64],
     mut fit: Vec<Fit>,
+    mut rows: Vec<Option<Vec<u32>>>,
     seed: u64,
     batch: usize,
     grow: impl Fn(&mut Candidates, usize) -> (Grown, Option<Vec<u32>>) + Sync,
@@ -121,7 +130,7 @@ fn expand_with(
     let index = PointIndex::new(centres)?;
     let mut radius = initial.to_vec();
     let mut alive = vec![true; n];
-    let mut rows = vec![None; n];
+    rows.resize(n, None);
     let mut fits = 0u64;
     let mut growth = Duration::ZERO;
     let mut live = Vec::with_capacity(batch);
@@ -172,11 +181,14 @@ fn expand_with(
             let (g, row, near) = &mut grown[at];
             radius[i] = g.radius;
             fit[i] = g.fit;
-            rows[i] = row.take();
+            if let Some(row) = row.take() {
+                rows[i] = Some(row);
+            }
             for &(k, d) in near.iter() {
                 let k = k as usize;
                 if alive[k] && d + radius[k] <= g.radius {
                     alive[k] = false;
+                    rows[k] = None;
                 }
             }
         }
@@ -484,9 +496,12 @@ mod tests {
                 .collect();
             let calls = AtomicUsize::new(0);
             let octree_fits = vec![octree_fit; centres.len()];
-            let fast = expand_with(&centres, &initial, octree_fits, seed, batch, |_, i| {
+            // Every other support's growth gives a row; the others keep the one given.
+            let given = (0..centres.len()).map(|i| Some(vec![u32::MAX, i as u32])).collect();
+            let grown_row = |i: usize| i.is_multiple_of(2).then(|| vec![i as u32]);
+            let fast = expand_with(&centres, &initial, octree_fits, given, seed, batch, |_, i| {
                 calls.fetch_add(1, Ordering::Relaxed);
-                (grown[i], Some(vec![i as u32]))
+                (grown[i], grown_row(i))
             })
             .unwrap();
             let (alive, radius, visited) = expand_one_at_a_time(&centres, &initial, &grown, seed);
@@ -494,7 +509,11 @@ mod tests {
             for i in (0..centres.len()).filter(|&i| alive[i]) {
                 prop_assert_eq!(fast.radius[i], radius[i]);
                 prop_assert_eq!(fast.fit[i], grown[i].fit);
-                prop_assert_eq!(fast.rows[i].as_deref(), Some(&[i as u32][..]));
+                let row = grown_row(i).unwrap_or_else(|| vec![u32::MAX, i as u32]);
+                prop_assert_eq!(fast.rows[i].as_ref(), Some(&row));
+            }
+            for i in (0..centres.len()).filter(|&i| !alive[i]) {
+                prop_assert!(fast.rows[i].is_none());
             }
             // Every support visited alive was grown, no support twice, and with one visit
             // per batch no other.

@@ -485,7 +485,7 @@ fn build(
         side: 2.0 * half_side,
     };
     let keep_rows = want_rows && matches!(samples.index, Cow::Borrowed(_));
-    let (leaves, mut rows) = octree::build(&samples, params, geometry, &mut stats, keep_rows);
+    let (leaves, octree_rows) = octree::build(&samples, params, geometry, &mut stats, keep_rows);
     stats.supports_before_expansion = leaves.len();
     stats.grown_leaves = leaves.iter().filter(|l| l.grown).count();
     stats.empty_leaves = leaves.iter().filter(|l| l.empty).count();
@@ -495,12 +495,14 @@ fn build(
     let mut centres: Vec<DVec3> = leaves.iter().map(|l| l.centre).collect();
     let mut radii: Vec<f64> = leaves.iter().map(|l| l.radius).collect();
     let mut fits: Vec<fit::Fit> = leaves.iter().map(|l| l.fit).collect();
+    let mut rows = octree_rows;
     if params.expansion {
         let max_radius = 2.0 * half_side * 3f64.sqrt();
-        let mut expanded = expansion::expand(
-            &leaves, &centres, &radii, fits, &samples, params, max_radius, keep_rows,
+        let expanded = expansion::expand(
+            &leaves, &centres, &radii, fits, rows, &samples, params, max_radius, keep_rows,
         )?;
         fits = expanded.fit;
+        rows = expanded.rows;
         stats.fits += expanded.fits;
         stats.timings.growth = expanded.growth;
         stats.timings.elimination = expanded.elimination;
@@ -514,9 +516,6 @@ fn build(
                 radii[kept] = expanded.radius[i];
                 fits[kept] = fits[i];
                 rows.swap(kept, i);
-                if let Some(row) = expanded.rows[i].take() {
-                    rows[kept] = Some(row);
-                }
                 kept += 1;
             }
         }
