@@ -161,8 +161,10 @@ impl<'e, 'c> Search<'e, 'c> {
         cells: &[Index3],
         cache: &mut BrickCache<u32>,
     ) -> (Vec<(u32, usize)>, Vec<DVec3>) {
-        let mut targets = Vec::new();
-        let mut points = Vec::new();
+        // About two new corners per cell (a surface's cells share the others): room for
+        // that spares the lists most of their copies as they grow.
+        let mut targets = Vec::with_capacity(2 * cells.len());
+        let mut points = Vec::with_capacity(2 * cells.len());
         for &c in cells {
             for k in 0..8 {
                 let o = corner_offset(k);
