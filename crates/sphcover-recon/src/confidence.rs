@@ -201,29 +201,8 @@ pub fn sample_confidence(
 ) -> Result<SampleConfidence, ConfidenceError> {
     let index = PointIndex::new(samples)?;
     let incidence = SupportSamples::gather(cover, &index);
-    sample_confidence_indexed(cover, &index, &incidence, samples, scanner, params, |_| {
-        false
-    })
-}
-
-/// As [`sample_confidence`], over `incidence`: the samples of the cover's supports, gathered
-/// from `index`, a point index over exactly `samples` (built by [`PointIndex::new`]), so a
-/// caller that needs the incidences again (the diffusion's fitting terms) gathers them once.
-/// The supports for which `distrusted(i)` holds get confidence `τ_i = 0` (thesis §5.2.4: the
-/// supports the graph cut found inconsistent).
-pub(crate) fn sample_confidence_indexed(
-    cover: &Cover,
-    index: &PointIndex,
-    incidence: &SupportSamples,
-    samples: &[DVec3],
-    scanner: Option<&[f64]>,
-    params: &ConfidenceParams,
-    distrusted: impl Fn(usize) -> bool,
-) -> Result<SampleConfidence, ConfidenceError> {
-    check_index(cover, index, incidence, samples)?;
-    let mut support = SupportConfidence::of(cover, index, incidence);
-    support.distrust(distrusted);
-    sample_confidence_with(cover, index, incidence, samples, scanner, params, support)
+    let support = SupportConfidence::of(cover, &index, &incidence);
+    sample_confidence_with(cover, &index, &incidence, samples, scanner, params, support)
 }
 
 /// The supports' confidences `τ_i` over their samples, apart from the samples' (so that a
@@ -276,8 +255,12 @@ fn check_index(
     Ok(())
 }
 
-/// As [`sample_confidence_indexed`], with the supports' confidences `support` computed
-/// already (and the distrusted ones set to 0).
+/// As [`sample_confidence`], over `incidence`: the samples of the cover's supports, gathered
+/// from `index`, a point index over exactly `samples` (built by [`PointIndex::new`]), so a
+/// caller that needs the incidences again (the diffusion's fitting terms) gathers them once;
+/// and with the supports' confidences `support` computed already, where the supports the
+/// graph cut found inconsistent have `τ_i = 0` (thesis §5.2.4,
+/// [`SupportConfidence::distrust`]).
 pub(crate) fn sample_confidence_with(
     cover: &Cover,
     index: &PointIndex,
@@ -480,10 +463,10 @@ mod tests {
         let params = ConfidenceParams::default();
         let incidence = SupportSamples::gather(&cover, &index);
         let indexed = |distrusted: fn(usize) -> bool| {
-            sample_confidence_indexed(
-                &cover, &index, &incidence, &samples, None, &params, distrusted,
-            )
-            .unwrap()
+            let mut support = SupportConfidence::of(&cover, &index, &incidence);
+            support.distrust(distrusted);
+            sample_confidence_with(&cover, &index, &incidence, &samples, None, &params, support)
+                .unwrap()
         };
         let trusted = indexed(|_| false);
         assert_eq!(trusted.confidence, a.confidence);
@@ -500,15 +483,16 @@ mod tests {
         }
         let short_index = PointIndex::new(&samples[1..]).unwrap();
         let short = SupportSamples::gather(&cover, &short_index);
+        let support = SupportConfidence::of(&cover, &short_index, &short);
         assert_eq!(
-            sample_confidence_indexed(
+            sample_confidence_with(
                 &cover,
                 &short_index,
                 &short,
                 &samples,
                 None,
                 &params,
-                |_| false
+                support
             )
             .unwrap_err(),
             ConfidenceError::IndexMismatch {
